@@ -1,0 +1,213 @@
+"""Mindlin (Reissner-Mindlin) plate: 4-node quadrilateral elements on a rectangular mesh.
+
+Formulation after Ferreira, *MATLAB Codes for Finite Element Analysis* (2008), as used by
+the thesis (TH 2.1): three DOFs per node ``(w, rx, ry)`` with in-plane displacements
+``u = z rx``, ``v = z ry``; bending by 2 x 2 Gauss points, transverse shear by one point
+(reduced integration against shear locking), shear correction factor 5/6, consistent
+mass with translational ``rho t`` and rotary ``rho t^3 / 12`` inertia.
+
+Surface strains (z = t/2): ``{e_x, e_y, g_xy} = z B_f u`` with the bending
+strain-displacement matrix ``B_f``; nodal strains average the element-corner values over
+the elements sharing the node.  Strain outputs are ordered all ``e_x``, then all ``e_y``,
+then all ``g_xy`` (TH: dofs 1..121, 122..242, 243..363 on the 10 x 10 mesh).
+
+Node numbering (TH, IMP): ``n = (iy - 1) (nx + 1) + ix`` with ``ix = 1..nx+1`` along x and
+``iy = 1..ny+1`` along y; the origin is node 1.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..exceptions import ModelError
+from ..structure import Structure
+
+_GAUSS2 = np.array([-1.0, 1.0]) / np.sqrt(3.0)
+_CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+EDGES = ("x0", "x1", "y0", "y1")
+
+
+def _shape(xi, eta):
+    """Bilinear shape functions and their natural derivatives at (xi, eta)."""
+    N = 0.25 * (1 + _CORNERS[:, 0] * xi) * (1 + _CORNERS[:, 1] * eta)
+    dN_dxi = 0.25 * _CORNERS[:, 0] * (1 + _CORNERS[:, 1] * eta)
+    dN_deta = 0.25 * _CORNERS[:, 1] * (1 + _CORNERS[:, 0] * xi)
+    return N, dN_dxi, dN_deta
+
+
+def _bending_B(dNx, dNy):
+    """Curvature matrix B_f (3 x 12): rows d(rx)/dx, d(ry)/dy, d(rx)/dy + d(ry)/dx."""
+    B = np.zeros((3, 12))
+    B[0, 1::3] = dNx
+    B[1, 2::3] = dNy
+    B[2, 1::3] = dNy
+    B[2, 2::3] = dNx
+    return B
+
+
+def rectangular_element(a, b, thickness, E, nu, rho, shear_factor=5.0 / 6.0):
+    """Stiffness and mass (12 x 12) of an a x b rectangular Mindlin element (m, Pa, kg/m^3),
+    DOFs ``[w1, rx1, ry1, ..., w4, rx4, ry4]`` counter-clockwise from the lower-left corner."""
+    t = thickness
+    Db = E * t ** 3 / (12 * (1 - nu ** 2)) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
+    Ds = shear_factor * E / (2 * (1 + nu)) * t * np.eye(2)
+    detJ = a * b / 4.0
+    inertia = rho * np.array([t, t ** 3 / 12, t ** 3 / 12])
+    K = np.zeros((12, 12))
+    M = np.zeros((12, 12))
+    for xi in _GAUSS2:
+        for eta in _GAUSS2:
+            N, dxi, deta = _shape(xi, eta)
+            Bb = _bending_B(dxi * 2 / a, deta * 2 / b)
+            K += Bb.T @ Db @ Bb * detJ
+            Nm = np.zeros((3, 12))
+            for k in range(3):
+                Nm[k, k::3] = N
+            M += Nm.T @ (inertia[:, None] * Nm) * detJ
+    N, dxi, deta = _shape(0.0, 0.0)
+    Bs = np.zeros((2, 12))
+    Bs[0, 0::3] = dxi * 2 / a
+    Bs[0, 1::3] = N
+    Bs[1, 0::3] = deta * 2 / b
+    Bs[1, 2::3] = N
+    K += Bs.T @ Ds @ Bs * detJ * 4.0  # one-point rule, weight 4
+    return K, M
+
+
+def _corner_strain_B(a, b, thickness):
+    """Surface strain matrices ``(t/2) B_f`` at the four element corners, shape (4, 3, 12)."""
+    out = np.zeros((4, 3, 12))
+    for c, (xi, eta) in enumerate(_CORNERS):
+        _, dxi, deta = _shape(xi, eta)
+        out[c] = 0.5 * thickness * _bending_B(dxi * 2 / a, deta * 2 / b)
+    return out
+
+
+def _edge_nodes(edge, nx, ny):
+    """0-based nodes on one edge: 'x0' (x = 0), 'x1' (x = lx), 'y0' (y = 0), 'y1' (y = ly)."""
+    ix, iy = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1))
+    ids = iy * (nx + 1) + ix
+    sel = {"x0": ix == 0, "x1": ix == nx, "y0": iy == 0, "y1": iy == ny}
+    if edge not in sel:
+        raise ModelError(f"unknown edge {edge!r}; use one of {EDGES}")
+    return np.sort(ids[sel[edge]])
+
+
+def _as_edges(value, what):
+    if value is None:
+        return ()
+    edges = (value,) if isinstance(value, str) else tuple(value)
+    for e in edges:
+        if e not in EDGES:
+            raise ModelError(f"{what}: unknown edge {e!r}; use one of {EDGES}")
+    return edges
+
+
+def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01,
+          simply_supported_edges=None, name=None):
+    """Rectangular Mindlin plate on an ``nx`` x ``ny`` element mesh.
+
+    Parameters
+    ----------
+    nx, ny : int
+        Elements along x and y.
+    lx, ly, thickness : float
+        Plate size and thickness (m).
+    E, nu, rho : float
+        Young's modulus (Pa), Poisson's ratio, density (kg/m^3).
+    clamped_edge : str or sequence of str or None
+        Edge(s) with all DOFs fixed: ``"x0"`` (x = 0), ``"x1"`` (x = lx), ``"y0"`` (y = 0),
+        ``"y1"`` (y = ly).
+    damping : see :class:`~core_akf.structure.Structure` (default 1 % modal, TH)
+    simply_supported_edges : str or sequence of str, optional
+        Hard simple supports: ``w`` and the rotation along the edge fixed.
+    """
+    nx, ny = int(nx), int(ny)
+    if nx < 1 or ny < 1:
+        raise ModelError(f"the mesh needs at least one element each way, got {nx} x {ny}")
+    for label, v in (("lx", lx), ("ly", ly), ("thickness", thickness), ("E", E), ("rho", rho)):
+        if not np.isfinite(v) or v <= 0:
+            raise ModelError(f"{label} must be a positive number, got {v!r}")
+    if not -1 < nu < 0.5:
+        raise ModelError(f"Poisson's ratio must be in (-1, 0.5), got {nu!r}")
+    a, b = lx / nx, ly / ny
+    Ke, Me = rectangular_element(a, b, thickness, E, nu, rho)
+    Bc = _corner_strain_B(a, b, thickness)
+
+    n_nodes = (nx + 1) * (ny + 1)
+    X, Y = np.meshgrid(np.linspace(0, lx, nx + 1), np.linspace(0, ly, ny + 1))
+    nodes = np.column_stack([X.ravel(), Y.ravel()])
+    ex, ey = np.meshgrid(np.arange(nx), np.arange(ny))
+    n1 = (ey * (nx + 1) + ex).ravel()
+    conn = np.column_stack([n1, n1 + 1, n1 + nx + 2, n1 + nx + 1])  # (n_el, 4), counter-clockwise
+    edofs = (3 * conn[:, :, None] + np.arange(3)).reshape(-1, 12)
+
+    n_full = 3 * n_nodes
+    K = np.zeros((n_full, n_full))
+    M = np.zeros((n_full, n_full))
+    rows = np.repeat(edofs, 12, axis=1)
+    cols = np.tile(edofs, (1, 12))
+    np.add.at(K, (rows, cols), np.broadcast_to(Ke.ravel(), rows.shape))
+    np.add.at(M, (rows, cols), np.broadcast_to(Me.ravel(), rows.shape))
+
+    # nodal strains: average the corner values of all elements sharing a node
+    S = np.zeros((3, n_nodes, n_full))
+    count = np.bincount(conn.ravel(), minlength=n_nodes).astype(float)
+    for c in range(4):
+        for comp in range(3):
+            np.add.at(S[comp], (np.repeat(conn[:, c], 12), edofs.ravel()),
+                      np.tile(Bc[c, comp], conn.shape[0]))
+    S /= count[None, :, None]
+    S = S.reshape(3 * n_nodes, n_full)
+
+    fixed = set()
+    for e in _as_edges(clamped_edge, "clamped_edge"):
+        for nd in _edge_nodes(e, nx, ny):
+            fixed.update(3 * nd + np.arange(3))
+    for e in _as_edges(simply_supported_edges, "simply_supported_edges"):
+        tangential = 2 if e.startswith("x") else 1  # along x = const the edge runs in y: fix ry
+        for nd in _edge_nodes(e, nx, ny):
+            fixed.update((3 * nd, 3 * nd + tangential))
+    free = np.setdiff1d(np.arange(n_full), sorted(fixed))
+    ix = np.ix_(free, free)
+    return Structure(M=M[ix], K=K[ix], damping=damping, nodes=nodes, dof_names=("w", "rx", "ry"),
+                     free_dofs=free, strain_matrix=S[:, free], strain_kind="node",
+                     name=name or f"plate {nx}x{ny}",
+                     meta=dict(K_full=K, M_full=M, nx=nx, ny=ny, lx=lx, ly=ly, thickness=thickness,
+                               E=E, nu=nu, rho=rho, clamped_edge=clamped_edge))
+
+
+def uniform_pressure_load(structure, q):
+    """Consistent nodal forces (N) of a uniform pressure ``q`` (Pa) on a plate, in free DOFs."""
+    meta = structure.meta
+    nx, ny = meta["nx"], meta["ny"]
+    area = meta["lx"] / nx * meta["ly"] / ny
+    wts = np.zeros((ny + 1, nx + 1))
+    wts[:-1, :-1] += 1
+    wts[:-1, 1:] += 1
+    wts[1:, :-1] += 1
+    wts[1:, 1:] += 1
+    f_full = np.zeros(3 * structure.n_nodes)
+    f_full[0::3] = q * area / 4.0 * wts.ravel()
+    return f_full[structure.free_dofs]
+
+
+# Thesis plate (TH 3): 40.64 cm x 30.48 cm x 0.3175 cm steel, clamped along the long edge y = 0.
+TH_PLATE = dict(lx=0.4064, ly=0.3048, thickness=0.003175, E=200e9, nu=0.3, rho=7800.0)
+
+
+def th_plate(nx=10, ny=10, rho=TH_PLATE["rho"], damping=0.01):
+    """The thesis plate: 10 x 10 mesh, clamped long edge (nodes 1-11), 1 % modal damping."""
+    p = dict(TH_PLATE, rho=rho)
+    return plate(nx, ny, p["lx"], p["ly"], p["thickness"], p["E"], p["nu"], p["rho"],
+                 clamped_edge="y0", damping=damping, name=f"TH plate {nx}x{ny}")
+
+
+def imp_plate(damping=0.01):
+    """The IMP cantilever plate: 5 x 5 elements (36 nodes, 108 DOFs before supports).
+
+    IMP gives no dimensions; we take the thesis plate's size, material and thickness with
+    the short edge x = lx clamped (nodes 6, 12, ..., 36 as in IMP Fig. 18).
+    """
+    p = TH_PLATE
+    return plate(5, 5, p["lx"], p["ly"], p["thickness"], p["E"], p["nu"], p["rho"],
+                 clamped_edge="x1", damping=damping, name="IMP plate 5x5")

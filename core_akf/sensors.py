@@ -1,0 +1,157 @@
+"""Heterogeneous sensors and sensor layouts.
+
+A :class:`Sensor` is addressed by user ids, 1-based as in the papers:
+
+* ``Sensor("acc", node=4, direction="y")`` -- acceleration (m/s^2); likewise ``"vel"`` (m/s)
+  and ``"disp"`` (m, or rad for plate rotations);
+* ``Sensor("strain", member=5)`` -- axial strain of truss member 5;
+* ``Sensor("strain", node=70, component="ex")`` -- plate surface strain at node 70.
+
+The short string form used in job files is ``"acc:4:y"``, ``"strain:5"`` (truss member),
+``"strain:70:ex"`` (plate).  :func:`selection_matrices` turns a layout into the
+``S_a, S_v, S_d, S_s`` matrices of DESIGN A2 in a structure's generalised coordinates.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .exceptions import AKFInputError
+from .structure import STRAIN_COMPONENTS
+
+KINDS = ("strain", "acc", "vel", "disp")
+#: units of each sensor kind (for labels and reports)
+UNITS = {"strain": "m/m", "acc": "m/s^2", "vel": "m/s", "disp": "m"}
+_ALIASES = {"accel": "acc", "acceleration": "acc", "a": "acc", "velocity": "vel", "v": "vel",
+            "displacement": "disp", "d": "disp", "s": "strain", "eps": "strain"}
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """One sensor: ``kind`` in ``("strain", "acc", "vel", "disp")`` plus its location."""
+
+    kind: str
+    node: int | None = None
+    direction: str | None = None
+    member: int | None = None
+    component: str | None = None
+
+    def __post_init__(self):
+        kind = _ALIASES.get(str(self.kind).lower(), str(self.kind).lower())
+        if kind not in KINDS:
+            raise AKFInputError(f"unknown sensor kind {self.kind!r}; use one of {KINDS}")
+        object.__setattr__(self, "kind", kind)
+        if kind == "strain":
+            if (self.member is None) == (self.node is None):
+                raise AKFInputError(f"a strain sensor needs either member= (truss) or node= and component= (plate): {self!r}")
+            if self.node is not None and self.component not in STRAIN_COMPONENTS:
+                raise AKFInputError(f"plate strain sensor at node {self.node} needs component in {STRAIN_COMPONENTS}, got {self.component!r}")
+        else:
+            if self.node is None or self.direction is None:
+                raise AKFInputError(f"a {kind} sensor needs node= and direction=: {self!r}")
+
+    @classmethod
+    def parse(cls, spec):
+        """Build a sensor from ``"acc:4:y"``, ``"strain:5"``, ``"strain:70:ex"``, a dict or a Sensor."""
+        if isinstance(spec, Sensor):
+            return spec
+        if isinstance(spec, dict):
+            try:
+                return cls(**spec)
+            except TypeError as exc:
+                raise AKFInputError(f"bad sensor {spec!r}: {exc}") from None
+        if not isinstance(spec, str):
+            raise AKFInputError(f"a sensor is a 'kind:...' string, a dict or a Sensor, got {spec!r}")
+        parts = [p.strip() for p in spec.split(":")]
+        kind = _ALIASES.get(parts[0].lower(), parts[0].lower())
+        try:
+            if kind == "strain" and len(parts) == 2:
+                return cls("strain", member=int(parts[1]))
+            if kind == "strain" and len(parts) == 3:
+                return cls("strain", node=int(parts[1]), component=parts[2])
+            if kind in KINDS and len(parts) == 3:
+                return cls(kind, node=int(parts[1]), direction=parts[2])
+        except ValueError:
+            pass
+        raise AKFInputError(
+            f"cannot read sensor {spec!r}; write e.g. 'acc:4:y', 'strain:5' (truss member) or 'strain:70:ex' (plate)"
+        )
+
+    @property
+    def label(self):
+        """Short id, e.g. ``acc:4:y`` -- the same string :meth:`parse` reads."""
+        if self.kind == "strain":
+            return f"strain:{self.member}" if self.member is not None else f"strain:{self.node}:{self.component}"
+        return f"{self.kind}:{self.node}:{self.direction}"
+
+    def __str__(self):
+        return self.label
+
+
+def as_layout(sensors):
+    """A tuple of :class:`Sensor` from any sensor specs; rejects empty and duplicate sets."""
+    if isinstance(sensors, (str, Sensor, dict)):
+        sensors = [sensors]
+    layout = tuple(Sensor.parse(s) for s in sensors)
+    if not layout:
+        raise AKFInputError("the sensor layout is empty")
+    seen = {}
+    for i, s in enumerate(layout):
+        if s in seen:
+            raise AKFInputError(f"duplicate sensor {s.label} (positions {seen[s] + 1} and {i + 1} in the layout)")
+        seen[s] = i
+    return layout
+
+
+def selection_matrices(structure, sensors):
+    """The observation selection matrices of DESIGN A2 for a layout.
+
+    Returns
+    -------
+    dict with ``"acc"``, ``"vel"``, ``"disp"``, ``"strain"`` -> ndarray, shape (n_m, n)
+        One row per sensor (in layout order), zero where the sensor is of another kind.
+    """
+    layout = as_layout(sensors)
+    n = structure.n
+    out = {k: np.zeros((len(layout), n)) for k in KINDS}
+    for i, s in enumerate(layout):
+        if s.kind == "strain":
+            key = s.member if s.member is not None else (s.node, s.component)
+            if (s.member is not None) != (structure.strain_kind == "member"):
+                want = "member=" if structure.strain_kind == "member" else "node= and component="
+                raise AKFInputError(f"sensor {s.label}: strains on {structure.name!r} are addressed by {want}")
+            out["strain"][i] = structure.strain_rows([key])[0]
+        else:
+            out[s.kind][i] = structure.dof_rows([(s.node, s.direction)])[0]
+    return out
+
+
+def parse_force_locations(structure, forces):
+    """Force locations as ``[(node, direction), ...]`` from ``"4:y"`` strings or pairs.
+
+    Checks each against the structure (unknown node, constrained DOF) and for duplicates.
+    """
+    if isinstance(forces, str):
+        forces = [forces]
+    locs = []
+    for f in forces:
+        if isinstance(f, str):
+            parts = f.split(":")
+            if len(parts) != 2:
+                raise AKFInputError(f"cannot read force location {f!r}; write e.g. '4:y' (node 4, direction y)")
+            try:
+                f = (int(parts[0]), parts[1].strip())
+            except ValueError:
+                raise AKFInputError(f"cannot read force location {f!r}; the node must be an integer") from None
+        try:
+            node, d = f
+        except (TypeError, ValueError):
+            raise AKFInputError(f"a force location is (node, direction) or 'node:direction', got {f!r}") from None
+        structure.dof_index(node, d)
+        if (node, d) in locs:
+            raise AKFInputError(f"duplicate force location {node}:{d}")
+        locs.append((int(node), d))
+    if not locs:
+        raise AKFInputError("no force locations given")
+    return locs

@@ -1,0 +1,257 @@
+"""State space of a structure with unknown inputs: continuous model, zero-order-hold
+discretisation, heterogeneous observation matrices ``G``/``D``, augmentation with a
+random-walk force model and the PBH detectability test (DESIGN A1-A4).
+
+Everything that derives these matrices lives here; the filter, the simulator and the
+optimisers call these functions instead of re-deriving them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from ._validate import as_finite_array
+from .exceptions import AKFInputError, UndetectableError
+from .sensors import as_layout, parse_force_locations, selection_matrices
+
+
+def _minv(structure):
+    """Cholesky factor of M (M is SPD by construction of :class:`Structure`)."""
+    return scipy.linalg.cho_factor(structure.M)
+
+
+def force_selection(structure, forces):
+    """``S_p`` (n x n_p): unit loads at the force locations, in generalised coordinates."""
+    locs = parse_force_locations(structure, forces)
+    return structure.dof_rows(locs).T
+
+
+def continuous(structure, forces):
+    """Continuous-time ``A_c`` (2n x 2n) and ``B_c`` (2n x n_p) for state ``x = [u; u']``."""
+    n = structure.n
+    Sp = force_selection(structure, forces)
+    cf = _minv(structure)
+    MiK = scipy.linalg.cho_solve(cf, structure.K)
+    MiC = scipy.linalg.cho_solve(cf, structure.C)
+    MiSp = scipy.linalg.cho_solve(cf, Sp)
+    A_c = np.zeros((2 * n, 2 * n))
+    A_c[:n, n:] = np.eye(n)
+    A_c[n:, :n] = -MiK
+    A_c[n:, n:] = -MiC
+    B_c = np.vstack([np.zeros_like(MiSp), MiSp])
+    return A_c, B_c
+
+
+def zoh(A_c, B_c, dt):
+    """Zero-order-hold discretisation from one block exponential.
+
+    ``expm([[A_c, B_c], [0, 0]] dt) = [[A, B], [0, I]]``: no inverse of ``A_c`` needed.
+    Returns ``A`` (n_x x n_x) and ``B`` (n_x x n_u).
+    """
+    dt = float(dt)
+    if not np.isfinite(dt) or dt <= 0:
+        raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
+    nx, nu = B_c.shape
+    blk = np.zeros((nx + nu, nx + nu))
+    blk[:nx, :nx] = A_c
+    blk[:nx, nx:] = B_c
+    E = scipy.linalg.expm(blk * dt)
+    return E[:nx, :nx], E[:nx, nx:]
+
+
+def van_loan(A_c, Q_c, dt):
+    """Discrete process-noise covariance ``Q = int_0^dt e^{A t} Q_c e^{A^T t} dt`` (Van Loan)."""
+    n = A_c.shape[0]
+    blk = np.zeros((2 * n, 2 * n))
+    blk[:n, :n] = -A_c
+    blk[:n, n:] = Q_c
+    blk[n:, n:] = A_c.T
+    E = scipy.linalg.expm(blk * dt)
+    Ad = E[n:, n:].T
+    Q = Ad @ E[:n, n:]
+    return 0.5 * (Q + Q.T)
+
+
+def observation(structure, sensors, forces):
+    """``G`` (n_m x 2n) and ``D`` (n_m x n_p) of ``y = G x + D f`` (DESIGN A2).
+
+    ``G = [S_s + S_d - S_a M^-1 K, S_v - S_a M^-1 C]``, ``D = S_a M^-1 S_p``.
+    """
+    S = selection_matrices(structure, sensors)
+    Sp = force_selection(structure, forces)
+    cf = _minv(structure)
+    Sa_Mi = scipy.linalg.cho_solve(cf, S["acc"].T).T  # S_a M^-1
+    G = np.hstack([S["strain"] + S["disp"] - Sa_Mi @ structure.K, S["vel"] - Sa_Mi @ structure.C])
+    D = Sa_Mi @ Sp
+    return G, D
+
+
+def augment(A, B, G, D):
+    """Augmented matrices for the random-walk force model (DESIGN A3).
+
+    ``A_a = [[A, B], [0, I]]`` and ``G_a = [G, D]``.
+    """
+    nx, nu = B.shape
+    A_a = np.zeros((nx + nu, nx + nu))
+    A_a[:nx, :nx] = A
+    A_a[:nx, nx:] = B
+    A_a[nx:, nx:] = np.eye(nu)
+    return A_a, np.hstack([G, D])
+
+
+# ---------------------------------------------------------------------------- detectability
+@dataclass
+class DetectabilityReport:
+    """Result of the PBH test on the continuous augmented pair ``(A_ac, H_ac)``.
+
+    ``failures`` lists, for each critical eigenvalue ``s`` (Re s >= 0, including the
+    force states' ``s = 0``) where ``[[sI - A_ac], [H_ac]]`` loses column rank, the
+    eigenvalue, the relative smallest singular value and the part of the state that
+    cannot be seen.
+    """
+
+    detectable: bool
+    checked: list = field(default_factory=list)
+    failures: list = field(default_factory=list)
+    sensors: tuple = ()
+
+    def __str__(self):
+        head = "detectable" if self.detectable else "NOT detectable"
+        lines = [f"PBH test ({len(self.sensors)} sensors: {', '.join(s.label for s in self.sensors)}): {head}"]
+        for f in self.failures:
+            lines.append(
+                f"  s = {f['s']:.6g}: rank deficient (relative smallest singular value {f['sigma_rel']:.2e}); "
+                f"unseen direction mostly in {f['unseen']}"
+            )
+        if self.detectable:
+            lines.append(f"  checked {len(self.checked)} critical eigenvalue(s): all full rank")
+        return "\n".join(lines)
+
+    def __bool__(self):
+        return self.detectable
+
+
+def detectability(structure, sensors, forces, tol=1e-9):
+    """PBH detectability of the augmented system for a sensor layout (DESIGN A4).
+
+    Returns a :class:`DetectabilityReport`; its ``str`` names the failing eigenvalues.
+    """
+    layout = as_layout(sensors)
+    locs = parse_force_locations(structure, forces)
+    A_c, B_c = continuous(structure, locs)
+    G, D = observation(structure, layout, locs)
+    n, npf = A_c.shape[0], B_c.shape[1]
+    A_ac = np.zeros((n + npf, n + npf))
+    A_ac[:n, :n] = A_c
+    A_ac[:n, n:] = B_c
+    H = np.hstack([G, D])
+    eig = np.linalg.eigvals(A_c)
+    crit = [0.0] + [s for s in eig if s.real >= -tol * max(1.0, abs(s))]
+    distinct = []
+    for s in crit:
+        if s.imag < 0 and any(abs(s.conjugate() - d) <= 1e-8 * max(1, abs(s)) for d in distinct):
+            continue
+        if not any(abs(s - d) <= 1e-8 * max(1, abs(s)) for d in distinct):
+            distinct.append(s)
+    checked, failures = [], []
+    nu = structure.n
+    for s in distinct:
+        pbh = np.vstack([s * np.eye(n + npf) - A_ac, H]).astype(complex)
+        # scale rows and columns to unit size before judging the rank (strain rows are
+        # O(1), acceleration rows O(omega^2): unscaled, the rank test would be meaningless)
+        scaled = pbh
+        r = np.linalg.norm(scaled, axis=1)
+        r[r == 0] = 1
+        scaled = scaled / r[:, None]
+        c = np.linalg.norm(scaled, axis=0)
+        c[c == 0] = 1
+        scaled = scaled / c[None, :]
+        _, sv, vh = np.linalg.svd(scaled)
+        rel = sv[-1] / sv[0]
+        checked.append(complex(s))
+        if rel < tol:
+            v = np.abs(vh[-1].conj() / c)
+            v = v / max(v.max(), 1e-300)
+            parts = {"displacements": v[:nu].max(), "velocities": v[nu:2 * nu].max(), "forces": v[n:].max()}
+            unseen = ", ".join(k for k, val in parts.items() if val > 1e-3)
+            failures.append(dict(s=complex(s) if abs(s.imag) > 0 else float(s.real), sigma_rel=float(rel),
+                                 unseen=unseen))
+    return DetectabilityReport(detectable=not failures, checked=checked, failures=failures, sensors=layout)
+
+
+# ---------------------------------------------------------------------------- bundle
+@dataclass
+class StateSpace:
+    """Discrete augmented model of one structure, sensor layout and set of force locations.
+
+    Attributes
+    ----------
+    A, B : ndarray (2n x 2n), (2n x n_p)
+        ZOH-discretised structural model for step ``dt`` (s).
+    G, D : ndarray (n_m x 2n), (n_m x n_p)
+        Observation ``y_k = G x_k + D f_k``.
+    A_a, G_a : ndarray (n_a x n_a), (n_m x n_a)
+        Augmented transition and observation, ``n_a = 2n + n_p``.
+    """
+
+    structure: object
+    sensors: tuple
+    forces: list
+    dt: float
+    A: np.ndarray
+    B: np.ndarray
+    G: np.ndarray
+    D: np.ndarray
+    A_a: np.ndarray
+    G_a: np.ndarray
+
+    @property
+    def n_states(self):
+        return self.A.shape[0]
+
+    @property
+    def n_forces(self):
+        return self.B.shape[1]
+
+    @property
+    def n_aug(self):
+        return self.A_a.shape[0]
+
+
+def state_space(structure, sensors, forces, dt):
+    """Build the discrete augmented :class:`StateSpace` (validates every id once)."""
+    layout = as_layout(sensors)
+    locs = parse_force_locations(structure, forces)
+    A_c, B_c = continuous(structure, locs)
+    A, B = zoh(A_c, B_c, dt)
+    G, D = observation(structure, layout, locs)
+    A_a, G_a = augment(A, B, G, D)
+    return StateSpace(structure, layout, locs, float(dt), A, B, G, D, A_a, G_a)
+
+
+def check_detectable(structure, sensors, forces, allow_undetectable=False):
+    """Raise :class:`UndetectableError` for an undetectable set unless allowed; return the report."""
+    report = detectability(structure, sensors, forces)
+    if not report.detectable and not allow_undetectable:
+        raise UndetectableError(report)
+    return report
+
+
+def diag_levels(level, size, name):
+    """A covariance matrix from a scalar level, a vector of variances or a full matrix."""
+    arr = as_finite_array(level, name)
+    if arr.ndim == 0:
+        out = float(arr) * np.eye(size)
+    elif arr.ndim == 1:
+        if arr.size != size:
+            raise AKFInputError(f"{name} has {arr.size} variances; expected {size}")
+        out = np.diag(arr)
+    elif arr.shape == (size, size):
+        out = arr
+    else:
+        raise AKFInputError(f"{name} must be a scalar, a vector of {size} variances or a {size}x{size} matrix; got shape {arr.shape}")
+    if np.any(np.diag(out) < 0):
+        raise AKFInputError(f"{name} has negative variances")
+    return out

@@ -1,0 +1,287 @@
+"""The :class:`Structure`: mass, stiffness and damping matrices with the map from
+user ids (1-based node/joint numbers and directions, member numbers, strain
+components) to matrix rows and columns.
+
+A structure is either *full* (generalised coordinates are the free physical DOFs)
+or *modally reduced* (generalised coordinates are modal amplitudes ``q`` with
+``u = basis @ q``).  Sensors, strains and force locations are always given by user
+id; :meth:`Structure.dof_rows` and :meth:`Structure.strain_rows` return the rows in
+generalised coordinates, so the rest of the toolkit never needs to know which kind
+of structure it holds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.linalg
+
+from ._validate import as_finite_array, check_positive_definite, check_square_symmetric
+from .exceptions import AKFInputError, ModelError
+
+STRAIN_COMPONENTS = ("ex", "ey", "gxy")
+
+
+def _damping_matrix(M, K, damping, omega, phi):
+    """Damping matrix from a damping spec (see :class:`Structure`)."""
+    if damping is None:
+        return np.zeros_like(M)
+    if isinstance(damping, (tuple, list)) and len(damping) == 3 and str(damping[0]).lower() == "rayleigh":
+        alpha, beta = float(damping[1]), float(damping[2])
+        return alpha * M + beta * K
+    zeta = np.asarray(damping, dtype=float)
+    if zeta.ndim > 1 or (zeta.ndim == 1 and zeta.size != omega.size):
+        raise AKFInputError(
+            f"damping must be a modal damping ratio (scalar or one per mode, {omega.size}) "
+            f"or ('rayleigh', alpha, beta); got {damping!r}"
+        )
+    if np.any(zeta < 0) or np.any(~np.isfinite(zeta)):
+        raise AKFInputError(f"damping ratios must be finite and >= 0, got {damping!r}")
+    # C = M Phi diag(2 zeta omega) Phi^T M with mass-normalised Phi
+    mphi = M @ phi
+    C = (mphi * (2.0 * zeta * omega)) @ mphi.T
+    return 0.5 * (C + C.T)
+
+
+@dataclass(eq=False)
+class Structure:
+    """A linear structural model ``M u'' + C u' + K u = S_p f`` (SI units).
+
+    Parameters
+    ----------
+    M, K : ndarray, shape (n, n)
+        Mass (kg, kg m^2) and stiffness (N/m, N m/rad) in generalised coordinates.
+    damping : float, array, ('rayleigh', alpha, beta) or None
+        Modal damping ratio (one for all modes or one per mode), Rayleigh
+        coefficients, or no damping.  Ignored if ``C`` is given.
+    nodes : ndarray, shape (n_nodes, 2)
+        Node (joint) coordinates in m; user node id ``i`` is row ``i - 1``.
+    dof_names : tuple of str
+        Names of the DOFs per node, e.g. ``("x", "y")`` (truss) or ``("w", "rx", "ry")`` (plate).
+    free_dofs : ndarray of int
+        Full physical DOF indices ``(node-1)*ndof + d`` that are not constrained, in the
+        order of the physical free coordinates.
+    strain_matrix : ndarray, shape (n_strain, n_phys)
+        Maps free physical displacements to strains (truss: member strains; plate:
+        surface strains at nodes, all e_x, then all e_y, then all g_xy).
+    strain_kind : {"member", "node"}
+        How strains are addressed: by member number, or by (node, component).
+    members : ndarray, shape (n_members, 2), optional
+        0-based end nodes of the bar members (truss only).
+    basis : ndarray, shape (n_phys, n), optional
+        ``u_phys = basis @ q`` for a modally reduced structure; ``None`` for a full one.
+    """
+
+    M: np.ndarray
+    K: np.ndarray
+    damping: object = None
+    nodes: np.ndarray = None
+    dof_names: tuple = ()
+    free_dofs: np.ndarray = None
+    strain_matrix: np.ndarray = None
+    strain_kind: str = "member"
+    members: np.ndarray = None
+    basis: np.ndarray = None
+    C: np.ndarray = None
+    name: str = ""
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.M = as_finite_array(self.M, "mass matrix M", ndim=2)
+        self.K = as_finite_array(self.K, "stiffness matrix K", ndim=2)
+        check_positive_definite(self.M, "mass matrix M")
+        check_square_symmetric(self.K, "stiffness matrix K")
+        if self.K.shape != self.M.shape:
+            raise ModelError(f"K has shape {self.K.shape} but M has shape {self.M.shape}")
+        self.nodes = np.asarray(self.nodes, dtype=float)
+        self.dof_names = tuple(self.dof_names)
+        self.free_dofs = np.asarray(self.free_dofs, dtype=int)
+        n_full = self.nodes.shape[0] * len(self.dof_names)
+        self._free_index = np.full(n_full, -1, dtype=int)
+        self._free_index[self.free_dofs] = np.arange(self.free_dofs.size)
+        n_phys = self.free_dofs.size
+        if self.basis is None and n_phys != self.n:
+            raise ModelError(f"{n_phys} free DOFs but matrices of size {self.n}")
+        if self.basis is not None and self.basis.shape != (n_phys, self.n):
+            raise ModelError(f"basis must have shape ({n_phys}, {self.n}), got {self.basis.shape}")
+        if self.strain_matrix is not None and self.strain_matrix.shape[1] != n_phys:
+            raise ModelError("strain_matrix must have one column per free physical DOF")
+        if self.C is None:
+            omega, phi = self._eig
+            self.C = _damping_matrix(self.M, self.K, self.damping, omega, phi)
+        else:
+            self.C = as_finite_array(self.C, "damping matrix C", ndim=2)
+            check_square_symmetric(self.C, "damping matrix C")
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n(self):
+        """Number of generalised coordinates."""
+        return self.M.shape[0]
+
+    @property
+    def n_nodes(self):
+        return self.nodes.shape[0]
+
+    @property
+    def n_strain(self):
+        """Number of strain outputs (members, or 3 components x nodes)."""
+        return 0 if self.strain_matrix is None else self.strain_matrix.shape[0]
+
+    @property
+    def is_reduced(self):
+        return self.basis is not None
+
+    # ------------------------------------------------------------------ modes
+    @cached_property
+    def _eig(self):
+        w2, phi = scipy.linalg.eigh(self.K, self.M)
+        if w2[0] < -1e-8 * max(abs(w2[-1]), 1.0):
+            raise ModelError(f"K is not positive semi-definite (eigenvalue {w2[0]:.3g})")
+        return np.sqrt(np.clip(w2, 0.0, None)), phi
+
+    def frequencies(self, k=None):
+        """First ``k`` undamped natural frequencies in Hz (all if ``k`` is None)."""
+        omega = self._eig[0]
+        if k is not None:
+            if not 1 <= int(k) <= omega.size:
+                raise AKFInputError(f"k must be between 1 and {omega.size}, got {k}")
+            omega = omega[: int(k)]
+        return omega / (2.0 * np.pi)
+
+    def modes(self, k=None):
+        """First ``k`` mass-normalised mode shapes, shape (n_phys, k), in physical free DOFs."""
+        phi = self._eig[1][:, :k]
+        return phi if self.basis is None else self.basis @ phi
+
+    # ------------------------------------------------------------------ id maps
+    def _node_index(self, node):
+        try:
+            node_int = int(node)
+        except (TypeError, ValueError):
+            raise AKFInputError(f"node id must be an integer, got {node!r}") from None
+        if node_int != node or not 1 <= node_int <= self.n_nodes:
+            raise AKFInputError(f"unknown node/joint {node!r}: this structure has nodes 1..{self.n_nodes}")
+        return node_int - 1
+
+    def dof_index(self, node, direction):
+        """0-based index of the free physical DOF (``node`` 1-based, ``direction`` a DOF name)."""
+        i = self._node_index(node)
+        if direction not in self.dof_names:
+            raise AKFInputError(
+                f"unknown direction {direction!r} at node {node}; this structure has {self.dof_names}"
+            )
+        full = i * len(self.dof_names) + self.dof_names.index(direction)
+        idx = self._free_index[full]
+        if idx < 0:
+            raise AKFInputError(f"DOF {direction!r} of node {node} is constrained (a support): no response there")
+        return int(idx)
+
+    def dof_rows(self, locations):
+        """Selection rows, shape (len(locations), n), mapping generalised coordinates to the
+        physical DOFs ``[(node, direction), ...]``."""
+        idx = [self.dof_index(node, d) for node, d in locations]
+        if self.basis is None:
+            rows = np.zeros((len(idx), self.n))
+            rows[np.arange(len(idx)), idx] = 1.0
+            return rows
+        return self.basis[idx].copy()
+
+    def strain_index(self, key):
+        """Row of the strain output for ``key``: a member number (truss) or ``(node, component)``
+        with component in ``("ex", "ey", "gxy")`` (plate)."""
+        if self.strain_matrix is None:
+            raise AKFInputError("this structure has no strain operator")
+        if self.strain_kind == "member":
+            try:
+                m = int(key)
+            except (TypeError, ValueError):
+                raise AKFInputError(f"truss strains are addressed by member number, got {key!r}") from None
+            if m != key or not 1 <= m <= self.n_strain:
+                raise AKFInputError(f"unknown member {key!r}: this truss has members 1..{self.n_strain}")
+            return m - 1
+        try:
+            node, comp = key
+        except (TypeError, ValueError):
+            raise AKFInputError(f"plate strains are addressed as (node, component), got {key!r}") from None
+        if comp not in STRAIN_COMPONENTS:
+            raise AKFInputError(f"unknown strain component {comp!r}; use one of {STRAIN_COMPONENTS}")
+        return STRAIN_COMPONENTS.index(comp) * self.n_nodes + self._node_index(node)
+
+    def strain_rows(self, keys):
+        """Strain rows in generalised coordinates, shape (len(keys), n)."""
+        idx = [self.strain_index(k) for k in keys]
+        return self.strain_operator[idx]
+
+    @cached_property
+    def strain_operator(self):
+        """All strains from generalised coordinates, shape (n_strain, n)."""
+        if self.strain_matrix is None:
+            return np.zeros((0, self.n))
+        return self.strain_matrix if self.basis is None else self.strain_matrix @ self.basis
+
+    @property
+    def strain_labels(self):
+        """Labels of all strain outputs: ``m1, m2, ...`` or ``ex1, ..., ey1, ..., gxy1, ...``."""
+        if self.strain_kind == "member":
+            return [f"m{i + 1}" for i in range(self.n_strain)]
+        return [f"{c}{i + 1}" for c in STRAIN_COMPONENTS for i in range(self.n_nodes)]
+
+    # ------------------------------------------------------------------ derived structures
+    def _replace(self, **changes):
+        fields = dict(M=self.M, K=self.K, damping=self.damping, nodes=self.nodes, dof_names=self.dof_names,
+                      free_dofs=self.free_dofs, strain_matrix=self.strain_matrix, strain_kind=self.strain_kind,
+                      members=self.members, basis=self.basis, C=None, name=self.name, meta=dict(self.meta))
+        fields.update(changes)
+        return Structure(**fields)
+
+    def scaled(self, stiffness_factor=1.0, mass_factor=1.0):
+        """A copy with K (and M) multiplied by a factor; damping is rebuilt from the spec.
+
+        ``stiffness_factor=1.05`` is the papers' "5 % stiffer" model error (equivalent to a
+        5 % larger Young's modulus).
+        """
+        for name, v in (("stiffness_factor", stiffness_factor), ("mass_factor", mass_factor)):
+            if not np.isfinite(v) or v <= 0:
+                raise AKFInputError(f"{name} must be a positive number, got {v!r}")
+        changes = dict(K=self.K * stiffness_factor, M=self.M * mass_factor)
+        if self.damping is None and np.any(self.C):
+            raise AKFInputError("cannot rescale a structure with an explicit C and no damping spec")
+        return self._replace(**changes)
+
+    def reduce(self, n_modes):
+        """Modal reduction to the first ``n_modes`` modes, same sensor/strain interface.
+
+        The reduced model has ``M = I``, ``K = diag(omega^2)`` and ``C = Phi^T C Phi`` (diagonal
+        for modal damping).
+        """
+        n_modes = int(n_modes)
+        if not 1 <= n_modes <= self.n:
+            raise AKFInputError(f"n_modes must be between 1 and {self.n}, got {n_modes}")
+        omega, phi = self._eig
+        phi = phi[:, :n_modes]
+        Cr = phi.T @ self.C @ phi
+        basis = phi if self.basis is None else self.basis @ phi
+        zeta = self.damping
+        if zeta is not None and not isinstance(zeta, (tuple, list)) and np.ndim(zeta) == 1:
+            zeta = np.asarray(zeta)[:n_modes]
+        red = self._replace(M=np.eye(n_modes), K=np.diag(omega[:n_modes] ** 2), basis=basis,
+                            damping=zeta, C=0.5 * (Cr + Cr.T), name=f"{self.name} ({n_modes} modes)")
+        red.damping = zeta
+        return red
+
+    def total_mass(self, direction):
+        """Total translational mass (kg) in ``direction`` of the full, unconstrained model
+        (from ``meta['M_full']`` when the model generator stored it)."""
+        M_full = self.meta.get("M_full")
+        if M_full is None:
+            raise AKFInputError("total_mass needs the unconstrained mass matrix (meta['M_full'])")
+        ndof = len(self.dof_names)
+        r = np.zeros(M_full.shape[0])
+        r[self.dof_names.index(direction)::ndof] = 1.0
+        return float(r @ M_full @ r)
+
+    def __repr__(self):
+        kind = f"reduced to {self.n} modes" if self.is_reduced else f"{self.n} DOFs"
+        return f"<Structure {self.name!r}: {self.n_nodes} nodes, {kind}, {self.n_strain} strain outputs>"

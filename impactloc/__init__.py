@@ -1,0 +1,1 @@
+"""impactloc: impact localisation by SE/AD role search (in development)."""

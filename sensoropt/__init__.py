@@ -1,0 +1,1 @@
+"""sensoropt: GA sensor placement (in development)."""
