@@ -1,0 +1,327 @@
+"""Augmented Kalman filter (AKF) with a random-walk force model (DESIGN A3).
+
+Low level: :func:`run` / :func:`filter_states` work on the augmented matrices and a
+stack (batch) of filters at once.  High level: :func:`estimate` takes a
+:class:`~core_akf.structure.Structure`, a sensor layout, force locations, covariance
+levels and measurements and returns an :class:`Estimate` (forces, states, strains at
+every member/node, innovations); :func:`estimate_batch` does the same for many sensor
+layouts / measurement sets sharing one structure and force set.
+
+Conventions: ``X_k = [x_k; f_k]`` (``n_a = 2n + n_p``), the prior at step 0 is
+``x0`` with covariance ``P0``; each step first updates with ``y_k`` and then predicts.
+The returned states are the filtered (posterior) ones.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._validate import as_finite_array
+from .exceptions import AKFInputError
+from .riccati import steady_gain
+from .sensors import as_layout, parse_force_locations
+from .statespace import augment, check_detectable, continuous, diag_levels, observation, zoh
+
+
+def _batchify(A_a, G_a, Q_a, R, Y):
+    """Validate shapes; return arrays with a leading batch axis and the batch shape."""
+    A_a = as_finite_array(A_a, "A_a", ndim=(2, 3))
+    G_a = as_finite_array(G_a, "G_a", ndim=(2, 3))
+    Q_a = as_finite_array(Q_a, "Q_a", ndim=(2, 3))
+    R = as_finite_array(R, "R", ndim=(2, 3))
+    Y = as_finite_array(Y, "measurements Y", ndim=(2, 3))
+    n = A_a.shape[-1]
+    m = G_a.shape[-2]
+    if A_a.shape[-2] != n:
+        raise AKFInputError(f"A_a must be square, got {A_a.shape}")
+    if G_a.shape[-1] != n:
+        raise AKFInputError(f"G_a has {G_a.shape[-1]} columns; A_a has {n} states")
+    if Q_a.shape[-2:] != (n, n):
+        raise AKFInputError(f"Q_a must be {n}x{n}, got {Q_a.shape}")
+    if R.shape[-2:] != (m, m):
+        raise AKFInputError(f"R must be {m}x{m} for {m} channels, got {R.shape}")
+    if Y.shape[-1] != m:
+        raise AKFInputError(f"measurements have {Y.shape[-1]} channels but G_a has {m} rows")
+    batched = any(x.ndim == 3 for x in (A_a, G_a, Q_a, R, Y))
+    if not batched:
+        return A_a[None], G_a[None], Q_a[None], R[None], Y[None], False
+    sizes = {x.shape[0] for x in (A_a, G_a, Q_a, R, Y) if x.ndim == 3}
+    if len(sizes) > 1:
+        raise AKFInputError(f"batched inputs disagree on the batch size: {sorted(sizes)}")
+    B = sizes.pop()
+    expand = [x if x.ndim == 3 else np.broadcast_to(x, (B,) + x.shape) for x in (A_a, G_a, Q_a, R, Y)]
+    return (*expand, True)
+
+
+@dataclass
+class FilterResult:
+    """Raw output of :func:`filter_states` (leading batch axis kept if the input had one).
+
+    ``states`` (N, n_a) filtered, ``innovations`` (N, m) ``y_k - G_a X_k^-``;
+    ``gain`` (n_a, m) and ``P_prior`` (n_a, n_a) for the steady-state filter, else the last ones.
+    """
+
+    states: np.ndarray
+    innovations: np.ndarray
+    gain: np.ndarray
+    P_prior: np.ndarray
+
+
+def _time_varying(A, G, Q, R, Y, x, P):
+    B, N, m = Y.shape
+    n = A.shape[-1]
+    out = np.empty((B, N, n))
+    innov = np.empty((B, N, m))
+    At = np.swapaxes(A, -1, -2)
+    Gt = np.swapaxes(G, -1, -2)
+    for k in range(N):
+        e = Y[:, k] - np.einsum("bij,bj->bi", G, x)
+        PGt = P @ Gt
+        S = G @ PGt + R
+        L = np.swapaxes(np.linalg.solve(S, np.swapaxes(PGt, -1, -2)), -1, -2)  # P G^T S^-1
+        x = x + np.einsum("bij,bj->bi", L, e)
+        P = P - L @ np.swapaxes(PGt, -1, -2)
+        P = 0.5 * (P + np.swapaxes(P, -1, -2))
+        out[:, k] = x
+        innov[:, k] = e
+        x = np.einsum("bij,bj->bi", A, x)
+        P = A @ P @ At + Q
+    return out, innov, L, P
+
+
+def _steady(A, G, Q, R, Y, x):
+    P, L = steady_gain(A, G, Q, R)
+    B, N, m = Y.shape
+    n = A.shape[-1]
+    I_LG = np.eye(n) - L @ G
+    F = I_LG @ A                                      # X_k = F X_{k-1} + L y_k
+    U = Y @ np.swapaxes(L, -1, -2)                    # (B, N, n): L y_k for all k at once
+    out = np.empty((B, N, n))
+    xk = np.einsum("bij,bj->bi", I_LG, x) + U[:, 0]
+    out[:, 0] = xk
+    if B == 1:
+        Ft, Ut, o = F[0].T, U[0], out[0]
+        for k in range(1, N):
+            xk = xk @ Ft + Ut[k]
+            o[k] = xk
+    else:
+        Ft = np.swapaxes(F, -1, -2)
+        for k in range(1, N):
+            xk = np.matmul(xk[:, None, :], Ft)[:, 0] + U[:, k]
+            out[:, k] = xk
+    prior = np.empty_like(out)
+    prior[:, 0] = x
+    prior[:, 1:] = out[:, :-1] @ np.swapaxes(A, -1, -2)
+    innov = Y - prior @ np.swapaxes(G, -1, -2)
+    return out, innov, L, P
+
+
+def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False):
+    """Run one AKF or a batch of them; see :func:`run`.  Returns a :class:`FilterResult`."""
+    A, G, Q, Rb, Yb, batched = _batchify(A_a, G_a, Q_a, R, Y)
+    B, n = Yb.shape[0], A.shape[-1]
+    x = np.zeros((B, n)) if x0 is None else np.broadcast_to(as_finite_array(x0, "x0"), (B, n)).copy()
+    if steady:
+        out, innov, L, P = _steady(A, G, Q, Rb, Yb, x)
+    else:
+        P = Q.copy() if P0 is None else np.broadcast_to(as_finite_array(P0, "P0"), (B, n, n)).copy()
+        out, innov, L, P = _time_varying(A, G, Q, Rb, Yb, x, P)
+    if not batched:
+        out, innov, L, P = out[0], innov[0], L[0], P[0]
+    return FilterResult(states=out, innovations=innov, gain=L, P_prior=P)
+
+
+def run(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False):
+    """Filtered (posterior) augmented states of the AKF.
+
+    Parameters
+    ----------
+    A_a : ndarray (n_a, n_a) or (B, n_a, n_a)
+        Augmented transition matrix ``[[A, B], [0, I]]``.
+    G_a : ndarray (m, n_a) or (B, m, n_a)
+        Augmented observation ``[G, D]``.
+    Q_a : ndarray (n_a, n_a) or (B, n_a, n_a)
+        Process covariance ``blockdiag(Q, S)`` (model error, force increments).
+    R : ndarray (m, m) or (B, m, m)
+        Measurement-noise covariance.
+    Y : ndarray (N, m) or (B, N, m)
+        Measurements, one row per time step.
+    x0, P0 : optional
+        Prior mean (default 0) and covariance (default ``Q_a``) at step 0; ``P0`` is
+        ignored by the steady-state filter.
+    steady : bool
+        Use the steady-state gain (one Riccati solution) instead of the time-varying filter.
+
+    Returns
+    -------
+    ndarray (N, n_a), or (B, N, n_a) when any input carries a batch axis.
+    """
+    return filter_states(A_a, G_a, Q_a, R, Y, x0=x0, P0=P0, steady=steady).states
+
+
+# ------------------------------------------------------------------------------- high level
+def noise_covariance(sensors, noise_cov):
+    """Measurement-noise covariance (m x m) from a scalar, per-channel variances, a matrix,
+    or a dict of variances per sensor kind, e.g. ``{"strain": 1e-12, "acc": 1e-4}``."""
+    layout = as_layout(sensors)
+    m = len(layout)
+    if isinstance(noise_cov, dict):
+        missing = sorted({s.kind for s in layout} - set(noise_cov))
+        if missing:
+            raise AKFInputError(f"noise_cov has no variance for sensor kind(s) {missing}")
+        return np.diag([float(noise_cov[s.kind]) for s in layout])
+    R = diag_levels(noise_cov, m, "noise_cov")
+    if np.any(np.linalg.eigvalsh(R) <= 0):
+        raise AKFInputError("noise_cov must be positive definite (every channel needs some noise)")
+    return R
+
+
+@dataclass
+class Estimate:
+    """AKF estimate of forces, states and strains.
+
+    Attributes
+    ----------
+    time : ndarray (N,)  -- s
+    forces : ndarray (N, n_p)  -- N, at ``force_locations``
+    states : ndarray (N, 2n)  -- ``[u; u']`` in generalised coordinates
+    innovations : ndarray (N, m)
+    """
+
+    structure: object
+    sensors: tuple
+    force_locations: list
+    dt: float
+    states: np.ndarray
+    forces: np.ndarray
+    innovations: np.ndarray
+    gain: np.ndarray = field(repr=False, default=None)
+
+    @property
+    def time(self):
+        return np.arange(self.forces.shape[0]) * self.dt
+
+    @property
+    def strains(self):
+        """Strains at every member (truss) or node component (plate), shape (N, n_strain)."""
+        n = self.structure.n
+        return self.states[:, :n] @ self.structure.strain_operator.T
+
+    def response(self, sensors):
+        """Estimated response at any sensors (e.g. held-back validation sensors), shape (N, k)."""
+        G, D = observation(self.structure, sensors, self.force_locations)
+        return self.states @ G.T + self.forces @ D.T
+
+    def to_frame(self):
+        """Tidy :class:`pandas.DataFrame`: one row per time step, forces and strains as columns."""
+        import pandas as pd
+
+        cols = {"time": self.time}
+        for j, (node, d) in enumerate(self.force_locations):
+            cols[f"force:{node}:{d}"] = self.forces[:, j]
+        strains = self.strains
+        for j, lab in enumerate(self.structure.strain_labels):
+            cols[f"strain:{lab}"] = strains[:, j]
+        return pd.DataFrame(cols)
+
+
+def augmented_covariance(n_states, n_forces, model_error_cov, force_increment_cov):
+    """``Q_a = blockdiag(Q, S)`` from levels (scalar, vector of variances or matrix)."""
+    Q = diag_levels(model_error_cov, n_states, "model_error_cov")
+    S = diag_levels(force_increment_cov, n_forces, "force_increment_cov")
+    Q_a = np.zeros((n_states + n_forces,) * 2)
+    Q_a[:n_states, :n_states] = Q
+    Q_a[n_states:, n_states:] = S
+    return Q_a
+
+
+def _discrete(structure, forces, dt):
+    A_c, B_c = continuous(structure, forces)
+    return zoh(A_c, B_c, dt)
+
+
+def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_cov,
+                   force_increment_cov, noise_cov, steady=True, allow_undetectable=False,
+                   x0=None, P0=None):
+    """AKF estimates for many sensor layouts (all with the same number of sensors) in one
+    batched filter call.
+
+    Parameters
+    ----------
+    layouts : sequence of sensor layouts
+    measurements : ndarray (B, N, m) or sequence of (N, m)
+        One measurement set per layout, columns in layout order.
+    noise_cov : as in :func:`estimate`; a dict per kind is applied to each layout.
+
+    Returns
+    -------
+    list of :class:`Estimate`
+    """
+    layouts = [as_layout(l) for l in layouts]
+    if not layouts:
+        raise AKFInputError("no sensor layouts given")
+    m = len(layouts[0])
+    if any(len(l) != m for l in layouts):
+        raise AKFInputError("all layouts of a batch must have the same number of sensors")
+    Y = as_finite_array(measurements, "measurements", ndim=3)
+    if Y.shape[0] != len(layouts) or Y.shape[2] != m:
+        raise AKFInputError(f"measurements must have shape ({len(layouts)}, N, {m}); got {Y.shape}")
+    locs = parse_force_locations(structure, forces)
+    for l in layouts:
+        report = check_detectable(structure, l, locs, allow_undetectable)
+        if steady and not report.detectable:
+            raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
+                                f"({', '.join(s.label for s in l)}); use steady=False to run the "
+                                "time-varying filter and watch it drift")
+    A, B = _discrete(structure, locs, dt)
+    GD = [observation(structure, l, locs) for l in layouts]
+    A_a, _ = augment(A, B, GD[0][0], GD[0][1])
+    G_a = np.stack([np.hstack(gd) for gd in GD])
+    R = np.stack([noise_covariance(l, noise_cov) for l in layouts])
+    Q_a = augmented_covariance(A.shape[0], B.shape[1], model_error_cov, force_increment_cov)
+    res = filter_states(A_a, G_a, Q_a, R, Y, x0=x0, P0=P0, steady=steady)
+    nx = A.shape[0]
+    return [Estimate(structure, l, locs, float(dt), res.states[b, :, :nx], res.states[b, :, nx:],
+                     res.innovations[b], res.gain[b]) for b, l in enumerate(layouts)]
+
+
+def estimate(structure, sensors, forces, measurements, dt, *, model_error_cov,
+             force_increment_cov, noise_cov, steady=False, allow_undetectable=False,
+             x0=None, P0=None):
+    """Estimate unknown forces and the full response with the AKF.
+
+    Parameters
+    ----------
+    structure : Structure
+        The filter's model (it may differ from the true structure: that is model error).
+    sensors : sequence of sensor specs
+        ``Sensor`` objects or strings such as ``"acc:4:y"``, ``"strain:5"``.
+    forces : sequence
+        Force locations ``"node:direction"`` or ``(node, direction)``.
+    measurements : ndarray (N, m)
+        One column per sensor in layout order (SI: m/m, m/s^2, m/s, m).
+    dt : float
+        Sampling interval (s).
+    model_error_cov : float, ndarray
+        ``Q``: variance level(s) of the state model error per step (scalar, 2n vector or matrix).
+    force_increment_cov : float, ndarray
+        ``S``: variance of the force increment per step (N^2).
+    noise_cov : float, ndarray or dict
+        ``R``: measurement-noise variance(s), e.g. ``{"strain": (1e-6)**2, "acc": 0.01**2}``.
+    steady : bool
+        Steady-state gain (fast) instead of the time-varying filter.
+    allow_undetectable : bool
+        Run even if the PBH test fails (the estimate will drift).
+
+    Returns
+    -------
+    Estimate
+    """
+    layout = as_layout(sensors)
+    Y = as_finite_array(measurements, "measurements", ndim=2)
+    if Y.shape[1] != len(layout):
+        raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
+    return estimate_batch(structure, [layout], forces, Y[None], dt, model_error_cov=model_error_cov,
+                          force_increment_cov=force_increment_cov, noise_cov=noise_cov, steady=steady,
+                          allow_undetectable=allow_undetectable, x0=x0, P0=P0)[0]

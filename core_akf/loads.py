@@ -1,0 +1,74 @@
+"""Load generators (N) on a uniform time grid ``t = k dt``; all random ones take a ``seed``
+(int or :class:`numpy.random.Generator`) so a run can be repeated exactly."""
+from __future__ import annotations
+
+import numpy as np
+
+from .exceptions import AKFInputError
+
+
+def time_grid(n_steps, dt):
+    """``t_k = k dt`` for ``k = 0..n_steps-1`` (s)."""
+    n_steps = int(n_steps)
+    if n_steps < 1:
+        raise AKFInputError(f"n_steps must be >= 1, got {n_steps}")
+    if not np.isfinite(dt) or dt <= 0:
+        raise AKFInputError(f"dt must be a positive number of seconds, got {dt!r}")
+    return np.arange(n_steps) * float(dt)
+
+
+def _rng(seed):
+    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+
+
+def half_sine_pulse(t, start, duration, peak):
+    """Impact: one half sine of ``duration`` (s) starting at ``start`` (s), amplitude ``peak`` (N)."""
+    if duration <= 0:
+        raise AKFInputError(f"pulse duration must be positive, got {duration!r}")
+    t = np.asarray(t, float)
+    tau = (t - start) / duration
+    return np.where((tau >= 0) & (tau <= 1), peak * np.sin(np.pi * np.clip(tau, 0, 1)), 0.0)
+
+
+def ramp(t, start, end, peak):
+    """Zero until ``start``, linear to ``peak`` (N) at ``end``, then held."""
+    if end <= start:
+        raise AKFInputError(f"ramp end ({end}) must be after its start ({start})")
+    t = np.asarray(t, float)
+    return peak * np.clip((t - start) / (end - start), 0.0, 1.0)
+
+
+def half_sine(t, start, end, peak):
+    """A slow half sine: zero, rising to ``peak`` (N) mid-way between ``start`` and ``end``, back to zero."""
+    if end <= start:
+        raise AKFInputError(f"half-sine end ({end}) must be after its start ({start})")
+    return half_sine_pulse(t, start, end - start, peak)
+
+
+def sine(t, frequency, amplitude, phase=0.0):
+    """``amplitude sin(2 pi f t + phase)`` (N)."""
+    return amplitude * np.sin(2 * np.pi * frequency * np.asarray(t, float) + phase)
+
+
+def white_noise(n_steps, std, seed=None):
+    """Gaussian white noise with standard deviation ``std`` (N)."""
+    return _rng(seed).normal(0.0, std, int(n_steps))
+
+
+def band_limited_white_noise(n_steps, dt, rms, f_low=0.0, f_high=None, seed=None):
+    """Gaussian noise with a flat spectrum between ``f_low`` and ``f_high`` (Hz), scaled to ``rms`` (N).
+
+    Built in the frequency domain (zero outside the band), so the band edges are sharp.
+    """
+    n_steps = int(n_steps)
+    nyq = 0.5 / dt
+    f_high = nyq if f_high is None else f_high
+    if not 0 <= f_low < f_high <= nyq + 1e-12:
+        raise AKFInputError(f"need 0 <= f_low < f_high <= Nyquist ({nyq:g} Hz); got {f_low}, {f_high}")
+    rng = _rng(seed)
+    spec = rng.normal(size=n_steps // 2 + 1) + 1j * rng.normal(size=n_steps // 2 + 1)
+    f = np.fft.rfftfreq(n_steps, dt)
+    spec[(f < f_low) | (f > f_high)] = 0.0
+    x = np.fft.irfft(spec, n_steps)
+    s = np.sqrt(np.mean(x ** 2))
+    return x * (rms / s) if s > 0 else x

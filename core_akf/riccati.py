@@ -1,0 +1,136 @@
+"""Discrete algebraic Riccati equation of the Kalman filter, batched.
+
+The filter DARE for the prior (one-step predicted) covariance ``P``::
+
+    P = A P A^T - A P G^T (G P G^T + R)^-1 G P A^T + Q
+
+is solved by the structure-preserving doubling algorithm (SDA; Chu, Fan & Lin 2005) on
+the dual control problem ``(A^T, G^T)``.  Each doubling step costs one LU solve and a few
+matrix products and squares the convergence factor, so ~10-25 steps reach machine
+precision even for lightly damped structures.  The algorithm runs on a stack of
+problems at once (leading batch axis).  A problem that does not converge, or whose
+residual is poor, is re-solved with :func:`scipy.linalg.solve_discrete_are` and a
+warning.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import scipy.linalg
+
+from .exceptions import AKFInputError
+
+
+class RiccatiError(AKFInputError):
+    """The filter DARE has no stabilising solution (typically an undetectable sensor set)."""
+
+
+class RiccatiWarning(RuntimeWarning):
+    """The doubling solver fell back to scipy for at least one problem."""
+
+
+def dare_residual(A, G, Q, R, P):
+    """Relative residual of the filter DARE for each problem in the stack."""
+    APGt = A @ P @ np.swapaxes(G, -1, -2)
+    S = G @ P @ np.swapaxes(G, -1, -2) + R
+    rhs = A @ P @ np.swapaxes(A, -1, -2) - APGt @ np.linalg.solve(S, np.swapaxes(APGt, -1, -2)) + Q
+    num = np.linalg.norm(rhs - P, axis=(-2, -1))
+    den = np.maximum(np.linalg.norm(P, axis=(-2, -1)), np.finfo(float).tiny)
+    return num / den
+
+
+def _scale(A, G, Q):
+    """Diagonal state scaling ``x = T z`` that brings displacements, velocities and forces to
+    comparable size (row/column norms of ``A`` and the process noise); returns T (..., n)."""
+    q = np.sqrt(np.abs(np.diagonal(Q, axis1=-2, axis2=-1)))
+    g = np.linalg.norm(G, axis=-2)
+    t = np.where(q > 0, q, 1.0)
+    # states without process noise: scale by the observation column size instead
+    t = np.where((q == 0) & (g > 0), 1.0 / np.where(g > 0, g, 1.0), t)
+    return t
+
+
+def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True):
+    """Stabilising solution ``P`` (prior covariance) of the filter DARE.
+
+    Parameters
+    ----------
+    A : ndarray (..., n, n)
+    G : ndarray (..., m, n)
+    Q : ndarray (..., n, n), symmetric PSD
+    R : ndarray (..., m, m), symmetric PD
+        Leading axes broadcast against each other (a batch of problems).
+
+    Returns
+    -------
+    P : ndarray (..., n, n)
+    """
+    A, G, Q, R = (np.asarray(x, dtype=float) for x in (A, G, Q, R))
+    batch = np.broadcast_shapes(A.shape[:-2], G.shape[:-2], Q.shape[:-2], R.shape[:-2])
+    n, m = A.shape[-1], G.shape[-2]
+    nb = int(np.prod(batch, dtype=int))
+    A = np.broadcast_to(A, batch + (n, n)).reshape(nb, n, n)
+    G = np.broadcast_to(G, batch + (m, n)).reshape(nb, m, n)
+    Q = np.broadcast_to(Q, batch + (n, n)).reshape(nb, n, n)
+    R = np.broadcast_to(R, batch + (m, m)).reshape(nb, m, m)
+
+    t = _scale(A, G, Q)                          # x = diag(t) z
+    As = A * t[..., None, :] / t[..., :, None]   # T^-1 A T
+    Gs = G * t[..., None, :]                     # G T
+    Qs = Q / t[..., :, None] / t[..., None, :]   # T^-1 Q T^-T
+    # SDA on the dual: Ak = A^T, Gk = G^T R^-1 G, Hk = Q
+    Ak = np.swapaxes(As, -1, -2).copy()
+    RiG = np.linalg.solve(R, Gs)
+    Gk = np.swapaxes(Gs, -1, -2) @ RiG
+    Gk = 0.5 * (Gk + np.swapaxes(Gk, -1, -2))
+    Hk = Qs.copy()
+    eye = np.eye(n)
+    converged = np.zeros(nb, dtype=bool)
+    for _ in range(max_iter):
+        W = eye + Gk @ Hk
+        rhs = np.concatenate([Ak, Gk @ np.swapaxes(Ak, -1, -2)], axis=-1)
+        try:
+            Z = np.linalg.solve(W, rhs)
+        except np.linalg.LinAlgError:
+            break
+        WiA, WiGAt = Z[..., :n], Z[..., n:]
+        H_new = Hk + np.swapaxes(Ak, -1, -2) @ Hk @ WiA
+        G_new = Gk + Ak @ WiGAt
+        Ak = Ak @ WiA
+        H_new = 0.5 * (H_new + np.swapaxes(H_new, -1, -2))
+        Gk = 0.5 * (G_new + np.swapaxes(G_new, -1, -2))
+        diff = np.linalg.norm(H_new - Hk, axis=(-2, -1))
+        size = np.linalg.norm(H_new, axis=(-2, -1))
+        Hk = H_new
+        if not np.all(np.isfinite(Hk)):
+            break
+        converged = diff <= tol * np.maximum(size, np.finfo(float).tiny)
+        if np.all(converged):
+            break
+    P = Hk * t[..., :, None] * t[..., None, :]
+    if check:
+        ok = converged & np.all(np.isfinite(P), axis=(-2, -1))
+        if np.any(ok):
+            ok[ok] = dare_residual(A[ok], G[ok], Q[ok], R[ok], P[ok]) < 1e-8
+        bad = np.flatnonzero(~ok)
+        if bad.size:
+            warnings.warn(f"doubling Riccati solver did not converge for {bad.size} of {nb} problem(s); "
+                          "falling back to scipy.linalg.solve_discrete_are", RiccatiWarning, stacklevel=2)
+            for b in bad:
+                try:
+                    P[b] = scipy.linalg.solve_discrete_are(A[b].T, G[b].T, Q[b], R[b])
+                except (np.linalg.LinAlgError, ValueError) as exc:
+                    raise RiccatiError(
+                        f"no stabilising steady-state gain for problem {b} ({exc}); the sensor set is "
+                        "probably undetectable -- run the time-varying filter (steady=False) to see the drift"
+                    ) from None
+    return P.reshape(batch + (n, n))
+
+
+def steady_gain(A, G, Q, R, **kwargs):
+    """Steady-state prior covariance ``P`` and Kalman gain ``L = P G^T (G P G^T + R)^-1``."""
+    P = solve_filter_dare(A, G, Q, R, **kwargs)
+    S = G @ P @ np.swapaxes(G, -1, -2) + R
+    L = np.swapaxes(np.linalg.solve(S, G @ P), -1, -2)  # S symmetric
+    return P, L
