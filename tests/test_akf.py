@@ -1,0 +1,158 @@
+"""The AKF against independent implementations: a textbook loop, filterpy, scipy's DARE."""
+import warnings
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from core_akf import akf
+from core_akf.models import s17_truss
+from core_akf.riccati import dare_residual, solve_filter_dare, steady_gain
+from core_akf.simulate import simulate
+from core_akf.statespace import state_space
+
+
+def _random_system(seed, n=6, m=3):
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n))
+    A *= 0.95 / np.max(np.abs(np.linalg.eigvals(A)))
+    G = rng.normal(size=(m, n))
+    L = rng.normal(size=(n, n))
+    Q = L @ L.T / n + 0.01 * np.eye(n)
+    Lr = rng.normal(size=(m, m))
+    R = Lr @ Lr.T / m + 0.1 * np.eye(m)
+    x = np.zeros(n)
+    Y = []
+    for _ in range(200):
+        Y.append(G @ x + rng.multivariate_normal(np.zeros(m), R))
+        x = A @ x + rng.multivariate_normal(np.zeros(n), Q)
+    return A, G, Q, R, np.array(Y), rng.normal(size=n), np.eye(n) * 2.0
+
+
+def _textbook(A, G, Q, R, Y, x0, P0):
+    """Kalman filter straight from the textbook, one step at a time, with explicit inverses."""
+    x, P, out = x0.copy(), P0.copy(), []
+    for y in Y:
+        K = P @ G.T @ np.linalg.inv(G @ P @ G.T + R)
+        x = x + K @ (y - G @ x)
+        I_KG = np.eye(len(x)) - K @ G
+        P = I_KG @ P @ I_KG.T + K @ R @ K.T  # Joseph form
+        out.append(x.copy())
+        x = A @ x
+        P = A @ P @ A.T + Q
+    return np.array(out)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_time_varying_equals_textbook(seed):
+    A, G, Q, R, Y, x0, P0 = _random_system(seed)
+    ours = akf.run(A, G, Q, R, Y, x0=x0, P0=P0)
+    ref = _textbook(A, G, Q, R, Y, x0, P0)
+    assert np.max(np.abs(ours - ref)) <= 1e-10 * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_time_varying_equals_filterpy(seed):
+    filterpy = pytest.importorskip("filterpy.kalman")
+    A, G, Q, R, Y, x0, P0 = _random_system(seed)
+    kf = filterpy.KalmanFilter(dim_x=A.shape[0], dim_z=G.shape[0])
+    kf.F, kf.H, kf.Q, kf.R, kf.x, kf.P = A, G, Q, R, x0.copy(), P0.copy()
+    ref = []
+    for y in Y:
+        kf.update(y)
+        ref.append(kf.x.copy())
+        kf.predict()
+    ref = np.array(ref)
+    ours = akf.run(A, G, Q, R, Y, x0=x0, P0=P0)
+    assert np.max(np.abs(ours - ref)) <= 1e-10 * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_doubling_dare_matches_scipy_random(seed):
+    A, G, Q, R, *_ = _random_system(seed, n=8, m=3)
+    P = solve_filter_dare(A, G, Q, R)
+    ref = scipy.linalg.solve_discrete_are(A.T, G.T, Q, R)
+    assert np.allclose(P, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+
+
+def test_doubling_dare_matches_scipy_on_s17_case4():
+    ss = state_space(s17_truss(), ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x",
+                                   "strain:5", "strain:9", "strain:13", "strain:26"],
+                     ["4:y", "6:y", "8:y", "12:y"], 1 / 4096)
+    Q = np.diag(np.r_[np.full(ss.n_states, 1e-16), np.full(4, 1e5)])
+    R = np.diag(np.r_[np.full(5, 1e-2), np.full(4, 1e-12)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the fast path must not fall back here
+        P = solve_filter_dare(ss.A_a, ss.G_a, Q, R)
+    ref = scipy.linalg.solve_discrete_are(ss.A_a.T, ss.G_a.T, Q, R)
+    assert np.linalg.norm(P - ref) <= 1e-7 * np.linalg.norm(ref)
+    assert dare_residual(ss.A_a, ss.G_a, Q, R, P) < 1e-10
+
+
+def test_steady_state_equals_time_varying_after_transient():
+    A, G, Q, R, Y, x0, P0 = _random_system(7)
+    Y = np.tile(Y, (3, 1))
+    tv = akf.run(A, G, Q, R, Y, x0=x0, P0=P0)
+    ss = akf.run(A, G, Q, R, Y, x0=x0, steady=True)
+    assert np.max(np.abs(tv[-200:] - ss[-200:])) <= 1e-9 * np.max(np.abs(tv))
+    assert np.max(np.abs(tv[:5] - ss[:5])) > 1e-6  # the transient really differs
+
+
+def test_steady_gain_is_limit_of_time_varying_gain():
+    A, G, Q, R, Y, x0, P0 = _random_system(8)
+    res = akf.filter_states(A, G, Q, R, np.tile(Y, (2, 1)), x0=x0, P0=P0)
+    _, L = steady_gain(A, G, Q, R)
+    assert np.allclose(res.gain, L, rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.parametrize("steady", [False, True])
+def test_batched_equals_one_by_one(steady):
+    systems = [_random_system(s) for s in range(4)]
+    A = systems[0][0]
+    G = np.stack([s[1] for s in systems])
+    Q = systems[0][2]
+    R = np.stack([s[3] for s in systems])
+    Y = np.stack([s[4] for s in systems])
+    batch = akf.run(A, G, Q, R, Y, steady=steady)
+    assert batch.shape == (4, Y.shape[1], A.shape[0])
+    for b in range(4):
+        one = akf.run(A, G[b], Q, R[b], Y[b], steady=steady)
+        assert np.allclose(batch[b], one, rtol=1e-12, atol=1e-12 * np.abs(one).max())
+
+
+def test_estimate_batch_equals_estimate():
+    s = s17_truss()
+    forces = ["8:y"]
+    layouts = [["strain:13", "acc:8:y"], ["strain:21", "acc:6:y"], ["strain:16", "acc:4:y"]]
+    dt, N = 1 / 1024, 600
+    rng = np.random.default_rng(0)
+    loads = rng.normal(0, 500, (N, 1))
+    Ys = np.stack([simulate(s, l, forces, loads, dt, relative_noise=0.02, seed=1).measurements for l in layouts])
+    kw = dict(model_error_cov=1e-16, force_increment_cov=1e5, noise_cov={"strain": 1e-14, "acc": 1e-2})
+    for steady in (False, True):
+        batch = akf.estimate_batch(s, layouts, forces, Ys, dt, steady=steady, **kw)
+        for l, y, b in zip(layouts, Ys, batch):
+            one = akf.estimate(s, l, forces, y, dt, steady=steady, **kw)
+            assert np.allclose(b.forces, one.forces, rtol=1e-10, atol=1e-8)
+            assert np.allclose(b.strains, one.strains, rtol=1e-10, atol=1e-18)
+
+
+def test_perfect_model_no_noise_recovers_force_and_strains():
+    """Sanity of the whole chain: same model, tiny noise -> force and all member strains recovered."""
+    s = s17_truss()
+    dt, N = 1 / 2048, 2048
+    t = np.arange(N) * dt
+    loads = (2000 * np.sin(2 * np.pi * 3 * t))[:, None]
+    sensors = ["strain:13", "strain:21", "acc:8:y", "acc:6:y"]
+    sim = simulate(s, sensors, ["8:y"], loads, dt, relative_noise=1e-4, seed=0)
+    est = akf.estimate(s, sensors, ["8:y"], sim.measurements, dt, model_error_cov=1e-20,
+                       force_increment_cov=1e3, noise_cov=np.diag(sim.noise_std ** 2), steady=True)
+    tail = slice(N // 4, None)
+    err = np.sqrt(np.mean((est.forces[tail, 0] - loads[tail, 0]) ** 2))
+    assert err < 0.02 * 2000
+    strain_err = np.sqrt(np.mean((est.strains[tail] - sim.strains[tail]) ** 2, axis=0))
+    assert np.max(strain_err) < 0.02 * np.max(np.abs(sim.strains))
+    # estimated response at an unused sensor follows the truth as well
+    other = est.response(["acc:12:y"])[tail, 0]
+    truth = sim.response(["acc:12:y"])[tail, 0]
+    assert np.sqrt(np.mean((other - truth) ** 2)) < 0.05 * np.sqrt(np.mean(truth ** 2))

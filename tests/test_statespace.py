@@ -1,0 +1,124 @@
+"""Discretisation, observation matrices and the PBH detectability check."""
+import numpy as np
+import pytest
+
+from core_akf import UndetectableError
+from core_akf.models import s17_truss, th_plate
+from core_akf.statespace import (augment, continuous, detectability, observation, state_space,
+                                 van_loan, zoh)
+
+FORCES4 = ["4:y", "6:y", "8:y", "12:y"]
+ACC_ONLY = [f"acc:{j}:y" for j in (2, 4, 5, 6, 7, 8, 9, 12, 14, 15)] + [f"acc:{j}:x" for j in (4, 5, 8, 9)]
+
+
+def _rk4(A_c, B_c, u, x0, dt, substeps):
+    """Fine-step RK4 with the input held constant over each coarse step."""
+    h = dt / substeps
+    x = x0.copy()
+    f = lambda x: A_c @ x + B_c @ u
+    for _ in range(substeps):
+        k1 = f(x)
+        k2 = f(x + h / 2 * k1)
+        k3 = f(x + h / 2 * k2)
+        k4 = f(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
+def test_zoh_matches_fine_rk4():
+    s = s17_truss()
+    A_c, B_c = continuous(s, ["8:y", "12:y"])
+    dt = 1 / 512
+    A, B = zoh(A_c, B_c, dt)
+    rng = np.random.default_rng(0)
+    x = np.zeros(A.shape[0])
+    x_rk = x.copy()
+    for k in range(40):
+        u = rng.normal(0, 1e3, 2)
+        x = A @ x + B @ u
+        x_rk = _rk4(A_c, B_c, u, x_rk, dt, 1000)
+    assert np.max(np.abs(x - x_rk)) <= 1e-7 * np.max(np.abs(x_rk))
+
+
+def test_zoh_singular_Ac_has_integrator_B():
+    """Block exponential works when A_c is singular: a free mass gives B = [dt^2/2, dt] / m."""
+    A_c = np.array([[0.0, 1.0], [0.0, 0.0]])
+    B_c = np.array([[0.0], [0.5]])
+    A, B = zoh(A_c, B_c, 0.1)
+    assert np.allclose(A, [[1, 0.1], [0, 1]])
+    assert np.allclose(B[:, 0], [0.5 * 0.01 / 2, 0.05])
+
+
+def test_van_loan_matches_quadrature():
+    """Q = int_0^dt e^{A t} Q_c e^{A^T t} dt for a damped oscillator, by adaptive quadrature."""
+    from scipy.integrate import quad_vec
+    from scipy.linalg import expm
+    A_c = np.array([[0.0, 1.0], [-(2 * np.pi * 5) ** 2, -2 * 0.02 * 2 * np.pi * 5]])
+    Qc = np.array([[0.1, 0.0], [0.0, 2.0]])
+    dt = 0.01
+    ref, _ = quad_vec(lambda t: expm(A_c * t) @ Qc @ expm(A_c * t).T, 0, dt, epsabs=1e-14)
+    assert np.allclose(van_loan(A_c, Qc, dt), ref, rtol=1e-9, atol=1e-14)
+
+
+def test_acceleration_rows_equal_equation_of_motion():
+    """y_acc = G x + D f must equal M^-1 (S_p f - C v - K u) picked at the sensor DOFs."""
+    s = s17_truss()
+    sensors = ["acc:8:y", "acc:6:x", "strain:5", "disp:4:y", "vel:12:y"]
+    G, D = observation(s, sensors, ["8:y", "12:y"])
+    rng = np.random.default_rng(1)
+    u, v, f = rng.normal(size=s.n), rng.normal(size=s.n), rng.normal(size=2)
+    Sp = np.zeros((s.n, 2))
+    Sp[s.dof_index(8, "y"), 0] = 1
+    Sp[s.dof_index(12, "y"), 1] = 1
+    acc = np.linalg.solve(s.M, Sp @ f - s.C @ v - s.K @ u)
+    y = G @ np.r_[u, v] + D @ f
+    assert y[0] == pytest.approx(acc[s.dof_index(8, "y")], rel=1e-10)
+    assert y[1] == pytest.approx(acc[s.dof_index(6, "x")], rel=1e-10)
+    assert y[2] == pytest.approx(s.strain_operator[4] @ u, rel=1e-12)
+    assert y[3] == pytest.approx(u[s.dof_index(4, "y")])
+    assert y[4] == pytest.approx(v[s.dof_index(12, "y")])
+    assert np.allclose(D[2:], 0)
+
+
+def test_augmentation_blocks():
+    ss = state_space(s17_truss(), ["strain:5", "acc:8:y"], ["8:y"], 1 / 1024)
+    assert ss.A_a.shape == (ss.n_states + 1, ss.n_states + 1)
+    assert np.allclose(ss.A_a[-1], np.r_[np.zeros(ss.n_states), 1.0])
+    assert np.allclose(ss.G_a[:, -1], ss.D[:, 0])
+
+
+def test_pbh_acceleration_only_is_undetectable_and_names_s0():
+    s = s17_truss()
+    rep = detectability(s, ["acc:4:y", "acc:6:y", "acc:8:y"], ["8:y"])
+    assert not rep.detectable
+    assert rep.failures[0]["s"] == 0.0
+    assert "s = 0" in str(rep) and "forces" in str(rep)
+    # one strain gauge restores detectability for one unknown force
+    assert detectability(s, ["acc:4:y", "acc:6:y", "acc:8:y", "strain:13"], ["8:y"]).detectable
+
+
+def test_pbh_needs_as_many_static_sensors_as_forces():
+    """With four unknown forces, one strain is not enough: three static load patterns stay unseen."""
+    s = s17_truss()
+    assert not detectability(s, ACC_ONLY + ["strain:5"], FORCES4).detectable
+    case4 = ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x", "strain:5", "strain:9", "strain:13", "strain:26"]
+    assert detectability(s, case4, FORCES4).detectable
+    assert detectability(s, [f"strain:{m}" for m in (4, 5, 9, 12, 13, 16, 21, 24, 26)], FORCES4).detectable
+
+
+def test_pbh_plate_and_reduced_plate():
+    p = th_plate()
+    forces = ["121:w", "111:w"]
+    assert not detectability(p, ["acc:12:w", "acc:58:w", "acc:100:w"], forces).detectable
+    case3 = ["strain:2:gxy", "strain:100:gxy", "acc:12:w"]
+    assert detectability(p, case3, forces).detectable
+    assert detectability(p.reduce(20), case3, forces).detectable
+
+
+def test_undetectable_error_carries_report():
+    from core_akf.statespace import check_detectable
+    with pytest.raises(UndetectableError) as err:
+        check_detectable(s17_truss(), ACC_ONLY, FORCES4)
+    assert "allow_undetectable" in str(err.value)
+    assert not err.value.report.detectable
+    assert not check_detectable(s17_truss(), ACC_ONLY, FORCES4, allow_undetectable=True).detectable
