@@ -21,7 +21,10 @@ from ._validate import as_finite_array
 from .exceptions import AKFInputError
 from .riccati import steady_gain
 from .sensors import as_layout, parse_force_locations
-from .statespace import augment, check_detectable, continuous, diag_levels, observation, zoh
+import scipy.linalg
+
+from .statespace import (augment, check_detectable, continuous, diag_levels, modal_state_transform,
+                         observation, zoh)
 
 
 def _batchify(A_a, G_a, Q_a, R, Y):
@@ -275,15 +278,24 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
                                 f"({', '.join(s.label for s in l)}); use steady=False to run the "
                                 "time-varying filter and watch it drift")
     A, B = _discrete(structure, locs, dt)
-    GD = [observation(structure, l, locs) for l in layouts]
-    A_a, _ = augment(A, B, GD[0][0], GD[0][1])
-    G_a = np.stack([np.hstack(gd) for gd in GD])
+    nx, nf = B.shape
+    # filter in energy-normalised modal coordinates x = T z (see modal_state_transform)
+    T, T_inv = modal_state_transform(structure)
+    Ta = scipy.linalg.block_diag(T, np.eye(nf))
+    Ta_inv = scipy.linalg.block_diag(T_inv, np.eye(nf))
+    A_a, _ = augment(T_inv @ A @ T, T_inv @ B, np.zeros((0, nx)), np.zeros((0, nf)))
+    G_a = np.stack([np.hstack([G @ T, D]) for G, D in (observation(structure, l, locs) for l in layouts)])
     R = np.stack([noise_covariance(l, noise_cov) for l in layouts])
-    Q_a = augmented_covariance(A.shape[0], B.shape[1], model_error_cov, force_increment_cov)
-    res = filter_states(A_a, G_a, Q_a, R, Y, x0=x0, P0=P0, steady=steady)
-    nx = A.shape[0]
-    return [Estimate(structure, l, locs, float(dt), res.states[b, :, :nx], res.states[b, :, nx:],
-                     res.innovations[b], res.gain[b]) for b, l in enumerate(layouts)]
+    Q_a = augmented_covariance(nx, nf, model_error_cov, force_increment_cov)
+    Q_a = Ta_inv @ Q_a @ Ta_inv.T
+    Q_a = 0.5 * (Q_a + Q_a.T)
+    z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", shape=(nx + nf,))
+    Pz0 = None if P0 is None else Ta_inv @ as_finite_array(P0, "P0", shape=(nx + nf, nx + nf)) @ Ta_inv.T
+    res = filter_states(A_a, G_a, Q_a, R, Y, x0=z0, P0=Pz0, steady=steady)
+    states = res.states @ Ta.T                      # back to physical [u; u'; f]
+    gains = Ta @ res.gain                           # gain for the physical state
+    return [Estimate(structure, l, locs, float(dt), states[b, :, :nx], states[b, :, nx:],
+                     res.innovations[b], gains[b]) for b, l in enumerate(layouts)]
 
 
 def estimate(structure, sensors, forces, measurements, dt, *, model_error_cov,

@@ -101,6 +101,23 @@ def augment(A, B, G, D):
     return A_a, np.hstack([G, D])
 
 
+def modal_state_transform(structure):
+    """Energy-normalised modal state coordinates: ``x = T z`` with
+    ``T = blockdiag(Phi diag(1/omega), Phi)`` (mass-normalised ``Phi``), and ``T^-1``.
+
+    In ``z = [omega q; q']`` every mode's displacement and velocity have the same size, so
+    the transition matrix is close to orthogonal.  The filter and the Riccati solver work
+    in these coordinates: in raw ``[u; u']`` the stiff high modes make the Riccati
+    iteration lose accuracy (residual 1e-4 instead of 1e-9 on the TH plate).
+    """
+    omega, phi = structure._eig
+    w = np.where(omega > 1e-6 * max(omega.max(), 1.0), omega, 1.0)
+    phi_inv = phi.T @ structure.M  # Phi^T M Phi = I
+    T = scipy.linalg.block_diag(phi / w[None, :], phi)
+    T_inv = scipy.linalg.block_diag(w[:, None] * phi_inv, phi_inv)
+    return T, T_inv
+
+
 # ---------------------------------------------------------------------------- detectability
 @dataclass
 class DetectabilityReport:
