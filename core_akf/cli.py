@@ -1,0 +1,147 @@
+"""Command line: ``akf estimate JOB.toml`` or ``akf estimate --example s17-case4``."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+from .exceptions import AKFInputError, UndetectableError
+
+
+def _load_toml(path):
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python < 3.11
+        import tomli as tomllib
+    if not os.path.exists(path):
+        raise AKFInputError(f"job file {path!r} not found")
+    with open(path, "rb") as fh:
+        try:
+            return tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise AKFInputError(f"{path}: not valid TOML: {exc}") from None
+
+
+def _plot(result, path):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    est, sim = result.estimate, result.simulation
+    nf = est.forces.shape[1]
+    fig, axes = plt.subplots(nf + 1, 1, figsize=(9, 2.2 * (nf + 1)), squeeze=False)
+    for j, (node, d) in enumerate(est.force_locations):
+        ax = axes[j, 0]
+        if sim is not None:
+            ax.plot(est.time, sim.loads[:, j] / 1e3, "k:", lw=1, label="reference")
+        ax.plot(est.time, est.forces[:, j] / 1e3, "r-", lw=0.8, label="AKF estimate")
+        ax.set_ylabel(f"force {node}:{d}\n(kN)")
+        ax.legend(loc="upper right", fontsize=7)
+    ax = axes[-1, 0]
+    if result.metrics.get("rms_strain"):
+        vals = list(result.metrics["rms_strain"].values())
+        ax.bar(range(1, len(vals) + 1), [v * 1e6 for v in vals], color="tab:blue")
+        ax.set_xlabel("strain component / member")
+        ax.set_ylabel("RMS strain\nerror (µε)")
+    axes[-2, 0].set_xlabel("time (s)")
+    fig.suptitle(result.job.get("name", "AKF estimate"))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _estimate(args):
+    from .examples import EXAMPLES, example_job
+    from .jobs import run_job
+
+    if args.list_examples:
+        for name, job in sorted(EXAMPLES.items()):
+            print(f"{name:12s} {job['description']}")
+        return 0
+    if (args.job is None) == (args.example is None):
+        raise AKFInputError("give a job file or --example NAME (see --list-examples)")
+    job = example_job(args.example) if args.example else _load_toml(args.job)
+    if args.duration is not None:
+        job.setdefault("simulation", {})["duration"] = args.duration
+    if args.seed is not None:
+        job.setdefault("simulation", {})["seed"] = args.seed
+    steady = {"steady": True, "time-varying": False, None: None}[args.filter]
+    result = run_job(job, allow_undetectable=args.allow_undetectable or None, steady=steady)
+
+    name = job.get("name", os.path.splitext(os.path.basename(args.job or "job"))[0])
+    out = args.out or os.path.join("akf-out", name)
+    os.makedirs(out, exist_ok=True)
+    files = {}
+    import pandas as pd
+
+    frames = [result.force_frame()]
+    wanted = job.get("output", {}).get("strains", "all")
+    est = result.estimate
+    if wanted == "all":
+        wanted = None if est.structure.n_strain * est.forces.shape[0] <= 2_000_000 else []
+    if wanted != []:
+        frames.append(result.strain_frame(wanted))
+    files["timeseries"] = os.path.join(out, "timeseries.csv")
+    pd.concat(frames, ignore_index=True).to_csv(files["timeseries"], index=False)
+    files["summary"] = os.path.join(out, "summary.csv")
+    result.summary_frame().to_csv(files["summary"], index=False)
+    if not args.no_plot:
+        png = _plot(result, os.path.join(out, "estimate.png"))
+        if png:
+            files["figure"] = png
+
+    m = result.metrics
+    if args.json:
+        print(json.dumps({"name": name, "detectable": m["detectable"], "n_steps": m["n_steps"],
+                          "rms_force": m.get("rms_force"), "avg_strain_error": m.get("avg_strain_error"),
+                          "files": files}))
+        return 0
+    print(f"{name}: {job.get('description', '')}")
+    print(f"  {len(est.sensors)} sensors, {len(est.force_locations)} unknown forces, {m['n_steps']} steps, "
+          f"{'detectable' if m['detectable'] else 'NOT detectable (forced)'}")
+    if "rms_force" in m:
+        print("  RMS force error (N):")
+        for k, v in m["rms_force"].items():
+            print(f"    {k:>8s}  {v:10.2f}")
+        print(f"  average strain error: {m['avg_strain_error'] * 1e6:.4f} µε over {est.structure.n_strain} strain outputs")
+    for k, v in files.items():
+        print(f"  wrote {k}: {v}")
+    return 0
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(prog="akf", description="Model-based structural monitoring with an augmented Kalman filter.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("estimate", help="estimate forces and strains for a job (TOML) or a built-in example")
+    p.add_argument("job", nargs="?", help="job file (TOML)")
+    p.add_argument("--example", help="built-in example, e.g. s17-case4 (see --list-examples)")
+    p.add_argument("--list-examples", action="store_true", help="list the built-in examples")
+    p.add_argument("--out", help="output folder (default akf-out/NAME)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    p.add_argument("--filter", choices=["steady", "time-varying"], help="override the job's filter form")
+    p.add_argument("--allow-undetectable", action="store_true", help="run even if the PBH test fails")
+    p.add_argument("--duration", type=float, help="override the simulated record length (s)")
+    p.add_argument("--seed", type=int, help="override the noise seed")
+    p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
+    p.set_defaults(func=_estimate)
+    return parser
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except UndetectableError as exc:
+        print(f"akf: error: {exc}", file=sys.stderr)
+        return 3
+    except AKFInputError as exc:
+        print(f"akf: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

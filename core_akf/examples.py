@@ -1,0 +1,101 @@
+"""Built-in example jobs (the papers' cases) for ``akf estimate --example NAME``.
+
+S17 (Khodabandeloo et al. 2017): planar truss, four vertical loads -- random at joint 4,
+an impulse at joint 6, random plus a slowly varying high-amplitude load at joint 8, noise
+plus a ramp at joint 12 -- 5 % model error (filter 5 % stiffer), 2 % noise.  S17 gives the
+load types but not their amplitudes; the ones below are ours.
+
+TH (thesis plate): excitation 1 at node 121 (ramp from 1 s to 89 N at 5 s plus
+band-limited white noise), excitation 2 at node 111 (half sine to 44.5 N plus band-limited
+white noise), 5 % model error, 2 % noise, dt = 1/2000 s.
+"""
+from __future__ import annotations
+
+import copy
+
+S17_FORCES = ["4:y", "6:y", "8:y", "12:y"]
+S17_DT = 1.0 / 4096
+S17_ACC_ONLY = [f"acc:{j}:y" for j in (2, 4, 5, 6, 7, 8, 9, 12, 14, 15)] + [f"acc:{j}:x" for j in (4, 5, 8, 9)]
+S17_STRAIN_ONLY = [f"strain:{m}" for m in (4, 5, 9, 12, 13, 16, 21, 24, 26)]
+S17_MULTI = ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x", "strain:5", "strain:9", "strain:13", "strain:26"]
+
+
+def _s17_loads(slow=True):
+    """S17 load set (case 2-4 style when ``slow``; zero-mean case-1 loads otherwise)."""
+    band = lambda rms, seed: {"type": "band_noise", "rms": rms, "f_high": 200.0, "seed": seed}
+    loads = [
+        {"components": [band(500.0, 11)]},                                             # joint 4: random
+        {"components": [{"type": "pulse", "start": 0.5, "duration": 0.005, "peak": 5000.0}]},  # joint 6: impulse
+        {"components": [band(300.0, 12)]},                                             # joint 8: random
+        {"components": [band(150.0, 13)]},                                             # joint 12: noise
+    ]
+    if slow:
+        loads[2]["components"].append({"type": "half_sine", "start": 0.2, "end": 1.8, "peak": 3000.0})
+        loads[3]["components"].append({"type": "ramp", "start": 0.5, "end": 1.5, "peak": 2000.0})
+    return loads
+
+
+def _s17(name, description, sensors, slow=True, model_error=True, noise=True):
+    return {
+        "name": name,
+        "description": description,
+        "structure": {"model": "s17_truss"},
+        "dt": S17_DT,
+        "sensors": sensors,
+        "forces": S17_FORCES,
+        "filter": {"stiffness_factor": 1.05 if model_error else 1.0, "model_error_cov": 1e-16,
+                   "force_increment_cov": 1e5, "noise_cov": "simulated", "steady": True},
+        "simulation": {"duration": 2.0, "relative_noise": 0.02 if noise else 1e-4, "seed": 0,
+                       "loads": _s17_loads(slow)},
+        "output": {"strains": "all"},
+    }
+
+
+TH_FORCES = ["121:w", "111:w"]
+
+
+def _th(name, description, sensors, model_error=True, noise=True):
+    band = lambda seed: {"type": "band_noise", "rms": 5.0, "f_high": 100.0, "seed": seed}
+    return {
+        "name": name,
+        "description": description,
+        "structure": {"model": "th_plate"},
+        "dt": 1.0 / 2000,
+        "sensors": sensors,
+        "forces": TH_FORCES,
+        "filter": {"stiffness_factor": 1.05 if model_error else 1.0, "model_error_cov": 1e-16,
+                   "force_increment_cov": 1e-2, "noise_cov": "simulated", "steady": True},
+        "simulation": {"duration": 6.0, "relative_noise": 0.02 if noise else 1e-4, "seed": 0,
+                       "loads": [{"components": [{"type": "ramp", "start": 1.0, "end": 5.0, "peak": 89.0}, band(21)]},
+                                 {"components": [{"type": "half_sine", "start": 0.5, "end": 5.5, "peak": 44.5}, band(22)]}]},
+        "output": {"strains": ["ex70", "gxy1"]},
+    }
+
+
+EXAMPLES = {
+    "s17-case1": _s17("s17-case1", "S17 case 1: accelerations only, zero-mean loads, no model error, "
+                      "negligible noise (undetectable: run with --allow-undetectable)", S17_ACC_ONLY,
+                      slow=False, model_error=False, noise=False),
+    "s17-case2": _s17("s17-case2", "S17 case 2: accelerations only, slowly varying loads, 5 % model error, "
+                      "2 % noise (undetectable: drifts; run with --allow-undetectable)", S17_ACC_ONLY),
+    "s17-case3": _s17("s17-case3", "S17 case 3: strains only (members 4, 5, 9, 12, 13, 16, 21, 24, 26)",
+                      S17_STRAIN_ONLY),
+    "s17-case4": _s17("s17-case4", "S17 case 4: multi-metric (accelerations at 4, 6, 8, 12 vertical and 6 "
+                      "horizontal; strains in members 5, 9, 13, 26)", S17_MULTI),
+    "th-case2": _th("th-case2", "TH case 2: strains at nodes 2 (e_y), 58 (e_x), 100 (e_y)",
+                    ["strain:2:ey", "strain:58:ex", "strain:100:ey"]),
+    "th-case3": _th("th-case3", "TH case 3d: g_xy at nodes 2 and 100, acceleration at node 12, "
+                    "model error and noise", ["strain:2:gxy", "strain:100:gxy", "acc:12:w"]),
+}
+for _name in ("s17-case1", "s17-case2"):
+    EXAMPLES[_name]["filter"]["steady"] = False  # the steady-state filter does not exist for them
+    EXAMPLES[_name]["filter"]["allow_undetectable"] = False
+
+
+def example_job(name):
+    """A deep copy of the built-in job ``name`` (see :data:`EXAMPLES`)."""
+    from .exceptions import AKFInputError
+
+    if name not in EXAMPLES:
+        raise AKFInputError(f"unknown example {name!r}; available: {', '.join(sorted(EXAMPLES))}")
+    return copy.deepcopy(EXAMPLES[name])
