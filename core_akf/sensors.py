@@ -65,6 +65,8 @@ class Sensor:
             raise AKFInputError(f"a sensor is a 'kind:...' string, a dict or a Sensor, got {spec!r}")
         parts = [p.strip() for p in spec.split(":")]
         kind = _ALIASES.get(parts[0].lower(), parts[0].lower())
+        if kind not in KINDS:
+            raise AKFInputError(f"unknown sensor kind {parts[0]!r} in {spec!r}; use one of {KINDS}")
         try:
             if kind == "strain" and len(parts) == 2:
                 return cls("strain", member=int(parts[1]))

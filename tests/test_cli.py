@@ -1,0 +1,82 @@
+"""The command line as a user runs it."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from core_akf.cli import main
+
+
+def test_cli_example_json(tmp_path, capsys):
+    rc = main(["estimate", "--example", "s17-case4", "--json", "--out", str(tmp_path), "--duration", "0.5"])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["rms_force"]) == {"4:y", "6:y", "8:y", "12:y"}
+    assert all(v > 0 for v in out["rms_force"].values())
+    assert 0 < out["avg_strain_error"] < 1e-4
+    ts = pd.read_csv(out["files"]["timeseries"])
+    assert set(ts["quantity"]) == {"force", "strain"}
+    assert ts.query("quantity == 'strain'")["channel"].nunique() == 34
+    summary = pd.read_csv(out["files"]["summary"])
+    assert len(summary) == 4 + 34
+    assert (tmp_path / "estimate.png").stat().st_size > 10_000
+
+
+def test_cli_undetectable_exits_with_report(tmp_path, capsys):
+    rc = main(["estimate", "--example", "s17-case2", "--out", str(tmp_path), "--duration", "0.2"])
+    assert rc == 3
+    assert "s = 0" in capsys.readouterr().err
+
+
+def test_cli_unknown_example(capsys):
+    assert main(["estimate", "--example", "nope"]) == 2
+    assert "unknown example 'nope'" in capsys.readouterr().err
+
+
+def test_cli_toml_job_with_measured_csv(tmp_path, capsys):
+    """A user's own job: a truss, measured data from a CSV file (here made by the simulator)."""
+    from core_akf.models import s17_truss
+    from core_akf.simulate import simulate
+
+    sensors = ["strain:13", "strain:21", "acc:8:y"]
+    dt = 1 / 1024
+    t = np.arange(1024) * dt
+    sim = simulate(s17_truss(), sensors, ["8:y"], (1000 * np.sin(2 * np.pi * 4 * t))[:, None], dt,
+                   relative_noise=0.01, seed=3)
+    df = pd.DataFrame(sim.measurements, columns=sensors)
+    df.insert(0, "time", t)
+    df.to_csv(tmp_path / "data.csv", index=False)
+    job = tmp_path / "job.toml"
+    job.write_text(f'''
+name = "my-truss"
+dt = {dt!r}
+sensors = ["strain:13", "strain:21", "acc:8:y"]
+forces = ["8:y"]
+[structure]
+model = "s17_truss"
+[filter]
+model_error_cov = 1e-16
+force_increment_cov = 1e4
+noise_cov = {{strain = 1e-16, acc = 1e-4}}
+[measurements]
+file = "{(tmp_path / 'data.csv').as_posix()}"
+[output]
+strains = ["m13", "m1"]
+''')
+    assert main(["estimate", str(job), "--out", str(tmp_path / "out"), "--json", "--no-plot"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["rms_force"] is None  # no reference for measured data
+    ts = pd.read_csv(out["files"]["timeseries"])
+    est = ts.query("quantity == 'force'")["estimated"].to_numpy()
+    ref = 1000 * np.sin(2 * np.pi * 4 * t)
+    assert np.sqrt(np.mean((est[256:] - ref[256:]) ** 2)) < 50
+    assert set(ts.query("quantity == 'strain'")["channel"]) == {"m13", "m1"}
+
+
+def test_console_script_installed():
+    r = subprocess.run([sys.executable, "-m", "core_akf.cli", "estimate", "--list-examples"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "s17-case4" in r.stdout
