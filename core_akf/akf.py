@@ -71,18 +71,32 @@ class FilterResult:
     P_prior: np.ndarray
 
 
-def _time_varying(A, G, Q, R, Y, x, P):
+def _time_varying(A, G, Q, R, Y, x, P, switch_tol):
+    """Time-varying AKF.  Once the prior covariance has stopped changing (relative change over
+    ``_CHECK_EVERY`` steps below ``switch_tol``, every filter of the batch), the gain is
+    constant to that precision and the rest of the record runs as the fixed-gain recursion."""
     B, N, m = Y.shape
     n = A.shape[-1]
     out = np.empty((B, N, n))
     innov = np.empty((B, N, m))
     At = np.swapaxes(A, -1, -2)
     Gt = np.swapaxes(G, -1, -2)
+    P_check = P.copy()
     for k in range(N):
         e = Y[:, k] - np.einsum("bij,bj->bi", G, x)
         PGt = P @ Gt
         S = G @ PGt + R
         L = np.swapaxes(np.linalg.solve(S, np.swapaxes(PGt, -1, -2)), -1, -2)  # P G^T S^-1
+        if switch_tol > 0 and k > 0 and k % _CHECK_EVERY == 0:
+            change = np.linalg.norm(P - P_check, axis=(-2, -1)) / np.linalg.norm(P, axis=(-2, -1))
+            if np.all(change < switch_tol):
+                I_LG = np.eye(n) - L @ G
+                U = Y[:, k:] @ np.swapaxes(L, -1, -2)
+                out[:, k:] = lti_recursion(I_LG @ A, U, np.einsum("bij,bj->bi", I_LG, x) + U[:, 0])
+                innov[:, k] = e
+                innov[:, k + 1:] = Y[:, k + 1:] - out[:, k:-1] @ np.swapaxes(G @ A, -1, -2)
+                return out, innov, L, P
+            P_check = P.copy()
         x = x + np.einsum("bij,bj->bi", L, e)
         P = P - L @ np.swapaxes(PGt, -1, -2)
         P = 0.5 * (P + np.swapaxes(P, -1, -2))
@@ -93,35 +107,85 @@ def _time_varying(A, G, Q, R, Y, x, P):
     return out, innov, L, P
 
 
+#: the time-varying filter tests every this many steps whether its covariance has converged
+_CHECK_EVERY = 32
+
+
+#: batch members processed together by the steady-state filter: about this many floats per array
+_BLOCK_ELEMENTS = 1_000_000
+
+
+def lti_recursion(F, U, x_first):
+    """All states of ``x_k = F x_{k-1} + U_k`` (k >= 1) with ``x_0 = x_first``, for a stack of systems.
+
+    Parameters
+    ----------
+    F : ndarray (B, n, n);  U : ndarray (B, N, n);  x_first : ndarray (B, n)
+
+    Returns
+    -------
+    ndarray (B, N, n)
+
+    The record is cut into ~sqrt(N) chunks that run as one batch: each chunk's zero-state
+    response, then the chunk-boundary states in sequence, then the boundary states'
+    free response added back.  About 3 sqrt(N) matrix products on large operands instead of
+    N small ones; the result equals the step-by-step recursion to rounding.
+    """
+    B, N, n = U.shape
+    out = np.empty((B, N, n))
+    out[:, 0] = x_first
+    steps = N - 1
+    if steps == 0:
+        return out
+    K = max(1, int(np.sqrt(steps)))            # chunk length
+    C = -(-steps // K)                          # number of chunks
+    V = np.zeros((B, C * K, n))
+    V[:, :steps] = U[:, 1:]
+    V = V.reshape(B, C, K, n)
+    Ft = np.ascontiguousarray(np.swapaxes(F, -1, -2))          # (B, n, n)
+    Z = np.empty((B, C, K, n))
+    z = np.zeros((B, C, n))
+    for j in range(K):                          # zero-state response inside every chunk at once
+        z = z @ Ft + V[:, :, j]
+        Z[:, :, j] = z
+    FKt = np.swapaxes(np.linalg.matrix_power(F, K), -1, -2)
+    S = np.empty((B, C, n))                     # state just before each chunk
+    s = np.asarray(x_first, float)
+    for c in range(C):
+        S[:, c] = s
+        s = np.einsum("bi,bij->bj", s, FKt) + Z[:, c, K - 1]
+    T = S
+    for j in range(K):                          # free response of the boundary states
+        T = T @ Ft
+        Z[:, :, j] += T
+    out[:, 1:] = Z.reshape(B, C * K, n)[:, :steps]
+    return out
+
+
 def _steady(A, G, Q, R, Y, x):
     P, L = steady_gain(A, G, Q, R)
-    B, N, m = Y.shape
     n = A.shape[-1]
     I_LG = np.eye(n) - L @ G
     F = I_LG @ A                                      # X_k = F X_{k-1} + L y_k
-    U = Y @ np.swapaxes(L, -1, -2)                    # (B, N, n): L y_k for all k at once
+    B, N, _ = Y.shape
     out = np.empty((B, N, n))
-    xk = np.einsum("bij,bj->bi", I_LG, x) + U[:, 0]
-    out[:, 0] = xk
-    if B == 1:
-        Ft, Ut, o = F[0].T, U[0], out[0]
-        for k in range(1, N):
-            xk = xk @ Ft + Ut[k]
-            o[k] = xk
-    else:
-        Ft = np.swapaxes(F, -1, -2)
-        for k in range(1, N):
-            xk = np.matmul(xk[:, None, :], Ft)[:, 0] + U[:, k]
-            out[:, k] = xk
-    prior = np.empty_like(out)
-    prior[:, 0] = x
-    prior[:, 1:] = out[:, :-1] @ np.swapaxes(A, -1, -2)
-    innov = Y - prior @ np.swapaxes(G, -1, -2)
+    block = max(1, _BLOCK_ELEMENTS // (N * n))        # keep the temporaries cache-sized
+    for b0 in range(0, B, block):
+        sl = slice(b0, b0 + block)
+        U = Y[sl] @ np.swapaxes(L[sl], -1, -2)        # L y_k for all k at once
+        out[sl] = lti_recursion(F[sl], U, np.einsum("bij,bj->bi", I_LG[sl], x[sl]) + U[:, 0])
+    innov = np.empty_like(Y)                          # y_k - G A X_{k-1}: (G A) is only m x n
+    innov[:, 0] = Y[:, 0] - np.einsum("bij,bj->bi", G, x)
+    innov[:, 1:] = Y[:, 1:] - out[:, :-1] @ np.swapaxes(G @ A, -1, -2)
     return out, innov, L, P
 
 
-def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False):
-    """Run one AKF or a batch of them; see :func:`run`.  Returns a :class:`FilterResult`."""
+def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_tol=1e-14):
+    """Run one AKF or a batch of them; see :func:`run`.  Returns a :class:`FilterResult`.
+
+    ``switch_tol``: the time-varying filter continues with its (then constant) gain once its
+    covariance changes by less than this, relatively; 0 keeps it time-varying to the end.
+    """
     A, G, Q, Rb, Yb, batched = _batchify(A_a, G_a, Q_a, R, Y)
     B, n = Yb.shape[0], A.shape[-1]
     x = np.zeros((B, n)) if x0 is None else np.broadcast_to(as_finite_array(x0, "x0"), (B, n)).copy()
@@ -129,7 +193,7 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False):
         out, innov, L, P = _steady(A, G, Q, Rb, Yb, x)
     else:
         P = Q.copy() if P0 is None else np.broadcast_to(as_finite_array(P0, "P0"), (B, n, n)).copy()
-        out, innov, L, P = _time_varying(A, G, Q, Rb, Yb, x, P)
+        out, innov, L, P = _time_varying(A, G, Q, Rb, Yb, x, P, switch_tol)
     if not batched:
         out, innov, L, P = out[0], innov[0], L[0], P[0]
     return FilterResult(states=out, innovations=innov, gain=L, P_prior=P)
@@ -255,7 +319,8 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     layouts : sequence of sensor layouts
     measurements : ndarray (B, N, m) or sequence of (N, m)
         One measurement set per layout, columns in layout order.
-    noise_cov : as in :func:`estimate`; a dict per kind is applied to each layout.
+    noise_cov : as in :func:`estimate`, applied to every layout; or one entry per layout
+        (a (B, m, m) array or a list of B specs).
 
     Returns
     -------
@@ -285,7 +350,12 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     Ta_inv = scipy.linalg.block_diag(T_inv, np.eye(nf))
     A_a, _ = augment(T_inv @ A @ T, T_inv @ B, np.zeros((0, nx)), np.zeros((0, nf)))
     G_a = np.stack([np.hstack([G @ T, D]) for G, D in (observation(structure, l, locs) for l in layouts)])
-    R = np.stack([noise_covariance(l, noise_cov) for l in layouts])
+    per_layout = np.ndim(noise_cov) == 3 if not isinstance(noise_cov, (dict, list, tuple)) else (
+        isinstance(noise_cov, (list, tuple)) and len(noise_cov) == len(layouts)
+        and all(isinstance(c, dict) or np.ndim(c) >= 1 for c in noise_cov) and np.ndim(noise_cov) != 2)
+    if per_layout and len(noise_cov) != len(layouts):
+        raise AKFInputError(f"noise_cov has {len(noise_cov)} entries for {len(layouts)} layouts")
+    R = np.stack([noise_covariance(l, noise_cov[b] if per_layout else noise_cov) for b, l in enumerate(layouts)])
     Q_a = augmented_covariance(nx, nf, model_error_cov, force_increment_cov)
     Q_a = Ta_inv @ Q_a @ Ta_inv.T
     Q_a = 0.5 * (Q_a + Q_a.T)

@@ -28,20 +28,22 @@ def force_selection(structure, forces):
     return structure.dof_rows(locs).T
 
 
-def continuous(structure, forces):
-    """Continuous-time ``A_c`` (2n x 2n) and ``B_c`` (2n x n_p) for state ``x = [u; u']``."""
+def state_matrix(structure):
+    """Continuous-time ``A_c`` (2n x 2n) for state ``x = [u; u']``: ``[[0, I], [-M^-1 K, -M^-1 C]]``."""
     n = structure.n
-    Sp = force_selection(structure, forces)
     cf = _minv(structure)
-    MiK = scipy.linalg.cho_solve(cf, structure.K)
-    MiC = scipy.linalg.cho_solve(cf, structure.C)
-    MiSp = scipy.linalg.cho_solve(cf, Sp)
     A_c = np.zeros((2 * n, 2 * n))
     A_c[:n, n:] = np.eye(n)
-    A_c[n:, :n] = -MiK
-    A_c[n:, n:] = -MiC
-    B_c = np.vstack([np.zeros_like(MiSp), MiSp])
-    return A_c, B_c
+    A_c[n:, :n] = -scipy.linalg.cho_solve(cf, structure.K)
+    A_c[n:, n:] = -scipy.linalg.cho_solve(cf, structure.C)
+    return A_c
+
+
+def continuous(structure, forces):
+    """Continuous-time ``A_c`` (2n x 2n) and ``B_c = [0; M^-1 S_p]`` (2n x n_p)."""
+    Sp = force_selection(structure, forces)
+    MiSp = scipy.linalg.cho_solve(_minv(structure), Sp)
+    return state_matrix(structure), np.vstack([np.zeros_like(MiSp), MiSp])
 
 
 def zoh(A_c, B_c, dt):
@@ -150,8 +152,57 @@ class DetectabilityReport:
         return self.detectable
 
 
+def _critical_eigenvalues(structure, tol):
+    """Distinct eigenvalues ``s`` of ``A_c`` with Re s >= 0 (one of each conjugate pair), plus 0
+    for the force states.  Depends on the structure only, so it is cached on it."""
+    cache = structure.__dict__.setdefault("_critical_eigs", {})
+    if tol not in cache:
+        eig = np.linalg.eigvals(state_matrix(structure))
+        distinct = [0.0]
+        for s in eig:
+            if s.real < -tol * max(1.0, abs(s)) or s.imag < 0:
+                continue
+            if not any(abs(s - d) <= 1e-8 * max(1, abs(s)) for d in distinct):
+                distinct.append(complex(s))
+        cache[tol] = distinct
+    return cache[tol]
+
+
+def _unit_scaled(mat):
+    """Rows, then columns scaled to unit 2-norm (zero ones left alone), and the column scales.
+
+    Strain rows are O(1), acceleration rows O(omega^2): unscaled, a rank test would be
+    meaningless."""
+    r = np.linalg.norm(mat, axis=1)
+    r[r == 0] = 1
+    mat = mat / r[:, None]
+    c = np.linalg.norm(mat, axis=0)
+    c[c == 0] = 1
+    return mat / c[None, :], c
+
+
+def _static_pbh(structure, layout, locs):
+    """PBH at s = 0 when ``A_c`` is invertible: full rank iff the static gain from forces to
+    sensors, ``H0 = D - G A_c^-1 B_c = (S_s + S_d) K^-1 S_p`` (m x n_p), has full column rank
+    -- a tiny SVD instead of one of size 2n + n_p.  Written with K directly: velocities and
+    accelerations are exactly zero in a static state (the subtraction form would leave
+    rounding noise that a scaled rank test reads as information).
+    Returns the relative smallest singular value."""
+    S = selection_matrices(structure, layout)
+    H0 = (S["strain"] + S["disp"]) @ np.linalg.solve(structure.K, force_selection(structure, locs))
+    if H0.shape[0] < H0.shape[1] or not np.any(H0):
+        return 0.0
+    sv = np.linalg.svd(_unit_scaled(H0)[0], compute_uv=False)
+    return float(sv[-1] / sv[0]) if sv.size == H0.shape[1] else 0.0
+
+
 def detectability(structure, sensors, forces, tol=1e-9):
     """PBH detectability of the augmented system for a sensor layout (DESIGN A4).
+
+    The pair ``(A_ac, H_ac)`` with ``A_ac = [[A_c, B_c], [0, 0]]`` and ``H_ac = [G, D]`` is
+    detectable iff ``[[sI - A_ac], [H_ac]]`` has full column rank at every eigenvalue with
+    Re s >= 0.  For a supported, damped structure only ``s = 0`` (the force states) is
+    critical and the test reduces to the rank of the static gain from forces to sensors.
 
     Returns a :class:`DetectabilityReport`; its ``str`` names the failing eigenvalues.
     """
@@ -160,31 +211,22 @@ def detectability(structure, sensors, forces, tol=1e-9):
     A_c, B_c = continuous(structure, locs)
     G, D = observation(structure, layout, locs)
     n, npf = A_c.shape[0], B_c.shape[1]
+    nu = structure.n
+    critical = _critical_eigenvalues(structure, tol)
+    checked, failures = [], []
+    if len(critical) == 1 and structure.frequencies(1)[0] > 0:
+        rel = _static_pbh(structure, layout, locs)
+        checked.append(0j)
+        if rel < tol:
+            failures.append(dict(s=0.0, sigma_rel=rel, unseen="displacements, forces (a static load "
+                                 "pattern that no strain/displacement sensor sees)"))
+        return DetectabilityReport(detectable=not failures, checked=checked, failures=failures, sensors=layout)
     A_ac = np.zeros((n + npf, n + npf))
     A_ac[:n, :n] = A_c
     A_ac[:n, n:] = B_c
     H = np.hstack([G, D])
-    eig = np.linalg.eigvals(A_c)
-    crit = [0.0] + [s for s in eig if s.real >= -tol * max(1.0, abs(s))]
-    distinct = []
-    for s in crit:
-        if s.imag < 0 and any(abs(s.conjugate() - d) <= 1e-8 * max(1, abs(s)) for d in distinct):
-            continue
-        if not any(abs(s - d) <= 1e-8 * max(1, abs(s)) for d in distinct):
-            distinct.append(s)
-    checked, failures = [], []
-    nu = structure.n
-    for s in distinct:
-        pbh = np.vstack([s * np.eye(n + npf) - A_ac, H]).astype(complex)
-        # scale rows and columns to unit size before judging the rank (strain rows are
-        # O(1), acceleration rows O(omega^2): unscaled, the rank test would be meaningless)
-        scaled = pbh
-        r = np.linalg.norm(scaled, axis=1)
-        r[r == 0] = 1
-        scaled = scaled / r[:, None]
-        c = np.linalg.norm(scaled, axis=0)
-        c[c == 0] = 1
-        scaled = scaled / c[None, :]
+    for s in critical:
+        scaled, _ = _unit_scaled(np.vstack([s * np.eye(n + npf) - A_ac, H]).astype(complex))
         _, sv, vh = np.linalg.svd(scaled)
         rel = sv[-1] / sv[0]
         checked.append(complex(s))
@@ -193,8 +235,8 @@ def detectability(structure, sensors, forces, tol=1e-9):
             v = v / max(v.max(), 1e-300)
             parts = {"displacements": v[:nu].max(), "velocities": v[nu:2 * nu].max(), "forces": v[n:].max()}
             unseen = ", ".join(k for k, val in parts.items() if val > 1e-2)
-            failures.append(dict(s=complex(s) if abs(s.imag) > 0 else float(s.real), sigma_rel=float(rel),
-                                 unseen=unseen))
+            failures.append(dict(s=complex(s) if abs(complex(s).imag) > 0 else float(np.real(s)),
+                                 sigma_rel=float(rel), unseen=unseen))
     return DetectabilityReport(detectable=not failures, checked=checked, failures=failures, sensors=layout)
 
 

@@ -122,3 +122,21 @@ def test_undetectable_error_carries_report():
     assert "allow_undetectable" in str(err.value)
     assert not err.value.report.detectable
     assert not check_detectable(s17_truss(), ACC_ONLY, FORCES4, allow_undetectable=True).detectable
+
+
+@pytest.mark.parametrize("sensors,forces", [
+    (["acc:4:y", "acc:6:y", "acc:8:y"], ["8:y"]),
+    (["acc:4:y", "acc:6:y", "acc:8:y", "strain:13"], ["8:y"]),
+    (["acc:4:y", "strain:9"], ["8:y"]),  # member 9 carries no static force from a load at 8
+    (ACC_ONLY + ["strain:5"], FORCES4),
+    (["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x", "strain:5", "strain:9", "strain:13", "strain:26"], FORCES4),
+    (["disp:8:y", "disp:4:y", "disp:12:y", "disp:6:y"], FORCES4),
+])
+def test_static_shortcut_agrees_with_full_pbh_at_s0(sensors, forces):
+    """The damped structure uses the static-gain shortcut; the undamped one (every mode on the
+    imaginary axis) goes through the full PBH matrix.  Their verdicts at s = 0 must agree."""
+    damped = detectability(s17_truss(), sensors, forces)
+    undamped = detectability(s17_truss(damping=None), sensors, forces)
+    assert len(undamped.checked) == 1 + 33
+    s0_fails = any(f["s"] == 0.0 for f in undamped.failures)
+    assert damped.detectable == (not s0_fails)
