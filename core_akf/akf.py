@@ -14,6 +14,7 @@ The returned states are the filtered (posterior) ones.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -223,6 +224,13 @@ def run(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False):
     Returns
     -------
     ndarray (N, n_a), or (B, N, n_a) when any input carries a batch axis.
+
+    Notes
+    -----
+    The filter works in whatever coordinates the matrices are given in.  For stiff FE models
+    in raw ``[u; u']`` the Riccati iteration is ill-conditioned; :func:`estimate` therefore
+    transforms to energy-normalised modal coordinates first
+    (:func:`core_akf.statespace.modal_state_transform`) and back afterwards.
     """
     return filter_states(A_a, G_a, Q_a, R, Y, x0=x0, P0=P0, steady=steady).states
 
@@ -269,7 +277,7 @@ class Estimate:
     def time(self):
         return np.arange(self.forces.shape[0]) * self.dt
 
-    @property
+    @cached_property
     def strains(self):
         """Strains at every member (truss) or node component (plate), shape (N, n_strain)."""
         n = self.structure.n

@@ -3,6 +3,7 @@ readings and measurement noise (absolute levels or a percentage of each channel'
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -40,7 +41,7 @@ class Simulation:
     def time(self):
         return np.arange(self.loads.shape[0]) * self.dt
 
-    @property
+    @cached_property
     def strains(self):
         """True strains at every member/node component, shape (N, n_strain)."""
         return self.states[:, : self.structure.n] @ self.structure.strain_operator.T
