@@ -301,6 +301,27 @@ class Estimate:
         return pd.DataFrame(cols)
 
 
+def state_covariance(structure, model_error_cov):
+    """Model-error covariance ``Q`` (2n x 2n) in the structure's generalised coordinates.
+
+    ``model_error_cov`` is given per *physical* free DOF for the displacements and the
+    velocities (a scalar level, a vector of 2 n_phys variances or a matrix), so the same level
+    means the same thing for a full and a modally reduced model (``Q_q = P Q_u P^T`` with the
+    structure's projection ``P``).  For a reduced structure a matrix of the generalised size
+    (2n x 2n) is also accepted and used as it is.
+    """
+    if not structure.is_reduced:
+        return diag_levels(model_error_cov, 2 * structure.n, "model_error_cov")
+    n_phys = structure.free_dofs.size
+    if np.ndim(model_error_cov) == 2 and np.shape(model_error_cov) == (2 * structure.n,) * 2 \
+            and structure.n != n_phys:
+        return diag_levels(model_error_cov, 2 * structure.n, "model_error_cov")
+    Q_phys = diag_levels(model_error_cov, 2 * n_phys, "model_error_cov")
+    P = scipy.linalg.block_diag(structure.projection, structure.projection)
+    Q = P @ Q_phys @ P.T
+    return 0.5 * (Q + Q.T)
+
+
 def augmented_covariance(n_states, n_forces, model_error_cov, force_increment_cov):
     """``Q_a = blockdiag(Q, S)`` from levels (scalar, vector of variances or matrix)."""
     Q = diag_levels(model_error_cov, n_states, "model_error_cov")
@@ -364,7 +385,7 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     if per_layout and len(noise_cov) != len(layouts):
         raise AKFInputError(f"noise_cov has {len(noise_cov)} entries for {len(layouts)} layouts")
     R = np.stack([noise_covariance(l, noise_cov[b] if per_layout else noise_cov) for b, l in enumerate(layouts)])
-    Q_a = augmented_covariance(nx, nf, model_error_cov, force_increment_cov)
+    Q_a = augmented_covariance(nx, nf, state_covariance(structure, model_error_cov), force_increment_cov)
     Q_a = Ta_inv @ Q_a @ Ta_inv.T
     Q_a = 0.5 * (Q_a + Q_a.T)
     z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", shape=(nx + nf,))
@@ -394,7 +415,8 @@ def estimate(structure, sensors, forces, measurements, dt, *, model_error_cov,
     dt : float
         Sampling interval (s).
     model_error_cov : float, ndarray
-        ``Q``: variance level(s) of the state model error per step (scalar, 2n vector or matrix).
+        ``Q``: variance level(s) of the state model error per step, per physical DOF
+        (displacements then velocities: scalar, vector or matrix); see :func:`state_covariance`.
     force_increment_cov : float, ndarray
         ``S``: variance of the force increment per step (N^2).
     noise_cov : float, ndarray or dict

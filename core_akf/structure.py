@@ -266,10 +266,20 @@ class Structure:
         zeta = self.damping
         if zeta is not None and not isinstance(zeta, (tuple, list)) and np.ndim(zeta) == 1:
             zeta = np.asarray(zeta)[:n_modes]
-        red = self._replace(M=np.eye(n_modes), K=np.diag(omega[:n_modes] ** 2), basis=basis,
-                            damping=zeta, C=0.5 * (Cr + Cr.T), name=f"{self.name} ({n_modes} modes)")
-        red.damping = zeta
-        return red
+        # q = P u_phys with P = Phi^T M_phys (mass-orthogonal projection), kept for mapping
+        # physical quantities (e.g. model-error covariances) to the reduced coordinates
+        P_prev = self.meta.get("projection")
+        P = phi.T @ self.M if P_prev is None else phi.T @ self.M @ P_prev
+        meta = dict(self.meta, projection=P)
+        return self._replace(M=np.eye(n_modes), K=np.diag(omega[:n_modes] ** 2), basis=basis,
+                             damping=zeta, C=0.5 * (Cr + Cr.T), name=f"{self.name} ({n_modes} modes)", meta=meta)
+
+    @property
+    def projection(self):
+        """``P`` (n x n_phys) with ``q = P u_phys``: identity for a full structure, ``Phi^T M`` for a
+        modally reduced one (``P @ basis = I``)."""
+        P = self.meta.get("projection")
+        return np.eye(self.n) if P is None else P
 
     def total_mass(self, direction):
         """Total translational mass (kg) in ``direction`` of the full, unconstrained model
