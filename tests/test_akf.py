@@ -213,3 +213,22 @@ def test_reduced_structure_projection_inverts_basis():
     assert np.allclose(r.projection @ r.basis, np.eye(15), atol=1e-10)
     rr = r.reduce(5)
     assert np.allclose(rr.projection @ rr.basis, np.eye(5), atol=1e-10)
+
+
+def test_riccati_falls_back_to_scipy_with_a_warning():
+    from core_akf.riccati import RiccatiWarning
+    A, G, Q, R, *_ = _random_system(9, n=6, m=2)
+    with pytest.warns(RiccatiWarning, match="falling back"):
+        P = solve_filter_dare(A, G, Q, R, max_iter=1)
+    assert np.allclose(P, scipy.linalg.solve_discrete_are(A.T, G.T, Q, R), rtol=1e-9)
+
+
+def test_riccati_batch_of_mixed_problems():
+    systems = [_random_system(s, n=5, m=2) for s in range(6)]
+    A = np.stack([s[0] for s in systems])
+    G = np.stack([s[1] for s in systems])
+    Q = np.stack([s[2] for s in systems])
+    R = np.stack([s[3] for s in systems])
+    P = solve_filter_dare(A, G, Q, R)
+    for b in range(6):
+        assert np.allclose(P[b], scipy.linalg.solve_discrete_are(A[b].T, G[b].T, Q[b], R[b]), rtol=1e-9)
