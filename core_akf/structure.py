@@ -23,14 +23,19 @@ from .exceptions import AKFInputError, ModelError
 STRAIN_COMPONENTS = ("ex", "ey", "gxy")
 
 
-def _damping_matrix(M, K, damping, omega, phi):
-    """Damping matrix from a damping spec (see :class:`Structure`)."""
+def _damping_matrix(M, K, damping, modes):
+    """Damping matrix from a damping spec (see :class:`Structure`); ``modes()`` gives
+    ``(omega, Phi)`` and is only called for modal damping."""
     if damping is None:
         return np.zeros_like(M)
     if isinstance(damping, (tuple, list)) and len(damping) == 3 and str(damping[0]).lower() == "rayleigh":
         alpha, beta = float(damping[1]), float(damping[2])
         return alpha * M + beta * K
-    zeta = np.asarray(damping, dtype=float)
+    try:
+        zeta = np.asarray(damping, dtype=float)
+    except (TypeError, ValueError):
+        raise AKFInputError(f"damping must be a modal damping ratio or ('rayleigh', alpha, beta); got {damping!r}") from None
+    omega, phi = modes()
     if zeta.ndim > 1 or (zeta.ndim == 1 and zeta.size != omega.size):
         raise AKFInputError(
             f"damping must be a modal damping ratio (scalar or one per mode, {omega.size}) "
@@ -108,8 +113,7 @@ class Structure:
         if self.strain_matrix is not None and self.strain_matrix.shape[1] != n_phys:
             raise ModelError("strain_matrix must have one column per free physical DOF")
         if self.C is None:
-            omega, phi = self._eig
-            self.C = _damping_matrix(self.M, self.K, self.damping, omega, phi)
+            self.C = _damping_matrix(self.M, self.K, self.damping, lambda: self._eig)
         else:
             self.C = as_finite_array(self.C, "damping matrix C", ndim=2)
             check_square_symmetric(self.C, "damping matrix C")

@@ -172,3 +172,16 @@ def test_modal_reduction_keeps_low_modes_and_interface():
     phi = s.modes(12)
     assert np.allclose(rows_red, rows_full @ phi)
     assert np.allclose(r.dof_rows([(121, "w")]), s.dof_rows([(121, "w")]) @ phi)
+
+
+def test_exact_member_strain():
+    from core_akf.models.truss import member_strain_exact
+    s = s17_truss()
+    rng = np.random.default_rng(0)
+    u = rng.normal(0, 1e-6, s.n)
+    assert np.allclose(member_strain_exact(s, u), s.strain_matrix @ u, rtol=1e-4, atol=1e-12)
+    # joint 18 (roller) moved 9 mm to the right: the 1 m bottom-chord member 34 stretches by 9 mm exactly
+    u = np.zeros(s.n)
+    u[s.dof_index(18, "x")] = 9e-3
+    assert member_strain_exact(s, u)[33] == pytest.approx(9e-3, rel=1e-12)
+    assert member_strain_exact(s, np.stack([u, 2 * u])).shape == (2, 34)

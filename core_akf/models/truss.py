@@ -139,3 +139,20 @@ def s17_truss(E=200e9, rho=7800.0, damping=0.007, panel=1.0, height=1.0, lumped=
     """The S17 / IMP planar truss: 18 joints, 34 members, pin at joint 1, roller at joint 18."""
     return planar_truss(s17_joint_coordinates(panel, height), S17_MEMBERS, s17_areas(), E, rho,
                  supports={1: "xy", 18: "y"}, damping=damping, lumped=lumped, name="S17 truss")
+
+
+def member_strain_exact(structure, u_free):
+    """Exact geometric member strains ``(|x_j + d_j - x_i - d_i| - L) / L`` (S17), shape (..., n_members).
+
+    ``u_free`` holds free physical displacements (m), shape (..., n_phys); for small
+    displacements this equals ``structure.strain_matrix @ u_free`` (S17 eq. 35-36).
+    """
+    u_free = np.asarray(u_free, float)
+    d = np.zeros(u_free.shape[:-1] + (2 * structure.n_nodes,))
+    d[..., structure.free_dofs] = u_free
+    d = d.reshape(u_free.shape[:-1] + (structure.n_nodes, 2))
+    i, j = structure.members[:, 0], structure.members[:, 1]
+    x = structure.nodes
+    L0 = np.linalg.norm(x[j] - x[i], axis=1)
+    L = np.linalg.norm(x[j] + d[..., j, :] - x[i] - d[..., i, :], axis=-1)
+    return (L - L0) / L0
