@@ -65,6 +65,9 @@ def _estimate(args):
     if (args.job is None) == (args.example is None):
         raise AKFInputError("give a job file or --example NAME (see --list-examples)")
     job = example_job(args.example) if args.example else _load_toml(args.job)
+    meas = job.get("measurements")
+    if args.job and isinstance(meas, dict) and "file" in meas and not os.path.isabs(meas["file"]):
+        meas["file"] = os.path.join(os.path.dirname(os.path.abspath(args.job)), meas["file"])  # relative to the job file
     if args.duration is not None:
         job.setdefault("simulation", {})["duration"] = args.duration
     if args.seed is not None:

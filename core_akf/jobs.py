@@ -28,6 +28,7 @@ A job file (TOML)::
 from __future__ import annotations
 
 import copy
+import difflib
 import os
 from dataclasses import dataclass, field
 
@@ -110,7 +111,14 @@ def read_measurements(path, sensors, dt, time_column="time"):
 
     if not os.path.exists(path):
         raise AKFInputError(f"measurement file {path!r} not found")
-    df = pd.read_parquet(path) if str(path).endswith((".parquet", ".pq")) else pd.read_csv(path)
+    if str(path).endswith((".parquet", ".pq")):
+        try:
+            df = pd.read_parquet(path)
+        except ImportError as exc:
+            raise AKFInputError(f"reading Parquet needs pyarrow or fastparquet ({exc}); "
+                                "pip install pyarrow, or give a CSV file") from None
+    else:
+        df = pd.read_csv(path)
     labels = [s.label for s in as_layout(sensors)]
     missing = [c for c in [time_column] + labels if c not in df.columns]
     if missing:
@@ -156,6 +164,9 @@ class JobResult:
 
         est = self.estimate
         labels = est.structure.strain_labels
+        unknown = [c for c in (channels or []) if c not in labels]
+        if unknown:
+            raise AKFInputError(f"unknown strain channel(s) {unknown}; labels look like {labels[0]!r}, {labels[-1]!r}")
         idx = range(len(labels)) if channels is None else [labels.index(c) for c in channels]
         strains = est.strains
         ref = self.simulation.strains if self.simulation is not None else None
@@ -176,12 +187,41 @@ class JobResult:
         return pd.DataFrame(rows)
 
 
-def run_job(job, allow_undetectable=None, steady=None):
-    """Run an estimation job (a dict as read from TOML, see the module docstring)."""
-    job = copy.deepcopy(job)
+#: the keys a job may hold, per section (None: the top level)
+JOB_KEYS = {
+    None: {"name", "description", "dt", "sensors", "forces", "structure", "filter", "simulation",
+           "measurements", "output"},
+    "filter": {"stiffness_factor", "reduce_modes", "model_error_cov", "force_increment_cov", "noise_cov",
+               "steady", "allow_undetectable"},
+    "simulation": {"duration", "relative_noise", "absolute_noise", "seed", "loads"},
+    "measurements": {"file", "time_column"},
+    "output": {"strains"},
+}
+
+
+def validate_job(job):
+    """Reject unknown keys (a typo must not silently fall back to a default) and missing ones."""
+    if not isinstance(job, dict):
+        raise AKFInputError("a job is a table of settings (a dict)")
+    for section, allowed in JOB_KEYS.items():
+        table = job if section is None else job.get(section, {})
+        if not isinstance(table, dict):
+            raise AKFInputError(f"[{section}] must be a table")
+        for key in table:
+            if key not in allowed:
+                hint = difflib.get_close_matches(key, allowed, n=1)
+                where = "the job" if section is None else f"[{section}]"
+                raise AKFInputError(f"unknown key {key!r} in {where}"
+                                    + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"))
     for key in ("dt", "sensors", "forces", "structure"):
         if key not in job:
             raise AKFInputError(f"the job has no {key!r}")
+
+
+def run_job(job, allow_undetectable=None, steady=None):
+    """Run an estimation job (a dict as read from TOML, see the module docstring)."""
+    job = copy.deepcopy(job)
+    validate_job(job)
     dt = float(job["dt"])
     true_structure = build_structure(job["structure"])
     filt = dict(job.get("filter", {}))

@@ -80,3 +80,41 @@ def test_console_script_installed():
     r = subprocess.run([sys.executable, "-m", "core_akf.cli", "estimate", "--list-examples"],
                        capture_output=True, text=True)
     assert r.returncode == 0 and "s17-case4" in r.stdout
+
+
+def test_job_typo_is_an_error_not_a_default():
+    from core_akf.examples import example_job
+    from core_akf.jobs import run_job
+    job = example_job("s17-case4")
+    job["filter"]["stifness_factor"] = 1.05
+    with pytest.raises(ValueError, match="unknown key 'stifness_factor' in \\[filter\\]; did you mean 'stiffness_factor'"):
+        run_job(job)
+    job = example_job("s17-case4")
+    del job["dt"]
+    with pytest.raises(ValueError, match="the job has no 'dt'"):
+        run_job(job)
+
+
+def test_measurement_path_relative_to_job_file(tmp_path, capsys, monkeypatch):
+    """A job file next to its data works from any working directory."""
+    sensors = ["strain:13", "strain:21"]
+    dt = 1 / 512
+    t = np.arange(256) * dt
+    df = pd.DataFrame({"time": t, "strain:13": 1e-6 * np.sin(t), "strain:21": 1e-6 * np.cos(t)})
+    (tmp_path / "jobdir").mkdir()
+    df.to_csv(tmp_path / "jobdir" / "data.csv", index=False)
+    (tmp_path / "jobdir" / "job.toml").write_text(f'''
+dt = {dt!r}
+sensors = {sensors!r}
+forces = ["8:y"]
+[structure]
+model = "s17_truss"
+[filter]
+force_increment_cov = 1e4
+noise_cov = {{strain = 1e-16}}
+[measurements]
+file = "data.csv"
+''')
+    monkeypatch.chdir(tmp_path)
+    assert main(["estimate", "jobdir/job.toml", "--json", "--no-plot", "--out", "o"]) == 0
+    assert json.loads(capsys.readouterr().out)["n_steps"] == 256
