@@ -18,12 +18,12 @@ from functools import cached_property
 
 import numpy as np
 
+import scipy.linalg
+
 from ._validate import as_finite_array
 from .exceptions import AKFInputError
 from .riccati import steady_gain
 from .sensors import as_layout, parse_force_locations
-import scipy.linalg
-
 from .statespace import (augment, check_detectable, continuous, diag_levels, modal_state_transform,
                          observation, zoh)
 
@@ -349,7 +349,7 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     measurements : ndarray (B, N, m) or sequence of (N, m)
         One measurement set per layout, columns in layout order.
     noise_cov : as in :func:`estimate`, applied to every layout; or one entry per layout
-        (a (B, m, m) array or a list of B specs).
+        (a (B, m, m) array or a list of B dicts of variances per sensor kind).
 
     Returns
     -------
@@ -379,9 +379,9 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     Ta_inv = scipy.linalg.block_diag(T_inv, np.eye(nf))
     A_a, _ = augment(T_inv @ A @ T, T_inv @ B, np.zeros((0, nx)), np.zeros((0, nf)))
     G_a = np.stack([np.hstack([G @ T, D]) for G, D in (observation(structure, l, locs) for l in layouts)])
-    per_layout = np.ndim(noise_cov) == 3 if not isinstance(noise_cov, (dict, list, tuple)) else (
-        isinstance(noise_cov, (list, tuple)) and len(noise_cov) == len(layouts)
-        and all(isinstance(c, dict) or np.ndim(c) >= 1 for c in noise_cov) and np.ndim(noise_cov) != 2)
+    per_layout = (isinstance(noise_cov, (list, tuple)) and len(noise_cov) > 0
+                  and all(isinstance(c, dict) for c in noise_cov)) or (
+        not isinstance(noise_cov, dict) and np.ndim(noise_cov) == 3)
     if per_layout and len(noise_cov) != len(layouts):
         raise AKFInputError(f"noise_cov has {len(noise_cov)} entries for {len(layouts)} layouts")
     R = np.stack([noise_covariance(l, noise_cov[b] if per_layout else noise_cov) for b, l in enumerate(layouts)])

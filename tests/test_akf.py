@@ -232,3 +232,19 @@ def test_riccati_batch_of_mixed_problems():
     P = solve_filter_dare(A, G, Q, R)
     for b in range(6):
         assert np.allclose(P[b], scipy.linalg.solve_discrete_are(A[b].T, G[b].T, Q[b], R[b]), rtol=1e-9)
+
+
+def test_estimate_batch_with_noise_per_layout():
+    s = s17_truss()
+    layouts = [["strain:13", "acc:8:y"], ["strain:21", "acc:6:y"]]
+    dt = 1 / 1024
+    loads = np.random.default_rng(1).normal(0, 500, (400, 1))
+    sims = [simulate(s, l, ["8:y"], loads, dt, relative_noise=0.02, seed=2) for l in layouts]
+    Ys = np.stack([x.measurements for x in sims])
+    R = np.stack([np.diag(x.noise_std ** 2) for x in sims])
+    kw = dict(model_error_cov=1e-16, force_increment_cov=1e5, steady=True)
+    batch = akf.estimate_batch(s, layouts, ["8:y"], Ys, dt, noise_cov=R, **kw)
+    for l, y, r, b in zip(layouts, Ys, R, batch):
+        assert np.allclose(b.forces, akf.estimate(s, l, ["8:y"], y, dt, noise_cov=r, **kw).forces, rtol=1e-10, atol=1e-8)
+    with pytest.raises(ValueError, match="noise_cov has 3 entries for 2 layouts"):
+        akf.estimate_batch(s, layouts, ["8:y"], Ys, dt, noise_cov=np.stack([R[0]] * 3), **kw)
