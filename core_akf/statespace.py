@@ -187,13 +187,25 @@ def _static_pbh(structure, layout, locs):
     -- a tiny SVD instead of one of size 2n + n_p.  Written with K directly: velocities and
     accelerations are exactly zero in a static state (the subtraction form would leave
     rounding noise that a scaled rank test reads as information).
-    Returns the relative smallest singular value."""
+
+    Returns the relative smallest singular value and the least visible force combination
+    (unit vector over the force locations, in N per unit)."""
     S = selection_matrices(structure, layout)
     H0 = (S["strain"] + S["disp"]) @ np.linalg.solve(structure.K, force_selection(structure, locs))
-    if H0.shape[0] < H0.shape[1] or not np.any(H0):
-        return 0.0
-    sv = np.linalg.svd(_unit_scaled(H0)[0], compute_uv=False)
-    return float(sv[-1] / sv[0]) if sv.size == H0.shape[1] else 0.0
+    n_p = H0.shape[1]
+    if not np.any(H0):
+        return 0.0, np.eye(n_p)[0]
+    scaled, col = _unit_scaled(H0)
+    _, sv, vh = np.linalg.svd(scaled)
+    combo = vh[-1] / col
+    combo /= np.linalg.norm(combo)
+    rel = float(sv[-1] / sv[0]) if sv.size == n_p else 0.0
+    return rel, combo
+
+
+def _describe_combination(locs, combo):
+    terms = [f"{c:+.2f} x {node}:{d}" for (node, d), c in zip(locs, combo) if abs(c) > 1e-3]
+    return " ".join(terms)
 
 
 def detectability(structure, sensors, forces, tol=1e-9):
@@ -208,20 +220,21 @@ def detectability(structure, sensors, forces, tol=1e-9):
     """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
-    A_c, B_c = continuous(structure, locs)
-    G, D = observation(structure, layout, locs)
-    n, npf = A_c.shape[0], B_c.shape[1]
-    nu = structure.n
     critical = _critical_eigenvalues(structure, tol)
     checked, failures = [], []
     omega = structure.frequencies()
     if len(critical) == 1 and omega[0] > 1e-6 * omega[-1]:  # supported and damped: only s = 0
-        rel = _static_pbh(structure, layout, locs)
+        rel, combo = _static_pbh(structure, layout, locs)
         checked.append(0j)
         if rel < tol:
-            failures.append(dict(s=0.0, sigma_rel=rel, unseen="displacements, forces (a static load "
-                                 "pattern that no strain/displacement sensor sees)"))
+            failures.append(dict(s=0.0, sigma_rel=rel, unseen=(
+                "displacements, forces: no strain/displacement sensor sees the static response to the "
+                f"force combination {_describe_combination(locs, combo)}")))
         return DetectabilityReport(detectable=not failures, checked=checked, failures=failures, sensors=layout)
+    A_c, B_c = continuous(structure, locs)
+    G, D = observation(structure, layout, locs)
+    n, npf = A_c.shape[0], B_c.shape[1]
+    nu = structure.n
     A_ac = np.zeros((n + npf, n + npf))
     A_ac[:n, :n] = A_c
     A_ac[:n, n:] = B_c
