@@ -172,6 +172,10 @@ def test_lti_recursion_equals_step_loop():
         x = np.einsum("bij,bj->bi", F, x) + U[:, k]
         ref[:, k] = x
     assert np.allclose(akf.lti_recursion(F, U, x0), ref, rtol=1e-11, atol=1e-11)
+    for path in (akf._recursion_stepwise, akf._recursion_chunked):
+        assert np.allclose(path(F, U, x0), ref, rtol=1e-11, atol=1e-11)
+        assert np.allclose(path(F[:1], U[:1], x0[:1]), ref[:1], rtol=1e-11, atol=1e-11)
+        assert np.allclose(path(F[:1], U[:1, :2], x0[:1]), ref[:1, :2], rtol=1e-11, atol=1e-11)
 
 
 def test_time_varying_gain_switch_is_exact_on_s17():
