@@ -252,3 +252,51 @@ def test_estimate_batch_with_noise_per_layout():
         assert np.allclose(b.forces, akf.estimate(s, l, ["8:y"], y, dt, noise_cov=r, **kw).forces, rtol=1e-10, atol=1e-8)
     with pytest.raises(ValueError, match="noise_cov has 3 entries for 2 layouts"):
         akf.estimate_batch(s, layouts, ["8:y"], Ys, dt, noise_cov=np.stack([R[0]] * 3), **kw)
+
+
+def test_structured_time_varying_update_equals_dense():
+    """ModalBlockTransition's A P A^T (used by estimate for classically damped structures)
+    gives the same time-varying filter as the dense product."""
+    from core_akf.akf import ModalBlockTransition
+    from core_akf.models import th_plate
+    from core_akf.statespace import augment, modal_zoh, observation, modal_state_transform
+    s = th_plate().reduce(30)
+    forces = ["121:w", "111:w"]
+    sensors = ["strain:2:gxy", "strain:100:gxy", "acc:12:w"]
+    A_z, B_z = modal_zoh(s, forces, 1 / 2000)
+    A_a, _ = augment(A_z, B_z, np.zeros((0, 60)), np.zeros((0, 2)))
+    G, D = observation(s, sensors, forces)
+    T, _ = modal_state_transform(s)
+    G_a = np.hstack([G @ T, D])
+    tr = ModalBlockTransition.detect(A_a, s.n)
+    assert tr is not None and tr.error == 0.0
+    rng = np.random.default_rng(0)
+    P = rng.normal(size=(62, 62))
+    P = P @ P.T
+    assert np.allclose(tr.propagate(P, np.eye(62)), A_a @ P @ A_a.T + np.eye(62), rtol=1e-12, atol=1e-12)
+    Y = rng.normal(size=(300, 3)) * np.array([1e-6, 1e-6, 1.0])
+    Q = np.diag(np.r_[np.full(60, 1e-10), 1e-2, 1e-2])
+    R = np.diag([1e-14, 1e-14, 1e-3])
+    dense = akf.filter_states(A_a, G_a, Q, R, Y, switch_tol=0)
+    fast = akf.filter_states(A_a, G_a, Q, R, Y, switch_tol=0, transition=tr)
+    assert np.allclose(fast.states, dense.states, rtol=1e-9, atol=1e-9 * np.abs(dense.states).max())
+
+
+def test_estimate_with_non_classical_damping_uses_the_dense_path():
+    """A discrete dashpot makes the damping non-proportional: no modal shortcut, same answers
+    from the steady-state and the time-varying filter after the transient."""
+    from core_akf import Structure
+    s = s17_truss(damping=0.007)
+    C = s.C.copy()
+    i = s.dof_index(8, "y")
+    C[i, i] += 2e3
+    s2 = Structure(M=s.M, K=s.K, C=C, nodes=s.nodes, dof_names=s.dof_names, free_dofs=s.free_dofs,
+                   strain_matrix=s.strain_matrix, members=s.members, name="truss + dashpot")
+    sensors = ["strain:13", "strain:21", "acc:8:y"]
+    loads = np.random.default_rng(3).normal(0, 500, (3000, 1))
+    sim = simulate(s2, sensors, ["8:y"], loads, 1 / 2048, relative_noise=0.02, seed=1)
+    kw = dict(model_error_cov=1e-16, force_increment_cov=1e5, noise_cov=np.diag(sim.noise_std ** 2))
+    ss = akf.estimate(s2, sensors, ["8:y"], sim.measurements, 1 / 2048, steady=True, **kw)
+    tv = akf.estimate(s2, sensors, ["8:y"], sim.measurements, 1 / 2048, steady=False, **kw)
+    assert np.allclose(ss.forces[-1000:], tv.forces[-1000:], rtol=1e-6, atol=1e-6 * np.abs(tv.forces).max())
+    assert np.sqrt(np.mean((ss.forces[500:, 0] - loads[500:, 0]) ** 2)) < 0.5 * 500

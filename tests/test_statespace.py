@@ -140,3 +140,31 @@ def test_static_shortcut_agrees_with_full_pbh_at_s0(sensors, forces):
     assert len(undamped.checked) == 1 + 33
     s0_fails = any(f["s"] == 0.0 for f in undamped.failures)
     assert damped.detectable == (not s0_fails)
+
+
+@pytest.mark.parametrize("make,forces,dt,tol", [
+    (lambda: s17_truss(), ["8:y", "12:y"], 1 / 4096, 1e-11),
+    (lambda: s17_truss(damping=("rayleigh", 0.5, 1e-5)), ["8:y"], 1 / 1024, 1e-11),
+    (lambda: th_plate(), ["121:w", "111:w"], 1 / 2000, 1e-7),   # dense expm of a stiff 660x660 matrix
+    (lambda: th_plate().reduce(25), ["121:w"], 1 / 2000, 1e-11),
+])
+def test_modal_zoh_equals_dense_zoh_in_modal_coordinates(make, forces, dt, tol):
+    from core_akf.statespace import modal_state_transform, modal_zoh
+    s = make()
+    A, B = zoh(*continuous(s, forces), dt)
+    T, T_inv = modal_state_transform(s)
+    A_z, B_z = modal_zoh(s, forces, dt)
+    assert np.max(np.abs(A_z - T_inv @ A @ T)) <= tol * np.max(np.abs(A_z))
+    assert np.max(np.abs(B_z - T_inv @ B)) <= tol * np.max(np.abs(B_z))
+
+
+def test_modal_zoh_refuses_non_classical_damping():
+    from core_akf.statespace import modal_zoh
+    s = s17_truss(damping=None)
+    C = np.zeros_like(s.K)
+    i = s.dof_index(8, "y")
+    C[i, i] = 1e4  # one discrete dashpot: not proportional
+    from core_akf import Structure
+    s2 = Structure(M=s.M, K=s.K, C=C, nodes=s.nodes, dof_names=s.dof_names, free_dofs=s.free_dofs,
+                   strain_matrix=s.strain_matrix, members=s.members)
+    assert modal_zoh(s2, ["8:y"], 1e-3) is None
