@@ -91,7 +91,7 @@ class ModalBlockTransition:
             rebuilt[i * n:(i + 1) * n, j * n:(j + 1) * n] = np.diag(d)
         self.error = float(np.max(np.abs(A_a[:nx, :nx] - rebuilt)) / max(np.max(np.abs(A_a[:nx, :nx])), 1e-300))
         lower = A_a[nx:]
-        if self.error > rtol or not np.allclose(lower, np.eye(A_a.shape[0])[nx:], rtol=0, atol=0):
+        if self.error > rtol or not np.array_equal(lower, np.eye(A_a.shape[0])[nx:]):
             raise ValueError(f"A_a has no modal block structure (relative off-block size {self.error:.1e})")
         self.n, self.nx = n, nx
         self.d11, self.d12, self.d21, self.d22 = (d[:, None] for d in blocks)

@@ -9,6 +9,10 @@ import sys
 from .exceptions import AKFInputError, UndetectableError
 
 
+#: above this many (channel x step) rows, "all" strain histories are not written to the CSV
+_MAX_STRAIN_ROWS = 2_000_000
+
+
 def _load_toml(path):
     try:
         import tomllib
@@ -84,8 +88,14 @@ def _estimate(args):
     frames = [result.force_frame()]
     wanted = job.get("output", {}).get("strains", "all")
     est = result.estimate
+    notes = []
     if wanted == "all":
-        wanted = None if est.structure.n_strain * est.forces.shape[0] <= 2_000_000 else []
+        if est.structure.n_strain * est.forces.shape[0] <= _MAX_STRAIN_ROWS:
+            wanted = None
+        else:
+            wanted = []
+            notes.append(f"strain histories not written ({est.structure.n_strain} channels x {est.forces.shape[0]} "
+                         "steps); list the channels you want in [output] strains (summary.csv has all RMS errors)")
     if wanted != []:
         frames.append(result.strain_frame(wanted))
     files["timeseries"] = os.path.join(out, "timeseries.csv")
@@ -101,7 +111,7 @@ def _estimate(args):
     if args.json:
         print(json.dumps({"name": name, "detectable": m["detectable"], "n_steps": m["n_steps"],
                           "rms_force": m.get("rms_force"), "avg_strain_error": m.get("avg_strain_error"),
-                          "files": files}))
+                          "files": files, "notes": notes}))
         return 0
     print(f"{name}: {job.get('description', '')}")
     print(f"  {len(est.sensors)} sensors, {len(est.force_locations)} unknown forces, {m['n_steps']} steps, "
@@ -113,6 +123,8 @@ def _estimate(args):
         print(f"  average strain error: {m['avg_strain_error'] * 1e6:.4f} µε over {est.structure.n_strain} strain outputs")
     for k, v in files.items():
         print(f"  wrote {k}: {v}")
+    for note in notes:
+        print(f"  note: {note}")
     return 0
 
 
