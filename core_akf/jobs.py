@@ -40,7 +40,7 @@ from .exceptions import AKFInputError
 from .metrics import average_strain_error, rms_error
 from .models import imp_plate, plate, s17_truss, th_plate
 from .sensors import as_layout, parse_force_locations
-from .simulate import G0, simulate
+from .simulate import MG, MICROSTRAIN, simulate
 from .statespace import detectability
 
 _MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate}
@@ -86,8 +86,8 @@ def build_loads(load_specs, n_steps, dt, n_forces):
 
 
 #: unit suffixes accepted in absolute noise levels: key -> (sensor kind, factor to SI)
-_NOISE_UNITS = {"strain": ("strain", 1.0), "microstrain": ("strain", 1e-6), "acc": ("acc", 1.0),
-                "acc_mg": ("acc", 1e-3 * G0), "vel": ("vel", 1.0), "disp": ("disp", 1.0)}
+_NOISE_UNITS = {"strain": ("strain", 1.0), "microstrain": ("strain", MICROSTRAIN), "acc": ("acc", 1.0),
+                "acc_mg": ("acc", MG), "vel": ("vel", 1.0), "disp": ("disp", 1.0)}
 
 
 def _absolute_noise(spec):

@@ -12,8 +12,12 @@ from .exceptions import AKFInputError
 from .sensors import as_layout, parse_force_locations
 from .statespace import continuous, observation, zoh
 
-#: standard gravity, for noise levels given in g or mg
+#: standard gravity (m/s^2), for levels given in g or mg
 G0 = 9.80665
+#: one milli-g in m/s^2: ``absolute_noise={"acc": 1 * MG}``
+MG = 1e-3 * G0
+#: one micro-strain: ``absolute_noise={"strain": 1 * MICROSTRAIN}``
+MICROSTRAIN = 1e-6
 
 
 @dataclass
@@ -56,7 +60,7 @@ def noise_levels(clean, sensors, relative=None, absolute=None):
     """Noise standard deviation per channel.
 
     ``relative``: fraction of each channel's RMS (0.02 = 2 %).  ``absolute``: dict of standard
-    deviations per sensor kind in SI units, e.g. ``{"strain": 1e-6, "acc": 1e-3 * G0}``.
+    deviations per sensor kind in SI units, e.g. ``{"strain": 1 * MICROSTRAIN, "acc": 1 * MG}``.
     Both may be given (variances add).
     """
     layout = as_layout(sensors)

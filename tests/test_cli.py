@@ -118,3 +118,19 @@ file = "data.csv"
     monkeypatch.chdir(tmp_path)
     assert main(["estimate", "jobdir/job.toml", "--json", "--no-plot", "--out", "o"]) == 0
     assert json.loads(capsys.readouterr().out)["n_steps"] == 256
+
+
+def test_job_absolute_noise_units():
+    """IMP's absolute noise levels, 1 µε and 1 mg, given in the job's units."""
+    from core_akf.examples import example_job
+    from core_akf.jobs import run_job
+    job = example_job("s17-case4")
+    job["simulation"].pop("relative_noise")
+    job["simulation"]["absolute_noise"] = {"microstrain": 1.0, "acc_mg": 1.0}
+    job["simulation"]["duration"] = 0.25
+    sim = run_job(job).simulation
+    assert sim.noise_std[:5] == pytest.approx(9.80665e-3)   # five accelerometers
+    assert sim.noise_std[5:] == pytest.approx(1e-6)         # four strain gauges
+    job["simulation"]["absolute_noise"] = {"micro_strain": 1.0}
+    with pytest.raises(ValueError, match="absolute_noise: unknown key 'micro_strain'"):
+        run_job(job)
