@@ -358,6 +358,8 @@ class Estimate:
     forces : ndarray (N, n_p)  -- N, at ``force_locations``
     states : ndarray (N, 2n)  -- ``[u; u']`` in generalised coordinates
     innovations : ndarray (N, m)
+    gain : ndarray (n_a, m) -- steady-state (or last) Kalman gain for ``[u; u'; f]``
+    detectability : DetectabilityReport -- the PBH test of the sensor layout
     """
 
     structure: object
@@ -368,6 +370,7 @@ class Estimate:
     forces: np.ndarray
     innovations: np.ndarray
     gain: np.ndarray = field(repr=False, default=None)
+    detectability: object = field(repr=False, default=None)
 
     @property
     def time(self):
@@ -461,8 +464,10 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     if Y.shape[0] != len(layouts) or Y.shape[2] != m:
         raise AKFInputError(f"measurements must have shape ({len(layouts)}, N, {m}); got {Y.shape}")
     locs = parse_force_locations(structure, forces)
+    reports = []
     for l in layouts:
         report = check_detectable(structure, l, locs, allow_undetectable)
+        reports.append(report)
         if steady and not report.detectable:
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
                                 f"({', '.join(s.label for s in l)}); use steady=False to run the "
@@ -496,7 +501,7 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     states = res.states @ Ta.T                      # back to physical [u; u'; f]
     gains = Ta @ res.gain                           # gain for the physical state
     return [Estimate(structure, l, locs, float(dt), states[b, :, :nx], states[b, :, nx:],
-                     res.innovations[b], gains[b]) for b, l in enumerate(layouts)]
+                     res.innovations[b], gains[b], reports[b]) for b, l in enumerate(layouts)]
 
 
 def estimate(structure, sensors, forces, measurements, dt, *, model_error_cov,

@@ -41,7 +41,6 @@ from .metrics import average_strain_error, rms_error
 from .models import imp_plate, plate, s17_truss, th_plate
 from .sensors import as_layout, parse_force_locations
 from .simulate import MG, MICROSTRAIN, simulate
-from .statespace import detectability
 
 _MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate}
 _LOADS = {
@@ -234,7 +233,6 @@ def run_job(job, allow_undetectable=None, steady=None):
         model = model.reduce(int(filt["reduce_modes"]))
     sensors = as_layout(job["sensors"])
     forces = parse_force_locations(true_structure, job["forces"])
-    report = detectability(model, sensors, forces)
 
     sim = None
     if "measurements" in job:
@@ -242,6 +240,8 @@ def run_job(job, allow_undetectable=None, steady=None):
         Y = read_measurements(meas["file"], sensors, dt, meas.get("time_column", "time"))
     elif "simulation" in job:
         sp = job["simulation"]
+        if "duration" not in sp or not float(sp["duration"]) > 0:
+            raise AKFInputError("[simulation] needs a positive duration (s)")
         n_steps = int(round(float(sp["duration"]) / dt))
         loads = build_loads(sp.get("loads", []), n_steps, dt, len(forces))
         absolute = _absolute_noise(sp["absolute_noise"]) if "absolute_noise" in sp else None
@@ -259,7 +259,7 @@ def run_job(job, allow_undetectable=None, steady=None):
     est = estimate(model, sensors, forces, Y, dt, model_error_cov=filt.get("model_error_cov", 1e-16),
                    force_increment_cov=filt.get("force_increment_cov", 1.0), noise_cov=noise_cov,
                    steady=bool(filt.get("steady", True)), allow_undetectable=bool(filt.get("allow_undetectable", False)))
-    metrics = {"detectable": report.detectable, "n_steps": int(Y.shape[0])}
+    metrics = {"detectable": est.detectability.detectable, "n_steps": int(Y.shape[0])}
     if sim is not None:
         rf = rms_error(est.forces, sim.loads)
         metrics["rms_force"] = {f"{n}:{d}": float(v) for (n, d), v in zip(forces, rf)}
