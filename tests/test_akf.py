@@ -300,3 +300,15 @@ def test_estimate_with_non_classical_damping_uses_the_dense_path():
     tv = akf.estimate(s2, sensors, ["8:y"], sim.measurements, 1 / 2048, steady=False, **kw)
     assert np.allclose(ss.forces[-1000:], tv.forces[-1000:], rtol=1e-6, atol=1e-6 * np.abs(tv.forces).max())
     assert np.sqrt(np.mean((ss.forces[500:, 0] - loads[500:, 0]) ** 2)) < 0.5 * 500
+
+
+def test_estimate_to_frame():
+    s = s17_truss()
+    loads = np.random.default_rng(5).normal(0, 100, (64, 1))
+    sim = simulate(s, ["strain:13", "acc:8:y"], ["8:y"], loads, 1 / 1024, relative_noise=0.02, seed=0)
+    est = akf.estimate(s, ["strain:13", "acc:8:y"], ["8:y"], sim.measurements, 1 / 1024, model_error_cov=1e-16,
+                       force_increment_cov=1e4, noise_cov=np.diag(sim.noise_std ** 2), steady=True)
+    df = est.to_frame()
+    assert list(df.columns[:2]) == ["time", "force:8:y"] and df.shape == (64, 2 + 34)
+    assert np.allclose(df["strain:m13"], est.strains[:, 12])
+    assert est.detectability.detectable
