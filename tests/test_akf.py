@@ -312,3 +312,26 @@ def test_estimate_to_frame():
     assert list(df.columns[:2]) == ["time", "force:8:y"] and df.shape == (64, 2 + 34)
     assert np.allclose(df["strain:m13"], est.strains[:, 12])
     assert est.detectability.detectable
+
+
+def test_stein_doubling_matches_scipy_lyapunov():
+    from core_akf.riccati import stein_doubling
+    rng = np.random.default_rng(11)
+    F = rng.normal(size=(7, 7))
+    F *= 0.98 / np.max(np.abs(np.linalg.eigvals(F)))
+    E = rng.normal(size=(7, 7))
+    E = E @ E.T
+    assert np.allclose(stein_doubling(F, E), scipy.linalg.solve_discrete_lyapunov(F, E), rtol=1e-9)
+
+
+def test_newton_step_polishes_a_perturbed_solution():
+    from core_akf.riccati import newton_step
+    A, G, Q, R, *_ = _random_system(12, n=8, m=3)
+    ref = scipy.linalg.solve_discrete_are(A.T, G.T, Q, R)
+    P = ref * (1 + 1e-3 * np.random.default_rng(0).normal(size=ref.shape))
+    P = 0.5 * (P + P.T)
+    before = np.linalg.norm(P - ref)
+    once = newton_step(A, G, Q, R, P)
+    twice = newton_step(A, G, Q, R, once)
+    assert np.linalg.norm(once - ref) < 1e-2 * before           # quadratic convergence
+    assert np.linalg.norm(twice - ref) < 1e-11 * np.linalg.norm(ref)
