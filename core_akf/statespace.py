@@ -196,7 +196,15 @@ def _critical_eigenvalues(structure, tol):
     for the force states.  Depends on the structure only, so it is cached on it."""
     cache = structure.__dict__.setdefault("_critical_eigs", {})
     if tol not in cache:
-        eig = np.linalg.eigvals(state_matrix(structure))
+        omega, phi = structure._eig
+        Cm = phi.T @ structure.C @ phi
+        c = np.diag(Cm)
+        if np.allclose(Cm, np.diag(c), rtol=0, atol=1e-10 * max(np.abs(c).max(initial=0.0), 1e-300)):
+            # classical damping: the roots of s^2 + c s + omega^2 = 0 mode by mode
+            disc = np.sqrt((c ** 2 - 4 * omega ** 2).astype(complex))
+            eig = np.concatenate([(-c + disc) / 2, (-c - disc) / 2])
+        else:
+            eig = np.linalg.eigvals(state_matrix(structure))
         distinct = [0.0]
         for s in eig:
             if s.real < -tol * max(1.0, abs(s)) or s.imag < 0:
