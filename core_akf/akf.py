@@ -118,24 +118,14 @@ class ModalBlockTransition:
         out[..., nx:, :] = f
         return out
 
-    def right(self, X):
-        """``X @ A_a^T`` for ``X`` of shape (..., k, n_a)."""
-        n, nx = self.n, self.nx
-        q, v, f = X[..., :, :n], X[..., :, n:nx], X[..., :, nx:]
-        out = np.empty(X.shape)
-        np.matmul(f, self.B.T, out=out[..., :, :nx])
-        out[..., :, :n] += q * self.d11.T
-        out[..., :, :n] += v * self.d12.T
-        out[..., :, n:nx] += q * self.d21.T
-        out[..., :, n:nx] += v * self.d22.T
-        out[..., :, nx:] = f
-        return out
-
     def propagate(self, P, Q):
-        """``A_a P A_a^T + Q``, symmetrised."""
-        out = self.right(self.left(P))
+        """``A_a P A_a^T + Q``, symmetrised: two left products on contiguous data
+        (``A (A P)^T`` is the transpose of the wanted symmetric matrix)."""
+        out = self.left(np.ascontiguousarray(np.swapaxes(self.left(P), -1, -2)))
+        out += np.swapaxes(out, -1, -2)
+        out *= 0.5
         out += Q
-        return 0.5 * (out + np.swapaxes(out, -1, -2))
+        return out
 
 
 def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
@@ -167,7 +157,7 @@ def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
                 return out, innov, L, P
             P_check = P.copy()
         x = x + np.einsum("bij,bj->bi", L, e)
-        P = P - L @ np.swapaxes(PGt, -1, -2)
+        P = P - L @ np.swapaxes(PGt, -1, -2)  # a new array: P0 given by the caller stays untouched
         out[:, k] = x
         innov[:, k] = e
         x = np.einsum("bij,bj->bi", A, x)
