@@ -8,9 +8,9 @@ is solved by the structure-preserving doubling algorithm (SDA; Chu, Fan & Lin 20
 the dual control problem ``(A^T, G^T)``.  Each doubling step costs one LU solve and a few
 matrix products and squares the convergence factor, so ~10-25 steps reach machine
 precision even for lightly damped structures.  The algorithm runs on a stack of
-problems at once (leading batch axis).  A problem that does not converge, or whose
-residual is poor, is re-solved with :func:`scipy.linalg.solve_discrete_are` and a
-warning.
+problems at once (leading batch axis).  A converged solution whose residual is poor is
+polished by Newton (Hewer) steps; one that still fails, or did not converge, is re-solved
+with :func:`scipy.linalg.solve_discrete_are` and a :class:`RiccatiWarning`.
 """
 from __future__ import annotations
 
@@ -41,8 +41,9 @@ def dare_residual(A, G, Q, R, P):
 
 
 def _scale(A, G, Q):
-    """Diagonal state scaling ``x = T z`` that brings displacements, velocities and forces to
-    comparable size (row/column norms of ``A`` and the process noise); returns T (..., n)."""
+    """Diagonal state scaling ``x = T z`` that brings the states to comparable size: the
+    process-noise standard deviations, or for noise-free states the inverse size of their
+    observation columns; returns the diagonal of T, shape (..., n)."""
     q = np.sqrt(np.abs(np.diagonal(Q, axis1=-2, axis2=-1)))
     g = np.linalg.norm(G, axis=-2)
     t = np.where(q > 0, q, 1.0)
@@ -61,7 +62,6 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
     Q : ndarray (..., n, n), symmetric PSD
     R : ndarray (..., m, m), symmetric PD
         Leading axes broadcast against each other (a batch of problems).
-
     tol, max_iter : convergence of the doubling iteration
     check : bool
         Check the DARE residual of each solution; polish a poor one with up to
