@@ -460,7 +460,7 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
         reports.append(report)
         if steady and not report.detectable:
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
-                                f"({', '.join(s.label for s in l)}); use steady=False to run the "
+                                f"({', '.join(s.label for s in l)}); use steady=False (CLI: --filter time-varying) to run the "
                                 "time-varying filter and watch it drift")
     # filter in energy-normalised modal coordinates x = T z (see modal_state_transform),
     # discretised there mode by mode when the damping is classical
