@@ -103,6 +103,11 @@ def augment(A, B, G, D):
     return A_a, np.hstack([G, D])
 
 
+def _modal_scale(omega):
+    """Scale ``w`` of the modal displacement coordinate ``w q``: ``omega``, or 1 for rigid modes."""
+    return np.where(omega > 1e-6 * max(omega.max(), 1.0), omega, 1.0)
+
+
 def modal_state_transform(structure):
     """Energy-normalised modal state coordinates: ``x = T z`` with
     ``T = blockdiag(Phi diag(1/omega), Phi)`` (mass-normalised ``Phi``), and ``T^-1``.
@@ -113,7 +118,7 @@ def modal_state_transform(structure):
     iteration lose accuracy (residual 1e-4 instead of 1e-9 on the TH plate).
     """
     omega, phi = structure._eig
-    w = np.where(omega > 1e-6 * max(omega.max(), 1.0), omega, 1.0)
+    w = _modal_scale(omega)
     phi_inv = phi.T @ structure.M  # Phi^T M Phi = I
     T = scipy.linalg.block_diag(phi / w[None, :], phi)
     T_inv = scipy.linalg.block_diag(w[:, None] * phi_inv, phi_inv)
@@ -140,7 +145,7 @@ def modal_zoh(structure, forces, dt, rtol=1e-10):
     if not np.isfinite(dt) or dt <= 0:
         raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
     n = structure.n
-    w = np.where(omega > 1e-6 * max(omega.max(), 1.0), omega, 1.0)
+    w = _modal_scale(omega)
     p = phi.T @ force_selection(structure, forces)          # (n, n_p) modal force participation
     npf = p.shape[1]
     blk = np.zeros((n, 2 + npf, 2 + npf))
