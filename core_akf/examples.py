@@ -89,7 +89,6 @@ EXAMPLES = {
 }
 for _name in ("s17-case1", "s17-case2"):
     EXAMPLES[_name]["filter"]["steady"] = False  # the steady-state filter does not exist for them
-    EXAMPLES[_name]["filter"]["allow_undetectable"] = False
 
 
 def example_job(name):

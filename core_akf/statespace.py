@@ -18,8 +18,30 @@ from .sensors import as_layout, parse_force_locations, selection_matrices
 
 
 def _minv(structure):
-    """Cholesky factor of M (M is SPD by construction of :class:`Structure`)."""
-    return scipy.linalg.cho_factor(structure.M)
+    """Cholesky factor of M (M is SPD by construction of :class:`Structure`), computed once
+    per structure: the matrices never change after construction."""
+    cache = structure.__dict__
+    if "_mass_cholesky" not in cache:
+        cache["_mass_cholesky"] = scipy.linalg.cho_factor(structure.M)
+    return cache["_mass_cholesky"]
+
+
+def _check_dt(dt):
+    dt = float(dt)
+    if not np.isfinite(dt) or dt <= 0:
+        raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
+    return dt
+
+
+def modal_damping(structure, rtol=1e-10):
+    """Modal damping coefficients ``c_j = phi_j^T C phi_j`` (1/s) when ``Phi^T C Phi`` is
+    diagonal (classical damping: modal or Rayleigh), else ``None``."""
+    phi = structure._eig[1]
+    Cm = phi.T @ structure.C @ phi
+    c = np.diag(Cm).copy()
+    if np.max(np.abs(Cm - np.diag(c)), initial=0.0) > rtol * max(np.max(np.abs(c), initial=0.0), 1e-300):
+        return None
+    return c
 
 
 def force_selection(structure, forces):
@@ -52,9 +74,7 @@ def zoh(A_c, B_c, dt):
     ``expm([[A_c, B_c], [0, 0]] dt) = [[A, B], [0, I]]``: no inverse of ``A_c`` needed.
     Returns ``A`` (n_x x n_x) and ``B`` (n_x x n_u).
     """
-    dt = float(dt)
-    if not np.isfinite(dt) or dt <= 0:
-        raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
+    dt = _check_dt(dt)
     nx, nu = B_c.shape
     blk = np.zeros((nx + nu, nx + nu))
     blk[:nx, :nx] = A_c
@@ -135,15 +155,11 @@ def modal_zoh(structure, forces, dt, rtol=1e-10):
     exponentials instead of one of size 2n.  Returns ``(A_z, B_z)``, or ``None`` when
     ``Phi^T C Phi`` is not diagonal (non-classical damping).
     """
-    omega, phi = structure._eig
-    Cm = phi.T @ structure.C @ phi
-    c = np.diag(Cm).copy()
-    off = Cm - np.diag(c)
-    if np.max(np.abs(off), initial=0.0) > rtol * max(np.max(np.abs(c), initial=0.0), 1e-300):
+    c = modal_damping(structure, rtol)
+    if c is None:
         return None
-    dt = float(dt)
-    if not np.isfinite(dt) or dt <= 0:
-        raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
+    dt = _check_dt(dt)
+    omega, phi = structure._eig
     n = structure.n
     w = _modal_scale(omega)
     p = phi.T @ force_selection(structure, forces)          # (n, n_p) modal force participation
@@ -201,10 +217,9 @@ def _critical_eigenvalues(structure, tol):
     for the force states.  Depends on the structure only, so it is cached on it."""
     cache = structure.__dict__.setdefault("_critical_eigs", {})
     if tol not in cache:
-        omega, phi = structure._eig
-        Cm = phi.T @ structure.C @ phi
-        c = np.diag(Cm)
-        if np.allclose(Cm, np.diag(c), rtol=0, atol=1e-10 * max(np.abs(c).max(initial=0.0), 1e-300)):
+        omega = structure._eig[0]
+        c = modal_damping(structure)
+        if c is not None:
             # classical damping: the roots of s^2 + c s + omega^2 = 0 mode by mode
             disc = np.sqrt((c ** 2 - 4 * omega ** 2).astype(complex))
             eig = np.concatenate([(-c + disc) / 2, (-c - disc) / 2])
