@@ -1,4 +1,4 @@
-"""Command line: ``akf estimate JOB.toml`` or ``akf estimate --example s17-case4``."""
+"""Command line: ``akf estimate JOB.toml`` / ``akf estimate --example s17-case4``, ``akf study NAME``."""
 from __future__ import annotations
 
 import argparse
@@ -128,6 +128,27 @@ def _estimate(args):
     return 0
 
 
+def _study(args):
+    from .studies import STUDIES, run_study, study_module
+
+    if args.list or args.name is None:
+        for name in STUDIES:
+            try:
+                desc = study_module(name).DESCRIPTION
+            except ImportError as exc:  # a study of an optional package that is not installed
+                desc = f"(unavailable: {exc})"
+            print(f"{name:12s} {desc}")
+        return 0
+    result = run_study(args.name, out=args.out, quick=args.quick, seed=args.seed)
+    for key, path in result.files.items():
+        if key in ("table", "summary"):
+            print(f"  wrote {key}: {path}")
+    n_png = sum(1 for p in result.files.values() if str(p).endswith(".png"))
+    if n_png:
+        print(f"  wrote {n_png} figure(s) to {os.path.dirname(result.files['table'])}")
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(prog="akf", description="Model-based structural monitoring with an augmented Kalman filter.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -143,6 +164,14 @@ def build_parser():
     p.add_argument("--seed", type=int, help="override the noise seed")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
     p.set_defaults(func=_estimate)
+
+    p = sub.add_parser("study", help="reproduce a paper's cases: table, CSV and figures")
+    p.add_argument("name", nargs="?", help="study name (see --list)")
+    p.add_argument("--list", action="store_true", help="list the studies")
+    p.add_argument("--quick", action="store_true", help="short records (under a minute)")
+    p.add_argument("--out", help="output folder (default akf-out/studies/NAME)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed")
+    p.set_defaults(func=_study)
     return parser
 
 

@@ -35,7 +35,9 @@ def _s17_loads(slow=True):
     return loads
 
 
-def _s17(name, description, sensors, slow=True, model_error=True, noise=True):
+def s17_job(name, description, sensors, slow=True, model_error=True, noise=True):
+    """An S17 truss job: the four vertical loads (with the slowly varying / non-zero-mean parts
+    when ``slow``), 5 % model error and 2 % noise unless switched off."""
     return {
         "name": name,
         "description": description,
@@ -52,40 +54,58 @@ def _s17(name, description, sensors, slow=True, model_error=True, noise=True):
 
 
 TH_FORCES = ["121:w", "111:w"]
+#: the thesis' flexible plate (case 5): 60.96 cm x 182.88 cm x 1/64 in, clamped along y = 0
+TH_FLEXIBLE_PLATE = {"model": "plate", "nx": 10, "ny": 10, "lx": 0.6096, "ly": 1.8288, "thickness": 3.96875e-4,
+                     "E": 200e9, "nu": 0.3, "rho": 7800.0, "clamped_edge": "y0", "damping": 0.01}
 
 
-def _th(name, description, sensors, model_error=True, noise=True):
-    band = lambda seed: {"type": "band_noise", "rms": 5.0, "f_high": 100.0, "seed": seed}
+def th_job(name, description, sensors, model_error=True, noise=True, structure=None, load_scale=1.0,
+           model_error_cov=1e-16, force_increment_cov=1.0):
+    """A thesis plate job: excitation 1 at node 121 (ramp 1 s -> 5 s to 89 N) and excitation 2
+    at node 111 (half sine 0.5 s -> 5.5 s, 44.5 N), each plus band-limited white noise (5 N RMS,
+    0-100 Hz); all loads times ``load_scale``; 5 % model error and 2 % noise unless switched off."""
+    band = lambda seed: {"type": "band_noise", "rms": 5.0 * load_scale, "f_high": 100.0, "seed": seed}
     return {
         "name": name,
         "description": description,
-        "structure": {"model": "th_plate"},
+        "structure": dict(structure or {"model": "th_plate"}),
         "dt": 1.0 / 2000,
         "sensors": sensors,
         "forces": TH_FORCES,
-        "filter": {"stiffness_factor": 1.05 if model_error else 1.0, "model_error_cov": 1e-16,
-                   "force_increment_cov": 1e-2, "noise_cov": "simulated", "steady": True},
+        "filter": {"stiffness_factor": 1.05 if model_error else 1.0, "model_error_cov": model_error_cov,
+                   "force_increment_cov": force_increment_cov, "noise_cov": "simulated", "steady": True},
         "simulation": {"duration": 6.0, "relative_noise": 0.02 if noise else 1e-4, "seed": 0,
-                       "loads": [{"components": [{"type": "ramp", "start": 1.0, "end": 5.0, "peak": 89.0}, band(21)]},
-                                 {"components": [{"type": "half_sine", "start": 0.5, "end": 5.5, "peak": 44.5}, band(22)]}]},
+                       "loads": [{"components": [{"type": "ramp", "start": 1.0, "end": 5.0, "peak": 89.0 * load_scale},
+                                                 band(21)]},
+                                 {"components": [{"type": "half_sine", "start": 0.5, "end": 5.5,
+                                                  "peak": 44.5 * load_scale}, band(22)]}]},
         "output": {"strains": ["ex70", "gxy1"]},
     }
 
 
+#: thesis sensor sets.  Case 2's components are shown only in a figure; we read the thesis'
+#: "XY" subscripts as g_xy at nodes 2 and 100 (the gauges case 3 keeps) and take e_x at node 58.
+TH_CASE1 = ["acc:12:w", "acc:58:w", "acc:100:w"]
+TH_CASE2 = ["strain:2:gxy", "strain:58:ex", "strain:100:gxy"]
+TH_CASE3 = ["strain:2:gxy", "strain:100:gxy", "acc:12:w"]
+#: case 4 ("arbitrary"): e_x at 23, e_y at 103 and an accelerometer at node 2 -- node 2 lies on
+#: the clamped edge, where an accelerometer records exactly zero, so only the two gauges inform
+TH_CASE4 = ["strain:23:ex", "strain:103:ey"]
+
+
 EXAMPLES = {
-    "s17-case1": _s17("s17-case1", "S17 case 1: accelerations only, zero-mean loads, no model error, "
+    "s17-case1": s17_job("s17-case1", "S17 case 1: accelerations only, zero-mean loads, no model error, "
                       "negligible noise (undetectable: run with --allow-undetectable)", S17_ACC_ONLY,
                       slow=False, model_error=False, noise=False),
-    "s17-case2": _s17("s17-case2", "S17 case 2: accelerations only, slowly varying loads, 5 % model error, "
+    "s17-case2": s17_job("s17-case2", "S17 case 2: accelerations only, slowly varying loads, 5 % model error, "
                       "2 % noise (undetectable: drifts; run with --allow-undetectable)", S17_ACC_ONLY),
-    "s17-case3": _s17("s17-case3", "S17 case 3: strains only (members 4, 5, 9, 12, 13, 16, 21, 24, 26)",
+    "s17-case3": s17_job("s17-case3", "S17 case 3: strains only (members 4, 5, 9, 12, 13, 16, 21, 24, 26)",
                       S17_STRAIN_ONLY),
-    "s17-case4": _s17("s17-case4", "S17 case 4: multi-metric (accelerations at 4, 6, 8, 12 vertical and 6 "
+    "s17-case4": s17_job("s17-case4", "S17 case 4: multi-metric (accelerations at 4, 6, 8, 12 vertical and 6 "
                       "horizontal; strains in members 5, 9, 13, 26)", S17_MULTI),
-    "th-case2": _th("th-case2", "TH case 2: strains at nodes 2 (e_y), 58 (e_x), 100 (e_y)",
-                    ["strain:2:ey", "strain:58:ex", "strain:100:ey"]),
-    "th-case3": _th("th-case3", "TH case 3d: g_xy at nodes 2 and 100, acceleration at node 12, "
-                    "model error and noise", ["strain:2:gxy", "strain:100:gxy", "acc:12:w"]),
+    "th-case2": th_job("th-case2", "TH case 2: strains at nodes 2 (g_xy), 58 (e_x), 100 (g_xy)", TH_CASE2),
+    "th-case3": th_job("th-case3", "TH case 3d: g_xy at nodes 2 and 100, acceleration at node 12, "
+                    "model error and noise", TH_CASE3),
 }
 for _name in ("s17-case1", "s17-case2"):
     EXAMPLES[_name]["filter"]["steady"] = False  # the steady-state filter does not exist for them

@@ -131,6 +131,8 @@ def test_undetectable_error_carries_report():
     (ACC_ONLY + ["strain:5"], FORCES4),
     (["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x", "strain:5", "strain:9", "strain:13", "strain:26"], FORCES4),
     (["disp:8:y", "disp:4:y", "disp:12:y", "disp:6:y"], FORCES4),
+    (["acc:2:y", "acc:10:y", "acc:14:y", "acc:16:y", "acc:10:x", "strain:5", "strain:19", "strain:26", "strain:30"],
+     FORCES4),  # zero-force member 30: undetectable
 ])
 def test_static_shortcut_agrees_with_full_pbh_at_s0(sensors, forces):
     """The damped structure uses the static-gain shortcut; the undamped one (every mode on the
@@ -168,3 +170,36 @@ def test_modal_zoh_refuses_non_classical_damping():
     s2 = Structure(M=s.M, K=s.K, C=C, nodes=s.nodes, dof_names=s.dof_names, free_dofs=s.free_dofs,
                    strain_matrix=s.strain_matrix, members=s.members)
     assert modal_zoh(s2, ["8:y"], 1e-3) is None
+
+
+def test_pbh_zero_force_member_is_not_information():
+    """A zero-force member reads rounding noise (~1e-24) in the static gain; unit row scaling
+    once turned that into a full row.  Gauges 5, 19, 26, 30 with accelerometers away from the
+    loads cannot see the self-equilibrated group f4 - 2 f6 + f8 -- the DARE then has no
+    stabilising solution -- and the report must say so."""
+    s = s17_truss(200e9, 7800)
+    sensors = ["acc:2:y", "acc:10:y", "acc:14:y", "acc:16:y", "acc:10:x",
+               "strain:5", "strain:19", "strain:26", "strain:30"]
+    rep = detectability(s, sensors, FORCES4)
+    assert not rep.detectable
+    assert "-0.41 x 4:y +0.82 x 6:y -0.41 x 8:y" in str(rep) or "+0.41 x 4:y -0.82 x 6:y +0.41 x 8:y" in str(rep)
+    sensors[-1] = "strain:14"  # a chord between loaded joints 6 and 8 sees it
+    assert detectability(s, sensors, FORCES4).detectable
+
+
+def test_pbh_thin_cantilever_plate_counts_as_supported():
+    """f1 / f_max ~ 1e-8 on the thesis' flexible plate (in-plane and shear modes in the MHz):
+    still a supported structure, so the static test applies and two gauges are detectable."""
+    from core_akf.examples import TH_FLEXIBLE_PLATE
+    from core_akf.jobs import build_structure
+    from core_akf.statespace import _is_supported
+
+    s = build_structure(TH_FLEXIBLE_PLATE)
+    f = s.frequencies()
+    assert f[0] / f[-1] < 1e-7
+    assert _is_supported(s)
+    assert detectability(s, ["strain:2:gxy", "strain:100:gxy"], ["121:w", "111:w"]).detectable
+    import types
+
+    free_truss = types.SimpleNamespace(K=s17_truss(200e9, 7800).meta["K_full"])  # no supports: 3 rigid modes
+    assert not _is_supported(free_truss)

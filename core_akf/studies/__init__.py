@@ -1,0 +1,33 @@
+"""Paper reproductions behind ``akf study NAME``: each study runs the paper's cases, prints a
+table, and writes a tidy CSV plus PNG figures (see ``studies/README.md`` for the side-by-side
+comparison with the published numbers).
+
+A study is a module with ``NAME``, ``DESCRIPTION`` and ``run(out=None, quick=False, seed=0)``
+returning a :class:`StudyResult`.  The registry maps study names to modules by import path, so
+the placement and impact studies (in ``sensoropt`` / ``impactloc``) are only imported when run.
+"""
+from __future__ import annotations
+
+import importlib
+
+from ._common import StudyResult  # noqa: F401
+from ..exceptions import AKFInputError
+
+#: study name -> module path
+STUDIES = {
+    "s17_truss": "core_akf.studies.s17_truss",
+    "th_plate": "core_akf.studies.th_plate",
+}
+
+
+def study_module(name):
+    """The module of study ``name`` (raises AKFInputError for an unknown name)."""
+    if name not in STUDIES:
+        raise AKFInputError(f"unknown study {name!r}; available: {', '.join(sorted(STUDIES))}")
+    return importlib.import_module(STUDIES[name])
+
+
+def run_study(name, out=None, quick=False, seed=0):
+    """Run study ``name``; ``quick`` uses short records (under a minute), ``out`` the output
+    folder (default ``akf-out/studies/NAME``)."""
+    return study_module(name).run(out=out, quick=quick, seed=seed)

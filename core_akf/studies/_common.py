@@ -1,0 +1,65 @@
+"""Shared pieces of the studies: results container, output folder, spectra, figures."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class StudyResult:
+    """A study's outcome: the tidy table (one row per case/channel), extra tables, files written."""
+
+    name: str
+    table: object                      # pandas DataFrame
+    summary: object = None             # pandas DataFrame: one row per case
+    files: dict = field(default_factory=dict)
+    data: dict = field(default_factory=dict)  # per-case JobResult objects (for tests and plots)
+
+
+def output_dir(name, out=None):
+    path = out or os.path.join("akf-out", "studies", name)
+    os.makedirs(path, exist_ok=True)
+    return path
+
+
+def psd(signal, dt, nperseg=None):
+    """One-sided power spectral density (Welch, Hann window): ``(f (Hz), P (unit^2/Hz))``."""
+    from scipy.signal import welch
+
+    signal = np.asarray(signal, float)
+    n = signal.shape[0]
+    return welch(signal, fs=1.0 / dt, nperseg=min(n, nperseg or 2048), axis=0)
+
+
+def pyplot():
+    """matplotlib.pyplot with the non-interactive backend, or None if matplotlib is missing."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # pragma: no cover - matplotlib is a dependency
+        return None
+    return plt
+
+
+def save(fig, path, files, key):
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    files[key] = path
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def drift_ratio(error):
+    """RMS of an error signal over its last quarter divided by that over its first quarter
+    (after the first 5 % as a start-up transient): >> 1 means the estimate drifts/diverges."""
+    error = np.asarray(error, float)
+    n = error.shape[0]
+    start = n // 20
+    q = max((n - start) // 4, 1)
+    first = np.sqrt(np.mean(error[start:start + q] ** 2, axis=0))
+    last = np.sqrt(np.mean(error[-q:] ** 2, axis=0))
+    return last / np.maximum(first, 1e-300)

@@ -1,0 +1,134 @@
+"""The paper studies (``akf study``) on short records: the papers' qualitative findings.
+
+Where our simulation does not reproduce a published finding the test is ``xfail(strict=True)``
+with the reason (studies/README.md discusses it): if a change makes it pass, we want to know.
+"""
+import os
+
+import numpy as np
+import pytest
+
+from core_akf.cli import main
+from core_akf.studies import run_study
+
+
+@pytest.fixture(scope="module")
+def s17(tmp_path_factory):
+    return run_study("s17_truss", out=str(tmp_path_factory.mktemp("s17")), quick=True)
+
+
+@pytest.fixture(scope="module")
+def th(tmp_path_factory):
+    return run_study("th_plate", out=str(tmp_path_factory.mktemp("th")), quick=True)
+
+
+def _rms(study, case):
+    t = study.table
+    return t[t["case"] == case].set_index("load")["rms_error_N"].sort_index().to_numpy()
+
+
+def _avg(study, case):
+    return float(study.summary.set_index("case").loc[case, "avg_strain_error_ue"])
+
+
+def test_s17_outputs_are_tidy(s17):
+    t = s17.table
+    assert len(t) == 9 * 4 and set(t["load"]) == {"4:y", "6:y", "8:y", "12:y"}
+    assert t["rms_error_N"].notna().all()
+    for key in ("table", "summary", "fig19_rms", "fig21_configs", "spectra", "forces_case4"):
+        assert os.path.getsize(s17.files[key]) > 0
+
+
+def test_s17_acceleration_only_diverges_under_errors(s17):
+    """Case 1: fine for zero-mean loads without errors; with 5 % model error + 2 % noise the
+    undetectable filter drifts (its error grows along the record)."""
+    s = s17.summary.set_index("case")
+    assert not s.loc["1a", "detectable"] and not s.loc["1b", "detectable"]
+    ref = s17.table.query("case == '1a'")["reference_rms_N"].to_numpy()
+    assert np.all(_rms(s17, "1a") < 0.02 * np.sort(ref))
+    assert np.all(_rms(s17, "1b") > 50 * _rms(s17, "1a"))
+    assert s.loc["1b", "max_drift_ratio"] > 3 and s.loc["1b", "max_drift_ratio"] > 2 * s.loc["1a", "max_drift_ratio"]
+    assert s.loc["4", "max_drift_ratio"] < 2
+
+
+def test_s17_strain_only_beats_acceleration_only_and_multimetric_beats_both(s17):
+    """Fig. 19: acceleration-only >> strain-only > multi-metric at every load."""
+    assert np.all(_rms(s17, "3") < _rms(s17, "2b"))
+    assert _rms(s17, "3").mean() < 0.4 * _rms(s17, "2b").mean()
+    assert np.all(_rms(s17, "4") < _rms(s17, "3"))
+
+
+def test_s17_sensors_near_the_loads_estimate_them_better(s17):
+    """Fig. 21-23: moving the accelerometer from joint 12 to 16 (set 2) hurts the load at 12;
+    sensors away from all loads (set 4) are worse everywhere than set 1."""
+    t = s17.table.set_index(["case", "load"])["rms_error_N"]
+    assert t["set2", "12:y"] > 2 * t["4", "12:y"]
+    assert np.all(_rms(s17, "set4") > 2 * _rms(s17, "4"))
+
+
+def test_th_outputs_are_tidy(th):
+    assert len(th.table) == 11 * 363
+    assert th.table["rms_error_ue"].notna().all()
+    for case in ("2", "3d", "5c"):
+        assert os.path.getsize(th.files[f"case{case}"]) > 0
+
+
+def test_th_acceleration_only_diverges(th):
+    """Case 1 (accelerations only): undetectable; forced, it is far worse and drifts."""
+    s = th.summary.set_index("case")
+    assert not s.loc["1", "detectable"]
+    assert _avg(th, "1") > 4 * _avg(th, "3d") and _avg(th, "1") > 4 * _avg(th, "2")
+    assert s.loc["1", "median_drift_ratio"] > 1.5 * s.loc["3d", "median_drift_ratio"]
+
+
+def test_th_case3_errors_add_up_and_model_error_dominates(th):
+    """Cases 3a-3d: none < noise only < model error only < both (thesis 0.91/1.06/4.56/4.59)."""
+    a, b, c, d = (_avg(th, k) for k in ("3a", "3b", "3c", "3d"))
+    assert a < b < c < d
+
+
+@pytest.mark.xfail(strict=True, reason="not reproduced: with our loads three strain gauges (case 2) beat "
+                   "two gauges + one accelerometer (case 3d) on the stiff plate; see studies/README.md")
+def test_th_multimetric_beats_strain_only_on_stiff_plate(th):
+    assert _avg(th, "3d") < _avg(th, "2")
+
+
+def test_th_arbitrary_layout_is_worse(th):
+    """Case 4 ("arbitrary" placement) is worse than the chosen multi-metric layout 3d."""
+    assert _avg(th, "4") > 1.5 * _avg(th, "3d")
+
+
+@pytest.mark.xfail(strict=True, reason="not reproduced: the thesis' case 4 is ~1000x case 3; ours is ~2x "
+                   "(its accelerometer sits on the clamped edge; see studies/README.md)")
+def test_th_arbitrary_layout_is_ten_times_worse(th):
+    assert _avg(th, "4") > 10 * _avg(th, "3d")
+
+
+def test_th_flexible_plate_two_gauges_suffice(th):
+    """Case 5: on the flexible plate two strain gauges (5d) do about as well as three sensors
+    (5a, 5b) and clearly better than one gauge + one accelerometer (5c, undetectable)."""
+    s = th.summary.set_index("case")
+    assert abs(_avg(th, "5d") / _avg(th, "5b") - 1) < 0.1
+    assert _avg(th, "5d") < 2 * _avg(th, "5a")
+    assert not s.loc["5c", "detectable"]
+    assert _avg(th, "5c") > 2 * _avg(th, "5d")
+
+
+def test_flexible_plate_first_frequency_matches_plate_strip_theory():
+    """TH case 5 plate: f1 against the clamped-free plate strip, (1.8751^2 / 2 pi) sqrt(D / rho h) / L^2
+    (the thesis states 0.14 Hz for these dimensions; see studies/README.md)."""
+    from core_akf.examples import TH_FLEXIBLE_PLATE
+    from core_akf.jobs import build_structure
+
+    p = TH_FLEXIBLE_PLATE
+    D = p["E"] * p["thickness"] ** 3 / (12 * (1 - p["nu"] ** 2))
+    f1 = 1.8751 ** 2 / (2 * np.pi) * np.sqrt(D / (p["rho"] * p["thickness"])) / p["ly"] ** 2
+    assert build_structure(p).frequencies(1)[0] == pytest.approx(f1, rel=0.03)
+
+
+def test_cli_study_list_and_unknown(capsys):
+    assert main(["study", "--list"]) == 0
+    out = capsys.readouterr().out
+    assert "s17_truss" in out and "th_plate" in out
+    assert main(["study", "no-such-study"]) == 2
+    assert "available" in capsys.readouterr().err
