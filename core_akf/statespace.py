@@ -272,6 +272,24 @@ def _unit_scaled(mat):
 _STATIC_ZERO = 1e-10
 
 
+def static_gain(structure, sensors, forces):
+    """Static gain (m x n_p) from forces to the strain and displacement sensors,
+    ``(S_s + S_d) K^-1 S_p`` (velocity and acceleration rows are exactly zero in a static
+    state).  Responses below ``_STATIC_ZERO`` of the largest of their kind are set to exactly
+    zero: a zero-force member or a node at rest reads rounding noise (~1e-16 of the largest
+    response), which a scaled rank test would read as information."""
+    layout = as_layout(sensors)
+    locs = parse_force_locations(structure, forces)
+    S = selection_matrices(structure, layout)
+    X = np.linalg.solve(structure.K, force_selection(structure, locs))
+    H0 = np.zeros((len(layout), X.shape[1]))
+    for kind in ("strain", "disp"):
+        H = S[kind] @ X
+        H[np.abs(H) <= _STATIC_ZERO * np.max(np.abs(H), initial=0.0)] = 0.0
+        H0 += H
+    return H0
+
+
 def _static_pbh(structure, layout, locs):
     """PBH at s = 0 when ``A_c`` is invertible: full rank iff the static gain from forces to
     sensors, ``H0 = D - G A_c^-1 B_c = (S_s + S_d) K^-1 S_p`` (m x n_p), has full column rank
@@ -281,15 +299,7 @@ def _static_pbh(structure, layout, locs):
 
     Returns the relative smallest singular value and the least visible force combination
     (unit vector over the force locations, in N per unit)."""
-    S = selection_matrices(structure, layout)
-    X = np.linalg.solve(structure.K, force_selection(structure, locs))
-    H0 = np.zeros((len(layout), X.shape[1]))
-    for kind in ("strain", "disp"):
-        H = S[kind] @ X
-        # a zero-force member or a node at rest reads rounding noise (~1e-16 of the largest
-        # response of its kind); unit row scaling below would turn it into information
-        H[np.abs(H) <= _STATIC_ZERO * np.max(np.abs(H), initial=0.0)] = 0.0
-        H0 += H
+    H0 = static_gain(structure, layout, locs)
     n_p = H0.shape[1]
     if not np.any(H0):
         return 0.0, np.eye(n_p)[0]

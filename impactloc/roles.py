@@ -1,0 +1,79 @@
+"""Role splits: which installed sensors feed the AKF (SE, state estimation) and which are held
+back for validation (AD, additional) -- IMP §3."""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from core_akf.exceptions import AKFInputError
+from core_akf.sensors import as_layout
+
+_KINDS = ("strain", "acc", "vel", "disp")
+
+
+@dataclass(frozen=True)
+class RoleSplit:
+    """Indices (0-based, into the installed layout) of the SE and AD sensors of one split."""
+
+    se: tuple
+    ad: tuple
+
+    def labels(self, layout):
+        return [layout[i].label for i in self.se], [layout[i].label for i in self.ad]
+
+
+def role_splits(sensors, n_ad, ad_kinds=("strain",), max_splits=None, seed=0):
+    """All splits of the installed sensors into SE and AD roles.
+
+    The AD sensors are ``n_ad`` of the sensors whose kind is in ``ad_kinds``; every other
+    sensor is SE.  IMP case 1: 4 of 7 strain gauges AD (35 splits); case 2: 4 of 7
+    accelerometers AD.
+
+    Parameters
+    ----------
+    sensors : sensor layout (the installed sensors)
+    n_ad : int
+        Number of AD sensors per split.
+    ad_kinds : sequence of str
+        Sensor kinds that may take the AD role ("strain", "acc", "vel", "disp").
+    max_splits : int, optional
+        Cap: a seeded random sample of this many splits when there are more (large sensor sets).
+    seed : int
+        For that sample.
+
+    Returns
+    -------
+    list of :class:`RoleSplit`, in ``itertools.combinations`` order.
+    """
+    layout = as_layout(sensors)
+    ad_kinds = (ad_kinds,) if isinstance(ad_kinds, str) else tuple(ad_kinds)
+    unknown = [k for k in ad_kinds if k not in _KINDS]
+    if unknown:
+        raise AKFInputError(f"unknown AD sensor kind(s) {unknown}; use {list(_KINDS)}")
+    pool = [i for i, s in enumerate(layout) if s.kind in ad_kinds]
+    if not isinstance(n_ad, (int, np.integer)) or n_ad < 1:
+        raise AKFInputError(f"n_ad must be a positive integer, got {n_ad!r}")
+    if n_ad > len(pool):
+        raise AKFInputError(f"{n_ad} AD sensors requested but only {len(pool)} installed sensor(s) of kind "
+                            f"{'/'.join(ad_kinds)}")
+    if n_ad == len(layout):
+        raise AKFInputError("every sensor would be AD: at least one sensor must feed the filter (SE)")
+    total = math.comb(len(pool), n_ad)
+    if max_splits is not None and max_splits < 1:
+        raise AKFInputError(f"max_splits must be >= 1, got {max_splits}")
+    if max_splits is not None and total > max_splits:
+        rng = np.random.default_rng(seed)
+        chosen = set()
+        while len(chosen) < max_splits:  # sample combinations without enumerating them all
+            chosen.add(tuple(sorted(rng.choice(pool, size=n_ad, replace=False).tolist())))
+        combos = sorted(chosen)
+    else:
+        combos = itertools.combinations(pool, n_ad)
+    splits = []
+    for ad in combos:
+        ad_set = set(ad)
+        splits.append(RoleSplit(se=tuple(i for i in range(len(layout)) if i not in ad_set), ad=tuple(ad)))
+    return splits
