@@ -172,6 +172,11 @@ def build_parser():
     p.add_argument("--out", help="output folder (default akf-out/studies/NAME)")
     p.add_argument("--seed", type=int, default=0, help="noise seed")
     p.set_defaults(func=_study)
+
+    # the optimiser packages of this distribution add their own sub-commands
+    from impactloc.cli import register as register_locate
+
+    register_locate(sub)
     return parser
 
 
