@@ -129,6 +129,10 @@ def _write(result, out, scenario=None, plot=True):
     if scenario is not None:
         cols["force_true"] = scenario.true_force
     pd.DataFrame(cols).to_csv(files["force_history"], index=False)
+    files["response"] = os.path.join(out, "response.csv")   # strain at every member / node component
+    strains = pd.DataFrame(est.strains, columns=est.structure.strain_labels)
+    strains.insert(0, "time", est.time)
+    strains.to_csv(files["response"], index=False, float_format="%.6e")
     if result.tuning is not None:
         files["tuning"] = os.path.join(out, "tuning.csv")
         result.tuning.logbook.to_csv(files["tuning"], index=False)

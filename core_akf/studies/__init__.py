@@ -2,9 +2,10 @@
 table, and writes a tidy CSV plus PNG figures (see ``studies/README.md`` for the side-by-side
 comparison with the published numbers).
 
-A study is a module with ``NAME``, ``DESCRIPTION`` and ``run(out=None, quick=False, seed=0)``
-returning a :class:`StudyResult`.  The registry maps study names to modules by import path, so
-the placement and impact studies (in ``sensoropt`` / ``impactloc``) are only imported when run.
+A study is a module (or an object) with ``NAME``, ``DESCRIPTION`` and
+``run(out=None, quick=False, seed=0)`` returning a :class:`StudyResult`.  The registry maps study
+names to import paths (``"package.module"`` or ``"package.module:attribute"``), so the placement
+and impact studies (in ``sensoropt`` / ``impactloc``) are only imported when run.
 """
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ from ..exceptions import AKFInputError
 STUDIES = {
     "s17_truss": "core_akf.studies.s17_truss",
     "th_plate": "core_akf.studies.th_plate",
+    "imp_cases": "impactloc.study:cases",
+    "imp_hit_rate": "impactloc.study:hit_rate",
 }
 
 
@@ -24,7 +27,9 @@ def study_module(name):
     """The module of study ``name`` (raises AKFInputError for an unknown name)."""
     if name not in STUDIES:
         raise AKFInputError(f"unknown study {name!r}; available: {', '.join(sorted(STUDIES))}")
-    return importlib.import_module(STUDIES[name])
+    path, _, attr = STUDIES[name].partition(":")
+    module = importlib.import_module(path)
+    return getattr(module, attr) if attr else module
 
 
 def run_study(name, out=None, quick=False, seed=0):
