@@ -11,13 +11,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from core_akf._validate import as_finite_array
-from core_akf.akf import state_covariance
 from core_akf.exceptions import AKFInputError
-from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
-from core_akf.statespace import (_is_supported, augment, continuous, detectability, force_selection,
-                                 modal_state_transform, modal_zoh, observation, static_gain, zoh)
-
-from .kernel import ad_predictions, rms_errors
+from core_akf.reduced import ModalFilterModel, auto_modes, steady_outputs
+from core_akf.sensors import as_layout, parse_force_locations
+from core_akf.statespace import _is_supported, detectability, static_gain
 from .roles import RoleSplit
 
 #: budget of (filters x steps x states) per kernel call: bounds memory (~16 bytes each)
@@ -86,64 +83,41 @@ def _free(structure, node, direction):
 
 
 class ImpactModel:
-    """The filter model prepared once for a scan: modal coordinates, unit state-noise
-    covariance, per-location augmented matrices (cached).  Picklable (plain arrays).
+    """The filter model prepared once for a scan: one :class:`core_akf.reduced.ModalFilterModel`
+    per candidate location (cached), all sharing the structure's modes.  Picklable.
 
-    ``n_modes`` keeps only the lowest modes (``"auto"``: those below 10x the sampling rate,
-    at least 4) *with a static correction*: the quasi-static response of the dropped modes to
-    the force, ``(K^-1 - Phi_r Omega_r^-2 Phi_r^T) S_p``, enters the strain/displacement rows
-    as a feed-through (mode-acceleration method).  Modes far above the sampling rate respond
-    quasi-statically.  On the IMP plate "auto" drops the 60 shear/rotation modes above 28 kHz
-    and keeps the 30 bending modes (n_a 181 -> 61, the scan 5x faster; the true location fits
-    as well as with the full model, the wrong ones score differently but stay far worse); a
-    cut at the sampling rate itself is too deep (a 4 ms impact excites modes up to a few kHz
-    and the identification fails).  ``None`` keeps the full model.
+    ``n_modes``: None keeps the full model; ``"auto"`` keeps the modes below 10x the sampling
+    rate with a static correction for the rest.  On the IMP plate that drops the 60
+    shear/rotation modes above 28 kHz and keeps the 30 bending modes (n_a 181 -> 61, the scan 5x
+    faster; the true location fits as well as with the full model, the wrong ones score
+    differently but stay far worse).  A cut at the sampling rate itself is too deep: a 4 ms
+    impact excites modes up to a few kHz and the identification fails.
     """
 
     def __init__(self, structure, sensors, dt, n_modes=None):
         self.full = structure
         self.layout = as_layout(sensors)
         self.dt = float(dt)
-        if n_modes == "auto":
-            f = structure.frequencies()
-            n_modes = int(max(min(4, structure.n), np.sum(f < 10.0 / self.dt)))
-        if n_modes is not None and not 1 <= int(n_modes) <= structure.n:
+        if n_modes is not None and n_modes != "auto" and not 1 <= int(n_modes) <= structure.n:
             raise AKFInputError(f"n_modes must be between 1 and {structure.n}, got {n_modes}")
-        self.n_modes = None if n_modes is None or int(n_modes) == structure.n else int(n_modes)
-        self.structure = structure if self.n_modes is None else structure.reduce(self.n_modes)
-        self.T, self.T_inv = modal_state_transform(self.structure)
-        Qu = self.T_inv @ state_covariance(self.structure, 1.0) @ self.T_inv.T
-        self.Q_unit = 0.5 * (Qu + Qu.T)
+        self.n_modes = auto_modes(structure, dt) if n_modes == "auto" else n_modes
+        if self.n_modes is not None and int(self.n_modes) == structure.n:
+            self.n_modes = None
         self.kinds = np.array([s.kind for s in self.layout])
         self._systems = {}
         self._static = {}
 
-    def residual_flexibility(self, loc):
-        """Quasi-static displacement (physical DOFs, m per N) of the modes dropped by the
-        reduction under a unit force at ``loc``; zeros for the full model."""
-        Sp = force_selection(self.full, [loc])[:, 0]
-        if self.n_modes is None:
-            return np.zeros_like(Sp)
-        omega, phi = self.full._eig
-        r = phi[:, :self.n_modes]
-        kept = r @ ((r.T @ Sp) / omega[:self.n_modes] ** 2)
-        return np.linalg.solve(self.full.K, Sp) - kept
+    def filter_model(self, loc):
+        if loc not in self._systems:
+            fm = ModalFilterModel(self.full, [loc], self.dt, self.n_modes)
+            self._systems[loc] = (fm, fm.observation(self.layout))
+        return self._systems[loc]
 
     def system(self, loc):
         """``(A_a, G_a)`` for a force at ``loc``: augmented modal transition and the observation
         rows of *all* installed sensors (m x n_a)."""
-        if loc not in self._systems:
-            AB = modal_zoh(self.structure, [loc], self.dt)
-            if AB is None:
-                A, B = zoh(*continuous(self.structure, [loc]), self.dt)
-                AB = (self.T_inv @ A @ self.T, self.T_inv @ B)
-            G, D = observation(self.structure, self.layout, [loc])
-            if self.n_modes is not None:
-                S = selection_matrices(self.full, self.layout)
-                D = D + ((S["strain"] + S["disp"]) @ self.residual_flexibility(loc))[:, None]
-            A_a, G_a = augment(AB[0], AB[1], G @ self.T, D)
-            self._systems[loc] = (A_a, G_a)
-        return self._systems[loc]
+        fm, G_a = self.filter_model(loc)
+        return fm.A_a, G_a
 
     def detectable(self, loc, se):
         """PBH detectability of a force at ``loc`` from the SE sensors ``se`` (indices)."""
@@ -153,18 +127,23 @@ class ImpactModel:
             return bool(np.any(self._static[loc][list(se)] != 0))
         return detectability(self.full, [self.layout[i] for i in se], [loc]).detectable
 
-    def Q_a(self, cov):
-        n = self.Q_unit.shape[0]
-        Q = np.zeros((n + 1, n + 1))
-        Q[:n, :n] = cov.model_error * self.Q_unit
-        Q[n, n] = cov.force_increment
-        return Q
+    def Q_a(self, cov, loc):
+        return self.filter_model(loc)[0].Q_a(cov.model_error, cov.force_increment)
 
     def noise(self, cov):
         missing = sorted(set(self.kinds) - set(cov.noise))
         if missing:
             raise AKFInputError(f"covariances have no noise variance for sensor kind(s) {missing}")
         return np.array([cov.noise[k] for k in self.kinds])
+
+
+def rms_errors(pred, Y_ad, skip=0):
+    """RMS error per filter and AD channel over samples ``skip..N-1``, absolute and relative
+    to the RMS of the measured channel: two arrays (B, a)."""
+    d = pred[:, skip:] - Y_ad[:, skip:]
+    err = np.sqrt(np.mean(d * d, axis=1))
+    ref = np.sqrt(np.mean(Y_ad[:, skip:] ** 2, axis=1))
+    return err, err / np.maximum(ref, np.finfo(float).tiny)
 
 
 def location_errors(model, loc, splits, Y, covs, skip=0):
@@ -183,7 +162,7 @@ def location_errors(model, loc, splits, Y, covs, skip=0):
     jobs = [(c, j) for c in range(len(covs)) for j in ok]
     per_call = max(1, _CALL_BUDGET // (N * n))
     noise = [model.noise(c) for c in covs]
-    Qs = [model.Q_a(c) for c in covs]
+    Qs = [model.Q_a(c, loc) for c in covs]
     for start in range(0, len(jobs), per_call):
         chunk = jobs[start:start + per_call]
         se = np.array([splits[j].se for _, j in chunk])
@@ -194,7 +173,7 @@ def location_errors(model, loc, splits, Y, covs, skip=0):
         Q = np.stack([Qs[c] for c, _ in chunk])
         Yse = np.ascontiguousarray(np.swapaxes(Y[:, se], 0, 1))   # (b, N, m_se)
         Yad = np.swapaxes(Y[:, ad], 0, 1)
-        pred = ad_predictions(A_a, G, Q, R, Yse, H)
+        pred = steady_outputs(A_a, G, Q, R, Yse, H)
         e_abs, e_rel = rms_errors(pred, Yad, skip)
         for k, (c, j) in enumerate(chunk):
             abs_err[c, j], rel_err[c, j] = e_abs[k], e_rel[k]

@@ -1,0 +1,135 @@
+"""Filter models for optimisers: the augmented AKF matrices in energy-normalised modal
+coordinates, optionally truncated to the lowest modes *with a static correction*, and a
+batched steady-state filter that returns only the outputs it is asked for.
+
+The optimisers (sensor placement, impact localisation) run thousands of AKFs on one structure:
+the model is prepared once (:class:`ModalFilterModel`), each candidate only selects observation
+rows, and :func:`steady_outputs` runs a whole batch of candidates in one call.
+
+Static correction (mode-acceleration method): modes dropped by the truncation respond
+quasi-statically to the forces, ``u_res = (K^-1 - Phi_r Omega_r^-2 Phi_r^T) S_p f``; their strain
+and displacement enter every strain/displacement row as a feed-through on the force states.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .akf import lti_recursion, state_covariance
+from .exceptions import AKFInputError
+from .riccati import steady_gain
+from .sensors import as_layout, parse_force_locations, selection_matrices
+from .statespace import augment, continuous, force_selection, modal_state_transform, modal_zoh, observation, zoh
+
+
+def auto_modes(structure, dt, factor=10.0, minimum=4):
+    """Number of modes below ``factor`` x the sampling rate ``1/dt`` (at least ``minimum``)."""
+    f = structure.frequencies()
+    return int(max(min(minimum, structure.n), np.sum(f < factor / float(dt))))
+
+
+class ModalFilterModel:
+    """Augmented AKF model of ``structure`` with forces at ``forces``, in modal coordinates.
+
+    Parameters
+    ----------
+    structure : Structure -- the filter's (full) model
+    forces : force locations
+    dt : float -- s
+    n_modes : None (full model), an int, or ``"auto"`` (:func:`auto_modes`)
+
+    Attributes
+    ----------
+    A_a : (n_a, n_a) augmented transition;  Q_unit : (2n, 2n) state covariance for a unit
+    ``model_error_cov`` level;  n_a = 2 n_modes + n_p
+    """
+
+    def __init__(self, structure, forces, dt, n_modes=None):
+        self.full = structure
+        self.forces = parse_force_locations(structure, forces)
+        self.dt = float(dt)
+        if n_modes == "auto":
+            n_modes = auto_modes(structure, dt)
+        if n_modes is not None and not 1 <= int(n_modes) <= structure.n:
+            raise AKFInputError(f"n_modes must be between 1 and {structure.n}, got {n_modes}")
+        self.n_modes = None if n_modes is None or int(n_modes) == structure.n else int(n_modes)
+        self.structure = structure if self.n_modes is None else structure.reduce(self.n_modes)
+        self.T, self.T_inv = modal_state_transform(self.structure)
+        Qu = self.T_inv @ state_covariance(self.structure, 1.0) @ self.T_inv.T
+        self.Q_unit = 0.5 * (Qu + Qu.T)
+        AB = modal_zoh(self.structure, self.forces, self.dt)
+        if AB is None:
+            A, B = zoh(*continuous(self.structure, self.forces), self.dt)
+            AB = (self.T_inv @ A @ self.T, self.T_inv @ B)
+        self.A_a, _ = augment(AB[0], AB[1], np.zeros((0, AB[0].shape[0])), np.zeros((0, len(self.forces))))
+        self.n_states = AB[0].shape[0]
+        self._residual = None
+
+    @property
+    def n_a(self):
+        return self.A_a.shape[0]
+
+    def residual_flexibility(self):
+        """Quasi-static physical displacement (n_phys x n_p, m/N) of the dropped modes; zeros
+        for the full model."""
+        if self._residual is None:
+            Sp = force_selection(self.full, self.forces)
+            if self.n_modes is None:
+                self._residual = np.zeros_like(Sp)
+            else:
+                omega, phi = self.full._eig
+                r = phi[:, :self.n_modes]
+                kept = r @ ((r.T @ Sp) / omega[:self.n_modes, None] ** 2)
+                self._residual = np.linalg.solve(self.full.K, Sp) - kept
+        return self._residual
+
+    def observation(self, sensors):
+        """Augmented observation rows ``[G T, D]`` (m x n_a) for a sensor layout, with the
+        static correction on strain and displacement rows."""
+        layout = as_layout(sensors)
+        G, D = observation(self.structure, layout, self.forces)
+        if self.n_modes is not None:
+            S = selection_matrices(self.full, layout)
+            D = D + (S["strain"] + S["disp"]) @ self.residual_flexibility()
+        return np.hstack([G @ self.T, D])
+
+    def strain_rows(self):
+        """Rows (n_strain x n_a) giving every strain component/member from the augmented state."""
+        ops = self.structure.strain_operator            # (n_strain, n) in the model's coordinates
+        out = np.zeros((ops.shape[0], self.n_a))
+        out[:, :self.n_states] = np.hstack([ops, np.zeros_like(ops)]) @ self.T
+        if self.n_modes is not None:
+            out[:, self.n_states:] = self.full.strain_operator @ self.residual_flexibility()
+        return out
+
+    def Q_a(self, model_error_cov, force_increment_cov):
+        """``blockdiag(q Q_unit, S)`` for a scalar state level and a scalar or per-force S."""
+        Q = np.zeros((self.n_a, self.n_a))
+        Q[:self.n_states, :self.n_states] = float(model_error_cov) * self.Q_unit
+        S = np.broadcast_to(np.asarray(force_increment_cov, float), (len(self.forces),))
+        Q[self.n_states:, self.n_states:] = np.diag(S)
+        return Q
+
+
+def steady_outputs(A, G, Q, R, Y, H):
+    """Outputs ``H X_k`` of a stack of steady-state AKFs (filtered states, prior mean zero).
+
+    Parameters
+    ----------
+    A : (B, n, n) or (n, n);  G : (B, m, n);  Q : (B, n, n) or (n, n);  R : (B, m, m)
+    Y : (B, N, m) measurements;  H : (B, k, n) or (k, n) output rows
+
+    Returns
+    -------
+    ndarray (B, N, k)
+
+    One batched Riccati solve (doubling), then ``X_k = (I - L G) A X_{k-1} + L y_k`` as one
+    batched product per step; only the requested outputs are formed.
+    """
+    B, N, m = Y.shape
+    n = G.shape[-1]
+    A = np.broadcast_to(A, (B, n, n))
+    _, L = steady_gain(A, G, np.broadcast_to(Q, (B, n, n)), R)
+    F = (np.eye(n) - L @ G) @ A
+    U = Y @ np.swapaxes(L, -1, -2)
+    X = lti_recursion(F, U, U[:, 0])
+    return X @ np.swapaxes(H, -1, -2)

@@ -1,0 +1,43 @@
+"""Modal filter models with static correction (core_akf.reduced)."""
+import numpy as np
+import pytest
+
+from core_akf.akf import estimate
+from core_akf.models import s17_truss, th_plate
+from core_akf.reduced import ModalFilterModel, steady_outputs
+from core_akf.simulate import simulate
+from core_akf.statespace import force_selection
+
+
+@pytest.mark.parametrize("n_modes", [None, 20, 6])
+def test_static_correction_gives_exact_static_strains(n_modes):
+    """Under constant forces the reduced, statically corrected model's equilibrium strains equal
+    the full model's K^-1 strains exactly, however few modes are kept."""
+    s = th_plate()
+    forces = ["121:w", "111:w"]
+    fm = ModalFilterModel(s, forces, 1 / 2000, n_modes)
+    f = np.array([30.0, -12.0])
+    n = fm.n_states
+    A, B = fm.A_a[:n, :n], fm.A_a[:n, n:]
+    x = np.linalg.solve(np.eye(n) - A, B @ f)
+    strains = fm.strain_rows() @ np.r_[x, f]
+    exact = s.strain_operator @ np.linalg.solve(s.K, force_selection(s, forces) @ f)
+    np.testing.assert_allclose(strains, exact, rtol=1e-8, atol=1e-10 * np.abs(exact).max())
+    G = fm.observation(["strain:2:gxy", "strain:58:ex"])
+    np.testing.assert_allclose(G @ np.r_[x, f], exact[[s.strain_labels.index("gxy2"), s.strain_labels.index("ex58")]],
+                               rtol=1e-8)
+
+
+def test_steady_outputs_equal_estimate_on_the_full_model():
+    s = s17_truss()
+    sensors, forces, dt = ["acc:4:y", "strain:5", "strain:13"], ["4:y", "8:y"], 1 / 1024
+    rng = np.random.default_rng(0)
+    loads = rng.normal(size=(600, 2)) * 100
+    sim = simulate(s, sensors, forces, loads, dt, relative_noise=0.02, seed=1)
+    R = np.diag(sim.noise_std ** 2)
+    est = estimate(s, sensors, forces, sim.measurements, dt, model_error_cov=1e-16, force_increment_cov=1e4,
+                   noise_cov=R, steady=True)
+    fm = ModalFilterModel(s, forces, dt)
+    out = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(1e-16, 1e4), R[None],
+                         sim.measurements[None], fm.strain_rows())
+    np.testing.assert_allclose(out[0], est.strains, rtol=1e-7, atol=1e-9 * np.abs(est.strains).max())
