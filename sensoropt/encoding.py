@@ -1,0 +1,296 @@
+"""Layout encoding for the placement GA on a rectangular plate mesh (TH §4, DESIGN A8).
+
+A sensor is a gene triple ``(ix, iy, kind)`` -- grid column and row (1-based, node number
+``(iy - 1)(nx + 1) + ix``) and kind ``"ex"``, ``"ey"``, ``"gxy"`` (strain components) or
+``"acc"`` (out-of-plane acceleration w).  Only *admissible* sensors are candidates: a sensor
+whose observation row is identically zero (an accelerometer on the clamped edge, e_x along a
+clamped edge y = 0) cannot measure anything.  Internally a layout is the sorted tuple of
+candidate indices, so orderings of the same sensors are one individual, and no sensor appears
+twice.  The operators keep layouts unique, admissible and within the per-type budget by
+construction; :meth:`Encoding.repair` is the safety net.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from core_akf.exceptions import AKFInputError
+
+STRAIN_KINDS = ("ex", "ey", "gxy")
+KINDS = STRAIN_KINDS + ("acc",)
+
+
+def sensor_type(kind):
+    return "acc" if kind == "acc" else "strain"
+
+
+class Encoding:
+    """Admissible sensor candidates of a plate and the GA operators on layouts.
+
+    Parameters
+    ----------
+    structure : Structure -- a plate from :func:`core_akf.models.plate`
+    kinds : allowed kinds, subset of ``("ex", "ey", "gxy", "acc")``
+    n_sensors : int -- total number of sensors (any allowed kind), or
+    budget : dict -- sensors per type, e.g. ``{"strain": 3, "acc": 1}`` (fixed counts)
+    """
+
+    def __init__(self, structure, kinds=STRAIN_KINDS, n_sensors=None, budget=None):
+        kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
+        bad = [k for k in kinds if k not in KINDS]
+        if bad or not kinds:
+            raise AKFInputError(f"unknown sensor kind(s) {bad or kinds}; use some of {list(KINDS)}")
+        if structure.strain_kind != "node":
+            raise AKFInputError("sensor placement works on plate models (strains at nodes)")
+        self.structure = structure
+        self.kinds = tuple(dict.fromkeys(kinds))
+        xs, ys = np.unique(np.round(structure.nodes[:, 0], 12)), np.unique(np.round(structure.nodes[:, 1], 12))
+        self.nx, self.ny = len(xs), len(ys)
+        if self.nx * self.ny != structure.n_nodes:
+            raise AKFInputError("the plate's nodes do not form a rectangular grid")
+        ix = np.searchsorted(xs, np.round(structure.nodes[:, 0], 12)) + 1
+        iy = np.searchsorted(ys, np.round(structure.nodes[:, 1], 12)) + 1
+        ops = structure.strain_operator
+        scale = np.abs(ops).max()
+        cands = []
+        for node in range(1, structure.n_nodes + 1):
+            for kind in self.kinds:
+                if kind == "acc":
+                    try:
+                        structure.dof_index(node, "w")
+                    except (AKFInputError, ValueError, KeyError):
+                        continue
+                else:
+                    row = ops[structure.strain_labels.index(f"{kind}{node}")]
+                    if not np.any(np.abs(row) > 1e-12 * scale):
+                        continue
+                cands.append((node, int(ix[node - 1]), int(iy[node - 1]), kind))
+        if not cands:
+            raise AKFInputError(f"no admissible sensor position for kinds {list(self.kinds)}")
+        self.candidates = cands
+        self.node = np.array([c[0] for c in cands])
+        self.ix = np.array([c[1] for c in cands])
+        self.iy = np.array([c[2] for c in cands])
+        self.kind = np.array([c[3] for c in cands])
+        self.type = np.array([sensor_type(k) for k in self.kind])
+        self.index = {(c[1], c[2], c[3]): i for i, c in enumerate(cands)}
+        self.budget = self._budget(n_sensors, budget)
+        self.n_sensors = sum(self.budget.values()) if self.budget else int(n_sensors)
+
+    def _budget(self, n_sensors, budget):
+        types_allowed = set(self.type)
+        if budget is not None:
+            if n_sensors is not None and int(n_sensors) != sum(budget.values()):
+                raise AKFInputError(f"n_sensors = {n_sensors} disagrees with the budget {budget}")
+            budget = {str(k): int(v) for k, v in budget.items() if int(v) != 0}
+            if not budget:
+                raise AKFInputError("the sensor budget is empty: give at least one sensor")
+            for t, c in budget.items():
+                if t not in ("strain", "acc"):
+                    raise AKFInputError(f"budget types are 'strain' and 'acc', got {t!r}")
+                if c < 0:
+                    raise AKFInputError(f"budget for {t!r} must be >= 0, got {c}")
+                if t not in types_allowed:
+                    raise AKFInputError(f"budget has {c} {t} sensor(s) but kinds {list(self.kinds)} allow none")
+                avail = int(np.sum(self.type == t))
+                if c > avail:
+                    raise AKFInputError(f"{c} {t} sensors requested but only {avail} admissible positions")
+            return budget
+        if n_sensors is None or int(n_sensors) < 1:
+            raise AKFInputError("give n_sensors >= 1 or a budget per sensor type")
+        if int(n_sensors) > len(self.candidates):
+            raise AKFInputError(f"{n_sensors} sensors requested but only {len(self.candidates)} admissible positions")
+        return None
+
+    # ------------------------------------------------------------------ conversions
+    def sensors(self, layout):
+        """Sensor strings (``"strain:58:ex"``, ``"acc:12:w"``) of a layout."""
+        return [f"acc:{self.node[i]}:w" if self.kind[i] == "acc" else f"strain:{self.node[i]}:{self.kind[i]}"
+                for i in layout]
+
+    def triples(self, layout):
+        return [(int(self.ix[i]), int(self.iy[i]), str(self.kind[i])) for i in layout]
+
+    def records(self, layout):
+        """``[{"node": id, "kind": "ex"|"ey"|"gxy"|"acc"}, ...]`` (1-based node ids)."""
+        return [{"node": int(self.node[i]), "kind": str(self.kind[i])} for i in layout]
+
+    def from_sensors(self, sensors):
+        """Layout (sorted candidate indices) from sensor strings or ``(node, kind)`` pairs."""
+        out = []
+        for s in sensors:
+            if isinstance(s, str):
+                parts = s.split(":")
+                node, kind = int(parts[1]), ("acc" if parts[0] == "acc" else parts[2])
+            else:
+                node, kind = int(s[0]), str(s[1])
+            hits = [i for i, c in enumerate(self.candidates) if c[0] == node and c[3] == kind]
+            if not hits:
+                raise AKFInputError(f"sensor {s!r} is not an admissible position (off the mesh, clamped, "
+                                    f"or kind not in {list(self.kinds)})")
+            out.append(hits[0])
+        if len(set(out)) != len(out):
+            raise AKFInputError(f"duplicate sensors in {list(sensors)}")
+        return tuple(sorted(out))
+
+    # ------------------------------------------------------------------ validity
+    def counts(self, layout):
+        t = self.type[list(layout)]
+        return {k: int(np.sum(t == k)) for k in ("strain", "acc")}
+
+    def is_valid(self, layout):
+        if len(set(layout)) != len(layout) or len(layout) != self.n_sensors:
+            return False
+        if self.budget:
+            c = self.counts(layout)
+            return all(c.get(t, 0) == n for t, n in self.budget.items()) and sum(c.values()) == self.n_sensors
+        return True
+
+    def _pool(self, t=None):
+        return np.arange(len(self.candidates)) if t is None else np.flatnonzero(self.type == t)
+
+    def random_layout(self, rng):
+        if self.budget:
+            parts = [rng.choice(self._pool(t), size=n, replace=False) for t, n in self.budget.items()]
+            return tuple(sorted(int(i) for p in parts for i in p))
+        return tuple(sorted(int(i) for i in rng.choice(len(self.candidates), size=self.n_sensors, replace=False)))
+
+    def repair(self, genes, rng):
+        """A valid canonical layout from any gene list: duplicates and surplus of a type are
+        dropped, missing sensors filled with random unused admissible positions of the type."""
+        seen, keep = set(), []
+        for g in genes:
+            g = int(g)
+            if 0 <= g < len(self.candidates) and g not in seen:
+                seen.add(g)
+                keep.append(g)
+        if self.budget:
+            out = []
+            for t, n in self.budget.items():
+                mine = [g for g in keep if self.type[g] == t][:n]
+                free = np.setdiff1d(self._pool(t), mine)
+                if len(mine) < n:
+                    mine += [int(i) for i in rng.choice(free, size=n - len(mine), replace=False)]
+                out += mine
+            return tuple(sorted(out))
+        keep = keep[:self.n_sensors]
+        if len(keep) < self.n_sensors:
+            free = np.setdiff1d(self._pool(), keep)
+            keep += [int(i) for i in rng.choice(free, size=self.n_sensors - len(keep), replace=False)]
+        return tuple(sorted(keep))
+
+    # ------------------------------------------------------------------ operators
+    def crossover_set(self, a, b, rng):
+        """Set-based crossover: each child draws its sensors (per type when budgeted) from the
+        union of the parents' sensors, so shared sensors tend to stay and children are unique."""
+        def child():
+            if self.budget:
+                genes = []
+                for t, n in self.budget.items():
+                    union = sorted({g for g in a + b if self.type[g] == t})
+                    genes += [int(i) for i in rng.choice(union, size=min(n, len(union)), replace=False)]
+                return self.repair(genes, rng)
+            union = sorted(set(a) | set(b))
+            return self.repair([int(i) for i in rng.choice(union, size=self.n_sensors, replace=False)], rng)
+        return child(), child()
+
+    def _nearest(self, ix, iy, kind, exclude, rng):
+        """The admissible candidate of ``kind`` nearest to grid point (ix, iy), not in ``exclude``."""
+        pool = np.flatnonzero(self.kind == kind)
+        pool = pool[~np.isin(pool, list(exclude))]
+        if pool.size == 0:
+            return None
+        d = (self.ix[pool] - ix) ** 2 + (self.iy[pool] - iy) ** 2
+        best = pool[d == d.min()]
+        return int(rng.choice(best))
+
+    def crossover_intermediate(self, a, b, rng, alpha=0.5):
+        """The thesis' baseline: intermediate crossover on the (ix, iy) genes of paired sensors,
+        ``c = p1 + u (p2 - p1)`` with ``u ~ U(-alpha, 1 + alpha)``, rounded to the grid, kinds
+        taken from either parent, then repaired to the nearest admissible unused position."""
+        def child():
+            genes, used = [], set()
+            for g1, g2 in zip(a, b):
+                u = rng.uniform(-alpha, 1 + alpha, size=2)
+                ix = int(np.clip(np.rint(self.ix[g1] + u[0] * (self.ix[g2] - self.ix[g1])), 1, self.nx))
+                iy = int(np.clip(np.rint(self.iy[g1] + u[1] * (self.iy[g2] - self.iy[g1])), 1, self.ny))
+                kind = self.kind[g1] if rng.random() < 0.5 else self.kind[g2]
+                if self.budget:
+                    kind = self.kind[g1]  # keep the type counts
+                g = self._nearest(ix, iy, kind, used, rng)
+                if g is not None:
+                    genes.append(g)
+                    used.add(g)
+            return self.repair(genes, rng)
+        return child(), child()
+
+    def mutate(self, layout, rng, indpb=None, p_move=0.5, p_jump=0.3):
+        """Per-sensor mutation (each sensor with probability ``indpb``, default 1/n): a *move*
+        to a neighbouring grid point, a *jump* anywhere, or a *kind flip* (another allowed kind of
+        the same type -- or any allowed kind without a budget)."""
+        genes = list(layout)
+        indpb = 1.0 / len(genes) if indpb is None else indpb
+        hit = rng.random(len(genes)) < indpb
+        if not hit.any():
+            hit[rng.integers(len(genes))] = True
+        for j in np.flatnonzero(hit):
+            g = genes[j]
+            others = set(genes) - {g}
+            r = rng.random()
+            if r < p_move:
+                step = rng.choice([(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)])
+                ng = self._nearest(self.ix[g] + step[0], self.iy[g] + step[1], self.kind[g], others | {g}, rng)
+            elif r < p_move + p_jump:
+                pool = self._pool(self.type[g] if self.budget else None)
+                pool = pool[~np.isin(pool, list(others | {g}))]
+                ng = int(rng.choice(pool)) if pool.size else None
+            else:
+                kinds = [k for k in self.kinds if k != self.kind[g]
+                         and (not self.budget or sensor_type(k) == self.type[g])]
+                ng = None
+                if kinds:
+                    key = (int(self.ix[g]), int(self.iy[g]), str(rng.choice(kinds)))
+                    ng = self.index.get(key)
+                    if ng in others:
+                        ng = None
+            if ng is not None:
+                genes[j] = ng
+        return self.repair(genes, rng)
+
+    def mutate_adaptive(self, layout, rng, scale):
+        """The thesis' baseline: Gaussian steps of standard deviation ``scale`` (grid units,
+        shrinking over the generations) on the (ix, iy) genes, random kind changes with
+        probability ``scale / max(nx, ny)``, repaired to the nearest admissible unused point."""
+        genes, used = [], set()
+        for g in layout:
+            ix = int(np.clip(np.rint(self.ix[g] + rng.normal(0, scale)), 1, self.nx))
+            iy = int(np.clip(np.rint(self.iy[g] + rng.normal(0, scale)), 1, self.ny))
+            kind = self.kind[g]
+            if rng.random() < scale / max(self.nx, self.ny):
+                kinds = [k for k in self.kinds if not self.budget or sensor_type(k) == self.type[g]]
+                kind = str(rng.choice(kinds))
+            ng = self._nearest(ix, iy, kind, used, rng)
+            if ng is not None:
+                genes.append(ng)
+                used.add(ng)
+        return self.repair(genes, rng)
+
+    def distance(self, a, b):
+        """Distance between two layouts: the minimum-cost matching of their sensors, cost = grid
+        distance + 1 for a different kind; 0 for the same layout."""
+        a, b = list(a), list(b)
+        C = np.hypot(self.ix[a][:, None] - self.ix[b][None, :], self.iy[a][:, None] - self.iy[b][None, :])
+        C = C + (self.kind[a][:, None] != self.kind[b][None, :])
+        r, c = linear_sum_assignment(C)
+        return float(C[r, c].sum())
+
+    def diversity(self, layouts):
+        """Mean distance of each layout to its nearest *other* individual (TH's diversity)."""
+        n = len(layouts)
+        if n < 2:
+            return 0.0
+        D = np.full((n, n), np.inf)
+        for i in range(n):
+            for j in range(i + 1, n):
+                D[i, j] = D[j, i] = self.distance(layouts[i], layouts[j])
+        return float(np.mean(D.min(axis=1)))
