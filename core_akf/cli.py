@@ -175,7 +175,9 @@ def build_parser():
 
     # the optimiser packages of this distribution add their own sub-commands
     from impactloc.cli import register as register_locate
+    from sensoropt.cli import register as register_place
 
+    register_place(sub)
     register_locate(sub)
     return parser
 

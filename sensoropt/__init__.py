@@ -9,6 +9,10 @@
 from .encoding import KINDS, STRAIN_KINDS, Encoding
 from .ga import THESIS, PlacementResult, independent_runs, place
 from .objective import FunctionObjective, StrainErrorObjective
+from .pareto import ParetoResult, pareto
+from .plots import plot_convergence, plot_layout, plot_pareto
+from .problem import EXAMPLES, PlacementProblem, example_problem
 
 __all__ = ["KINDS", "STRAIN_KINDS", "Encoding", "THESIS", "PlacementResult", "independent_runs", "place",
-           "FunctionObjective", "StrainErrorObjective"]
+           "FunctionObjective", "StrainErrorObjective", "ParetoResult", "pareto", "plot_convergence", "plot_layout",
+           "plot_pareto", "EXAMPLES", "PlacementProblem", "example_problem"]

@@ -1,0 +1,120 @@
+"""``akf place``: sensor placement from a job file or a built-in example.
+
+A place job (TOML)::
+
+    name = "my-plate"
+    dt = 0.0005
+    forces = ["121:w", "111:w"]
+    [structure]
+    model = "th_plate"
+    [place]
+    sensors = 3                        # or budget = {strain = 2, acc = 1}
+    kinds = ["ex", "ey", "gxy"]        # add "acc" to allow accelerometers
+    window = 0.1                       # s of simulated response per fitness evaluation
+    population = 50                    # GA settings (TH defaults)
+    generations = 100
+    [filter]
+    stiffness_factor = 1.05
+    [simulation]
+    duration = 6.0                     # the full record the best layout is checked on
+    relative_noise = 0.02
+    [[simulation.loads]]
+    components = [{type = "ramp", start = 1, end = 5, peak = 89}]
+    [[simulation.loads]]
+    components = [{type = "half_sine", start = 0.5, end = 5.5, peak = 44.5}]
+"""
+from __future__ import annotations
+
+import json
+import os
+
+from core_akf.exceptions import AKFInputError
+
+
+def _place(args):
+    from .ga import THESIS, place
+    from .plots import plot_convergence, plot_layout
+    from .problem import EXAMPLES, example_problem, problem_from_job
+
+    if args.list_examples:
+        for name, spec in EXAMPLES.items():
+            print(f"{name:10s} {spec['description']}")
+        return 0
+    if (args.job is None) == (args.example is None):
+        raise AKFInputError("give a place job file or --example NAME (see --list-examples)")
+    if args.example:
+        problem, ga = example_problem(args.example, args.sensors), {}
+    else:
+        from core_akf.cli import _load_toml
+
+        problem, ga = problem_from_job(_load_toml(args.job))
+        if args.sensors is not None:
+            if problem.budget:
+                raise AKFInputError("--sensors does not apply to a job with a budget per sensor type")
+            problem.n_sensors = args.sensors
+    settings = dict(THESIS)
+    settings.update(ga)
+    for key in ("generations", "population"):
+        if getattr(args, key) is not None:
+            settings[key] = getattr(args, key)
+    if args.operators:
+        settings["operators"] = args.operators
+    out = args.out or os.path.join("akf-out", "place", f"{problem.name}-{problem.n_sensors or 'budget'}-seed{args.seed}")
+    os.makedirs(out, exist_ok=True)
+    checkpoint = args.checkpoint or os.path.join(out, "checkpoint.pkl")
+    enc = problem.encoding()
+    obj = problem.objective(enc)
+    res = place(obj, enc, seed=args.seed, n_jobs=args.n_jobs, checkpoint=checkpoint, resume=args.resume,
+                progress=not args.json, **settings)
+    error = problem.full_record_error(res.sensors)
+    refs = {name: problem.full_record_error(s) for name, s in problem.reference_layouts.items()
+            if len(s) == enc.n_sensors and not problem.budget}
+    files = {"logbook": os.path.join(out, "logbook.csv"), "checkpoint": checkpoint}
+    res.logbook.to_csv(files["logbook"], index=False)
+    if not args.no_plot:
+        files["convergence"] = plot_convergence(res.logbook, os.path.join(out, "convergence.png"),
+                                                f"{problem.name}: {enc.n_sensors} sensors, seed {args.seed}")
+        files["layout"] = plot_layout(enc, res.best, os.path.join(out, "layout.png"),
+                                      f"best layout: window error {res.best_error:.3f} µε, full record {error:.3f} µε",
+                                      forces=obj.model.forces)
+    if args.json:
+        print(json.dumps({"layout": res.layout, "sensors": res.sensors, "error": error,
+                          "window_error": res.best_error, "generations": int(res.logbook["generation"].iloc[-1]),
+                          "evaluations": res.evaluations, "cache_hits": res.cache_hits, "infeasible": res.infeasible,
+                          "stopped": res.stopped, "seconds": float(res.logbook["seconds"].iloc[-1]),
+                          "reference_errors": refs, "files": files}))
+        return 0
+    print(f"{problem.name}: {enc.n_sensors} sensors from {len(enc.candidates)} admissible positions "
+          f"({', '.join(enc.kinds)}), seed {args.seed}")
+    print("  best layout (node, kind):  " + ", ".join(f"{d['node']} {d['kind']}" for d in res.layout))
+    print(f"  average strain error: {error:.4f} µε over the {problem.loads.shape[0] * problem.dt:.3g} s record "
+          f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
+    for name, e in refs.items():
+        print(f"  {name}: {e:.4f} µε")
+    lb = res.logbook
+    print(f"  {int(lb['generation'].iloc[-1])} generations ({res.stopped}), {res.evaluations} evaluations, "
+          f"{res.cache_hits} cache hits, {res.infeasible} infeasible, {lb['seconds'].iloc[-1]:.1f} s")
+    for k, v in files.items():
+        print(f"  wrote {k}: {v}")
+    return 0
+
+
+def register(sub):
+    from .problem import EXAMPLES
+
+    p = sub.add_parser("place", help="optimise sensor positions on a plate (GA, TH)")
+    p.add_argument("job", nargs="?", help="place job file (TOML)")
+    p.add_argument("--example", choices=sorted(EXAMPLES), help="built-in problem")
+    p.add_argument("--list-examples", action="store_true", help="list the built-in problems")
+    p.add_argument("--sensors", type=int, help="number of sensors (overrides the example/job)")
+    p.add_argument("--seed", type=int, default=0, help="GA seed (the run repeats exactly)")
+    p.add_argument("--generations", type=int, help="GA generations (default 100)")
+    p.add_argument("--population", type=int, help="GA population (default 50)")
+    p.add_argument("--operators", choices=["set", "thesis"], help="set-based (default) or the thesis' operators")
+    p.add_argument("--n-jobs", type=int, default=1, help="joblib workers for the fitness")
+    p.add_argument("--checkpoint", help="checkpoint file (default OUT/checkpoint.pkl)")
+    p.add_argument("--resume", action="store_true", help="continue from the checkpoint")
+    p.add_argument("--json", action="store_true", help="print one JSON object (no progress bar)")
+    p.add_argument("--out", help="output folder (default akf-out/place/NAME-N-seedS)")
+    p.add_argument("--no-plot", action="store_true", help="do not write PNG figures")
+    p.set_defaults(func=_place)

@@ -1,0 +1,91 @@
+"""Figures: GA convergence, a layout drawn on the plate mesh, the Pareto front."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+_MARKERS = {"ex": ("s", "tab:blue"), "ey": ("D", "tab:green"), "gxy": ("^", "tab:purple"), "acc": ("o", "tab:red")}
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_convergence(logbook, path, title="placement GA"):
+    """Best and mean fitness and the diversity per generation."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    ax.plot(logbook["generation"], logbook["best"], "k-", label="best")
+    ax.plot(logbook["generation"], logbook["mean"], "b--", lw=0.8, label="mean")
+    ax.set_yscale("log")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("average strain error (µε)")
+    if "diversity" in logbook:
+        ax2 = ax.twinx()
+        ax2.plot(logbook["generation"], logbook["diversity"], color="tab:orange", lw=0.8, label="diversity")
+        ax2.set_ylabel("diversity (grid units)", color="tab:orange")
+    ax.legend(loc="upper right", fontsize=7)
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_layout(encoding, layout, path, title="", forces=()):
+    """The mesh (nodes as dots, clamped nodes grey), the sensors with kind markers and node ids,
+    and the force locations (red crosses)."""
+    plt = _plt()
+    s = encoding.structure
+    xy = s.nodes
+    fig, ax = plt.subplots(figsize=(6, 5))
+    ax.plot(xy[:, 0], xy[:, 1], ".", color="0.75", ms=4)
+    free = set(encoding.node.tolist())
+    clamped = [n for n in range(1, s.n_nodes + 1) if n not in free]
+    if clamped:
+        c = xy[np.array(clamped) - 1]
+        ax.plot(c[:, 0], c[:, 1], "s", color="0.4", ms=4, label="no admissible sensor")
+    for kind, (m, col) in _MARKERS.items():
+        pts = [encoding.node[i] for i in layout if encoding.kind[i] == kind]
+        if pts:
+            p = xy[np.array(pts) - 1]
+            ax.plot(p[:, 0], p[:, 1], m, color=col, ms=10, mfc="none", mew=2, label=kind)
+    for i in layout:
+        x, y = xy[encoding.node[i] - 1]
+        ax.annotate(f"{encoding.node[i]}", (x, y), textcoords="offset points", xytext=(6, 6), fontsize=8)
+    for node, _ in forces:
+        x, y = xy[node - 1]
+        ax.plot(x, y, "x", color="red", ms=10, mew=2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1, 0.5))
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_pareto(front, path, title="error vs number of sensors"):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    x = front["cost"] if "cost" in front else front["n_sensors"]
+    ax.plot(x, front["error"], "o-")
+    for xi, e, n in zip(x, front["error"], front["n_sensors"]):
+        ax.annotate(str(n), (xi, e), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    ax.set_xlabel("cost (sensors)")
+    ax.set_ylabel("average strain error (µε)")
+    ax.set_yscale("log")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
