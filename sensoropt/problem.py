@@ -44,7 +44,7 @@ class PlacementProblem:
     relative_noise: float = 0.02
     model_error_cov: float = 1e-16
     force_increment_cov: float = 1.0
-    n_modes: int = 80
+    n_modes: object = "auto"
     seed: int = 0
     reference_layouts: dict = field(default_factory=dict)
 
@@ -64,7 +64,11 @@ class PlacementProblem:
         (``n_modes`` modes, static correction)."""
         sim = simulate(self.structure, sensors, self.forces, self.loads, self.dt, relative_noise=self.relative_noise,
                        seed=self.seed if seed is None else seed)
-        fm = ModalFilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt, self.n_modes)
+        n_modes = self.n_modes
+        if n_modes == "auto":
+            n_modes = 100 if any(str(s).startswith("acc") for s in sensors) else 80
+        fm = ModalFilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt,
+                              None if n_modes is None else min(int(n_modes), self.structure.n))
         R = np.diag(np.maximum(sim.noise_std, 1e-30) ** 2)
         est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov, self.force_increment_cov),
                              R[None], sim.measurements[None], fm.strain_rows())[0]
@@ -143,5 +147,5 @@ def problem_from_job(job):
                                relative_noise=float(sim.get("relative_noise", 0.02)),
                                model_error_cov=float(f.get("model_error_cov", 1e-16)),
                                force_increment_cov=float(f.get("force_increment_cov", 1.0)),
-                               n_modes=p.get("n_modes", 80), seed=int(sim.get("seed", 0)))
+                               n_modes=p.get("n_modes", "auto"), seed=int(sim.get("seed", 0)))
     return problem, {k: p[k] for k in GA_KEYS if k in p}

@@ -1,0 +1,178 @@
+"""Sensor placement GA: encoding, objective, GA against exhaustive search, reproducibility,
+checkpoints, Pareto front, CLI and bad input."""
+import itertools
+import json
+import math
+
+import numpy as np
+import pytest
+
+from core_akf import AKFInputError
+from core_akf.cli import main
+from core_akf.examples import TH_CASE2, TH_CASE3, th_job
+from core_akf.jobs import build_loads
+from core_akf.models import plate, th_plate
+from sensoropt import (Encoding, FunctionObjective, PlacementProblem, StrainErrorObjective, example_problem, pareto,
+                       place)
+
+
+def small_problem(n_sensors=2):
+    """The thesis plate on a 3 x 3 mesh (16 nodes, clamped along y = 0), its loads at the free
+    corners 16 and 13; small enough to search exhaustively."""
+    s = plate(3, 3, 0.4064, 0.3048, 0.003175, 200e9, 0.3, 7800, clamped_edge="y0", damping=0.01)
+    job = th_job("small", "", TH_CASE2)
+    dt = job["dt"]
+    loads = build_loads(job["simulation"]["loads"], 400, dt, 2)
+    return PlacementProblem("small", s, ["16:w", "13:w"], loads, dt, n_sensors=n_sensors, n_modes=None)
+
+
+@pytest.fixture(scope="module")
+def small():
+    p = small_problem()
+    enc = p.encoding()
+    return p, enc, p.objective(enc)
+
+
+def test_encoding_candidates_exclude_dead_positions():
+    s = th_plate()
+    enc = Encoding(s, kinds=("ex", "ey", "gxy", "acc"), n_sensors=3)
+    labels = set(enc.sensors(range(len(enc.candidates))))
+    assert "acc:5:w" not in labels and "acc:12:w" in labels          # clamped edge y = 0: nodes 1-11
+    assert "strain:5:ex" not in labels and "strain:5:gxy" in labels   # e_x is identically zero along the clamp
+    assert len([l for l in labels if l.startswith("acc")]) == 110
+    assert enc.triples(enc.from_sensors(["strain:58:ex"])) == [(3, 6, "ex")]   # node 58 = (iy-1)*11 + ix
+
+
+def test_operators_keep_layouts_unique_admissible_and_in_budget():
+    enc = Encoding(th_plate(), kinds=("ex", "ey", "gxy", "acc"), budget={"strain": 3, "acc": 1})
+    rng = np.random.default_rng(0)
+    pop = [enc.random_layout(rng) for _ in range(30)]
+    for _ in range(200):
+        a, b = pop[rng.integers(30)], pop[rng.integers(30)]
+        for child in (*enc.crossover_set(a, b, rng), *enc.crossover_intermediate(a, b, rng),
+                      enc.mutate(a, rng, indpb=1.0), enc.mutate_adaptive(a, rng, 3.0)):
+            assert enc.is_valid(child) and child == tuple(sorted(child))
+            assert enc.counts(child) == {"strain": 3, "acc": 1}
+    assert enc.repair([5, 5, 5, 5], rng) != (5, 5, 5, 5) and enc.is_valid(enc.repair([5, 5, 5, 5], rng))
+    assert enc.distance(pop[0], pop[0]) == 0 and enc.distance(pop[0], pop[1]) > 0
+
+
+def test_reduced_objective_within_5_percent_of_full_model_on_case3_layout():
+    p = example_problem("th-case5")
+    enc = Encoding(p.structure, kinds=("ex", "ey", "gxy", "acc"), n_sensors=3)
+    full = StrainErrorObjective(p.structure, p.forces, p.loads, p.dt, enc, n_modes=None).evaluate([TH_CASE3])[0]
+    red = StrainErrorObjective(p.structure, p.forces, p.loads, p.dt, enc).evaluate([TH_CASE3])[0]  # auto: 100 modes
+    assert red == pytest.approx(full, rel=0.05)
+
+
+def test_ga_finds_the_exhaustive_optimum(small):
+    p, enc, obj = small
+    all_layouts = list(itertools.combinations(range(len(enc.candidates)), 2))
+    values = np.array(obj.evaluate([enc.sensors(l) for l in all_layouts]))
+    best = all_layouts[int(np.argmin(values))]
+    for seed in (0, 1, 2):
+        res = place(obj, enc, population=30, generations=40, stall_generations=0, seed=seed)
+        assert res.best == best, (seed, enc.sensors(res.best), enc.sensors(best))
+        assert res.best_error == pytest.approx(values.min(), rel=1e-12)
+        assert res.evaluations < 0.6 * len(all_layouts)        # the cache and the search save work
+
+
+def test_same_seed_same_result_on_1_and_2_workers(small):
+    p, enc, obj = small
+    a = place(obj, enc, population=20, generations=8, seed=5, n_jobs=1)
+    b = place(obj, enc, population=20, generations=8, seed=5, n_jobs=2)
+    assert a.best == b.best and a.best_error == b.best_error
+    assert a.logbook.drop(columns="seconds").equals(b.logbook.drop(columns="seconds"))
+
+
+class _Crash(Exception):
+    pass
+
+
+class _CrashingObjective:
+    """Delegates to an objective and raises after ``calls`` evaluate() calls (a killed run)."""
+
+    n_objectives = 1
+
+    def __init__(self, inner, calls):
+        self.inner, self.calls = inner, calls
+
+    def evaluate(self, layouts):
+        self.calls -= 1
+        if self.calls < 0:
+            raise _Crash()
+        return self.inner.evaluate(layouts)
+
+
+def test_resume_from_checkpoint_continues_the_same_run(small, tmp_path):
+    p, enc, obj = small
+    kw = dict(population=20, generations=10, seed=3, stall_generations=0, checkpoint_every=3)
+    straight = place(obj, enc, checkpoint=str(tmp_path / "a.pkl"), **kw)
+    ck = str(tmp_path / "b.pkl")
+    with pytest.raises(_Crash):
+        place(_CrashingObjective(obj, 9), enc, checkpoint=ck, **kw)
+    resumed = place(obj, enc, checkpoint=ck, resume=True, **kw)
+    assert resumed.best == straight.best
+    assert resumed.logbook.drop(columns="seconds").equals(straight.logbook.drop(columns="seconds"))
+    with pytest.raises(AKFInputError, match="other settings"):
+        place(obj, enc, checkpoint=ck, resume=True, **dict(kw, population=22))
+
+
+def _corner_distance(sensors):
+    """A custom objective: distance of the sensors (node ids) from node 121 (toy example)."""
+    nodes = [int(s.split(":")[1]) for s in sensors]
+    return float(sum(abs(n - 121) for n in nodes))
+
+
+def _nan_objective(sensors):
+    return math.nan if "strain:60:ex" in sensors else 1.0
+
+
+def test_custom_objective_and_nan_penalty():
+    enc = Encoding(th_plate(), kinds=("ex",), n_sensors=2)
+    res = place(FunctionObjective(_corner_distance), enc, population=30, generations=30, seed=0)
+    assert sorted(d["node"] for d in res.layout) == [120, 121]
+    res = place(FunctionObjective(_nan_objective), enc, population=20, generations=3, seed=0,
+                initial=[["strain:60:ex", "strain:61:ex"]])
+    assert res.infeasible >= 1 and res.best_error == 1.0
+
+
+def test_bad_input_is_reported():
+    s = th_plate()
+    with pytest.raises(AKFInputError, match="admissible positions"):
+        Encoding(s, kinds=("ex",), n_sensors=500)
+    with pytest.raises(AKFInputError, match="unknown sensor kind"):
+        Encoding(s, kinds=("ex", "strain"), n_sensors=2)
+    with pytest.raises(AKFInputError, match="empty"):
+        Encoding(s, kinds=("ex", "acc"), budget={"strain": 0, "acc": 0})
+    with pytest.raises(AKFInputError, match="allow none"):
+        Encoding(s, kinds=("ex",), budget={"acc": 1})
+    enc = Encoding(s, n_sensors=2)
+    with pytest.raises(AKFInputError, match="not an admissible"):
+        enc.from_sensors(["acc:12:w", "strain:999:ex"])
+    with pytest.raises(AKFInputError, match="callable"):
+        FunctionObjective(3)
+
+
+def test_ga_beats_the_trial_and_error_layout_on_the_full_record():
+    p = example_problem("th-case5")
+    enc = p.encoding()
+    res = place(p.objective(enc), enc, population=30, generations=15, seed=0)
+    assert p.full_record_error(res.sensors) < 0.8 * p.full_record_error(TH_CASE2)
+
+
+def test_pareto_front_error_falls_with_more_sensors(small):
+    p, enc, obj = small
+    res = pareto(obj, p.structure, sizes=(1, 4), population=24, generations=8, seed=0)
+    f = res.front
+    assert list(f["n_sensors"]) == sorted(f["n_sensors"]) and len(f) >= 3
+    assert np.all(np.diff(f["error"]) < 0)
+
+
+def test_cli_place_json(tmp_path, capsys):
+    assert main(["place", "--example", "th-case5", "--generations", "2", "--population", "6", "--json",
+                 "--out", str(tmp_path), "--no-plot"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert len(d["layout"]) == 3 and {"node", "kind"} == set(d["layout"][0])
+    assert d["layout"][0]["kind"] in ("ex", "ey", "gxy") and d["error"] > 0
+    assert main(["place", "--example", "th-multi", "--sensors", "4"]) == 2
