@@ -135,6 +135,8 @@ def pareto(objective, structure, *, kinds=("ex", "ey", "gxy"), sizes=(1, 8), cos
     # the non-dominated set over everything evaluated (the cache), not only the last population
     best = {}
     for l, e in evaluate.cache.items():
+        if e >= evaluate.penalty:      # infeasible (e.g. fewer static sensors than forces)
+            continue
         c = layout_cost(l)
         if e < best.get(c, (math.inf,))[0]:
             best[c] = (e, l)

@@ -176,3 +176,39 @@ def test_cli_place_json(tmp_path, capsys):
     assert len(d["layout"]) == 3 and {"node", "kind"} == set(d["layout"][0])
     assert d["layout"][0]["kind"] in ("ex", "ey", "gxy") and d["error"] > 0
     assert main(["place", "--example", "th-multi", "--sensors", "4"]) == 2
+
+
+def test_cli_place_job_file_and_typo(tmp_path, capsys):
+    job = tmp_path / "plate.toml"
+    job.write_text('''name = "small"
+dt = 0.0005
+forces = ["16:w", "13:w"]
+[structure]
+model = "plate"
+nx = 3
+ny = 3
+lx = 0.4064
+ly = 0.3048
+thickness = 0.003175
+E = 200e9
+nu = 0.3
+rho = 7800
+[place]
+sensors = 2
+window = 0.05
+population = 8
+generations = 2
+n_modes = 20
+[simulation]
+duration = 0.5
+[[simulation.loads]]
+components = [{type = "band_noise", rms = 5, f_high = 100, seed = 1}]
+[[simulation.loads]]
+components = [{type = "half_sine", start = 0.1, end = 0.4, peak = 40}]
+''')
+    assert main(["place", str(job), "--json", "--no-plot", "--out", str(tmp_path / "o")]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert len(d["layout"]) == 2 and all(1 <= r["node"] <= 16 for r in d["layout"])
+    job.write_text(job.read_text().replace("window = 0.05", "windw = 0.05"))
+    assert main(["place", str(job)]) == 2
+    assert "did you mean 'window'" in capsys.readouterr().err

@@ -18,6 +18,7 @@ from ..exceptions import AKFInputError
 STUDIES = {
     "s17_truss": "core_akf.studies.s17_truss",
     "th_plate": "core_akf.studies.th_plate",
+    "th_placement": "sensoropt.study",
     "imp_cases": "impactloc.study:cases",
     "imp_hit_rate": "impactloc.study:hit_rate",
 }

@@ -1,0 +1,96 @@
+"""Thesis placement studies behind ``akf study th_placement`` (TH §4, cases 5 and 6, plus the
+multi-metric placement TH names as future work, plus the NSGA-II "how many sensors" front).
+
+* case 5: 3 strain gauges, 4 independent GA runs (seeds 0-3), against the trial-and-error
+  layout of TH case 2, on the full 6 s record;
+* case 6: 3, 4, 5 and 8 gauges (one run each): diminishing returns;
+* multi-metric: 2 gauges + 1 accelerometer, and 3 gauges + 1 accelerometer;
+* Pareto: error vs number of gauges (1-8) in one NSGA-II run.
+"""
+from __future__ import annotations
+
+import os
+
+from core_akf.sensors import parse_force_locations
+from core_akf.studies._common import StudyResult, output_dir
+
+from .ga import THESIS, independent_runs, place
+from .pareto import pareto
+from .plots import plot_convergence, plot_layout, plot_pareto
+from .problem import example_problem
+
+NAME = "th_placement"
+DESCRIPTION = "TH placement GA: case 5 (3 gauges, 4 runs), case 6 (3/4/5/8 gauges), multi-metric, Pareto front"
+
+#: published average strain errors ("micro-strain" in TH)
+PUBLISHED = {"case 2 (trial and error)": 0.00666, 3: 0.00360, 4: 0.00286, 5: 0.00241, 8: 0.00183}
+
+
+def run(out=None, quick=False, seed=0, n_jobs=2):
+    import pandas as pd
+
+    out = output_dir(NAME, out)
+    ga = dict(THESIS)
+    if quick:
+        ga.update(population=16, generations=6)
+    files, rows = {}, []
+
+    def record(study, label, problem, res, enc):
+        full = problem.full_record_error(res.sensors)
+        rows.append({"study": study, "label": label, "n_sensors": enc.n_sensors, "seed": res.seed,
+                     "sensors": " ".join(res.sensors), "window_error_ue": res.best_error, "full_record_error_ue": full,
+                     "generations": int(res.logbook["generation"].iloc[-1]), "evaluations": res.evaluations,
+                     "cache_hits": res.cache_hits, "seconds": float(res.logbook["seconds"].iloc[-1])})
+        key = f"{study}-{label}".replace(" ", "_")
+        files[f"{key}:layout"] = plot_layout(enc, res.best, os.path.join(out, f"{key}_layout.png"),
+                                             f"{study} {label}: full record {full:.3f} µε",
+                                             forces=parse_force_locations(problem.structure, problem.forces))
+        files[f"{key}:convergence"] = plot_convergence(res.logbook, os.path.join(out, f"{key}_convergence.png"),
+                                                       f"{study} {label}")
+        return full
+
+    # case 5: 3 gauges, 4 independent runs
+    p5 = example_problem("th-case5")
+    enc5 = p5.encoding()
+    obj5 = p5.objective(enc5)
+    runs, agreement = independent_runs(obj5, enc5, runs=2 if quick else 4, seed=seed, n_jobs=n_jobs, **ga)
+    for r in runs:
+        record("case 5", f"seed {r.seed}", p5, r, enc5)
+    case2 = p5.full_record_error(p5.reference_layouts["TH case 2 (trial and error)"])
+    rows.append({"study": "case 5", "label": "TH case 2 (trial and error)", "n_sensors": 3, "seed": None,
+                 "sensors": " ".join(p5.reference_layouts["TH case 2 (trial and error)"]),
+                 "window_error_ue": obj5.evaluate([p5.reference_layouts["TH case 2 (trial and error)"]])[0],
+                 "full_record_error_ue": case2})
+    agreement.to_csv(os.path.join(out, "case5_agreement.csv"), index=False)
+    files["case5_agreement"] = os.path.join(out, "case5_agreement.csv")
+    # case 6: 3, 4, 5, 8 gauges
+    for n in ((3, 4) if quick else (3, 4, 5, 8)):
+        p = example_problem("th-case6", n)
+        enc = p.encoding()
+        res = place(p.objective(enc), enc, seed=seed, n_jobs=n_jobs, **ga)
+        record("case 6", f"{n} gauges", p, res, enc)
+    # multi-metric: gauges + one accelerometer
+    for budget in ({"strain": 2, "acc": 1}, {"strain": 3, "acc": 1}):
+        p = example_problem("th-multi")
+        p.budget = budget
+        enc = p.encoding()
+        res = place(p.objective(enc), enc, seed=seed, n_jobs=n_jobs, **ga)
+        record("multi-metric", f"{budget['strain']} gauges + 1 acc", p, res, enc)
+    # Pareto: error vs number of gauges
+    pp = example_problem("th-case6", 3)
+    front = pareto(pp.objective(pp.encoding()), pp.structure, sizes=(1, 4 if quick else 8),
+                   population=16 if quick else 60, generations=4 if quick else 40, seed=seed, n_jobs=n_jobs).front
+    front.to_csv(os.path.join(out, "pareto_front.csv"), index=False)
+    files["pareto_front"] = os.path.join(out, "pareto_front.csv")
+    files["pareto"] = plot_pareto(front, os.path.join(out, "pareto.png"))
+    table = pd.DataFrame(rows)
+    files["table"] = os.path.join(out, f"{NAME}.csv")
+    table.to_csv(files["table"], index=False)
+    print("TH placement: average strain error (µε) of the GA layouts; full record = 6 s, window = 0.1 s fitness")
+    print(table[["study", "label", "sensors", "window_error_ue", "full_record_error_ue", "generations",
+                 "evaluations", "seconds"]].round(4).to_string(index=False))
+    print("case 5 agreement across runs:")
+    print(agreement.round(4).to_string(index=False))
+    print("Pareto front (NSGA-II, window error):")
+    print(front.round(4).to_string(index=False))
+    return StudyResult(NAME, table, agreement, files, {"front": front})
