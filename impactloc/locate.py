@@ -8,7 +8,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
 from core_akf.sensors import as_layout
 
 from .reconstruct import reconstruct

@@ -6,7 +6,7 @@ AD error over the splits (the spread breaks ties).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
