@@ -5,6 +5,8 @@ multi-metric placement TH names as future work, plus the NSGA-II "how many senso
   layout of TH case 2, on the full 6 s record;
 * case 6: 3, 4, 5 and 8 gauges (one run each): diminishing returns;
 * multi-metric: 2 gauges + 1 accelerometer, and 3 gauges + 1 accelerometer;
+* operators: the set-based operators against the thesis' intermediate crossover and adaptive
+  mutation (case 5, 4 seeds each);
 * Pareto: error vs number of gauges (1-8) in one NSGA-II run.
 """
 from __future__ import annotations
@@ -24,6 +26,29 @@ DESCRIPTION = "TH placement GA: case 5 (3 gauges, 4 runs), case 6 (3/4/5/8 gauge
 
 #: published average strain errors ("micro-strain" in TH)
 PUBLISHED = {"case 2 (trial and error)": 0.00666, 3: 0.00360, 4: 0.00286, 5: 0.00241, 8: 0.00183}
+
+
+def compare_operators(seeds=(0, 1, 2, 3), n_jobs=1, **ga):
+    """Set-based operators against the thesis' intermediate crossover + adaptive mutation on
+    TH case 5 (same seeds, same GA settings): one row per (operators, seed)."""
+    import pandas as pd
+
+    p = example_problem("th-case5")
+    enc = p.encoding()
+    obj = p.objective(enc)
+    settings = dict(THESIS)
+    settings.update(ga)
+    rows = []
+    for ops in ("set", "thesis"):
+        for sd in seeds:
+            res = place(obj, enc, seed=sd, n_jobs=n_jobs, **dict(settings, operators=ops))
+            lb = res.logbook
+            within = lb.index[lb["best"] <= res.best_error * 1.01]
+            rows.append({"operators": ops, "seed": sd, "best_window_error_ue": res.best_error,
+                         "full_record_error_ue": p.full_record_error(res.sensors), "sensors": " ".join(res.sensors),
+                         "generation_within_1pct": int(lb["generation"][within[0]]), "evaluations": res.evaluations,
+                         "final_diversity": float(lb["diversity"].iloc[-1]), "seconds": float(lb["seconds"].iloc[-1])})
+    return pd.DataFrame(rows)
 
 
 def run(out=None, quick=False, seed=0, n_jobs=2):
@@ -76,6 +101,11 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
         enc = p.encoding()
         res = place(p.objective(enc), enc, seed=seed, n_jobs=n_jobs, **ga)
         record("multi-metric", f"{budget['strain']} gauges + 1 acc", p, res, enc)
+    # the thesis' operators as the baseline
+    ops = compare_operators(seeds=(seed,) if quick else (seed, seed + 1, seed + 2, seed + 3), n_jobs=n_jobs,
+                            **({"population": 16, "generations": 6} if quick else {}))
+    ops.to_csv(os.path.join(out, "operators.csv"), index=False)
+    files["operators"] = os.path.join(out, "operators.csv")
     # Pareto: error vs number of gauges
     pp = example_problem("th-case6", 3)
     front = pareto(pp.objective(pp.encoding()), pp.structure, sizes=(1, 4 if quick else 8),
@@ -91,6 +121,8 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
                  "evaluations", "seconds"]].round(4).to_string(index=False))
     print("case 5 agreement across runs:")
     print(agreement.round(4).to_string(index=False))
+    print("set-based vs thesis operators (case 5):")
+    print(ops.drop(columns=["sensors"]).round(4).to_string(index=False))
     print("Pareto front (NSGA-II, window error):")
     print(front.round(4).to_string(index=False))
     return StudyResult(NAME, table, agreement, files, {"front": front})

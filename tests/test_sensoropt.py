@@ -12,8 +12,8 @@ from core_akf.cli import main
 from core_akf.examples import TH_CASE2, TH_CASE3, th_job
 from core_akf.jobs import build_loads
 from core_akf.models import plate, th_plate
-from sensoropt import (Encoding, FunctionObjective, PlacementProblem, StrainErrorObjective, example_problem, pareto,
-                       place)
+from sensoropt import (THESIS, Encoding, FunctionObjective, PlacementProblem, StrainErrorObjective, example_problem,
+                       pareto, place)
 
 
 def small_problem(n_sensors=2):
@@ -212,3 +212,18 @@ components = [{type = "half_sine", start = 0.1, end = 0.4, peak = 40}]
     job.write_text(job.read_text().replace("window = 0.05", "windw = 0.05"))
     assert main(["place", str(job)]) == 2
     assert "did you mean 'window'" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_more_gauges_lower_error_with_shrinking_returns():
+    """TH case 6 on the full record: 3 -> 5 -> 8 gauges lower the error, each step by less
+    per added gauge (thesis: 0.00360 / 0.00241 / 0.00183)."""
+    errors = []
+    for n in (3, 5, 8):
+        p = example_problem("th-case6", n)
+        enc = p.encoding()
+        res = place(p.objective(enc), enc, seed=0, **THESIS)    # the search space grows with n
+        errors.append(p.full_record_error(res.sensors))
+    e3, e5, e8 = errors
+    assert e3 > e5 > e8
+    assert (e3 - e5) / 2 > (e5 - e8) / 3
