@@ -253,7 +253,7 @@ def scan(structure, sensors, measurements, dt, splits, *, candidates, covariance
     :class:`ScanResult`
     """
     import pandas as pd
-    from joblib import Parallel, delayed
+    from joblib import Parallel, delayed, effective_n_jobs
 
     layout = as_layout(sensors)
     Y = check_measurements(layout, measurements)
@@ -261,6 +261,11 @@ def scan(structure, sensors, measurements, dt, splits, *, candidates, covariance
         raise AKFInputError("no role splits given")
     if not all(isinstance(s, RoleSplit) for s in splits):
         raise AKFInputError("splits must be RoleSplit objects (see impactloc.role_splits)")
+    if len({len(s.ad) for s in splits}) > 1:
+        raise AKFInputError("all role splits must hold the same number of AD sensors")
+    bad = [i for s in splits for i in s.se + s.ad if not 0 <= i < len(layout)]
+    if bad:
+        raise AKFInputError(f"role splits refer to sensor index {bad[0]}, but only {len(layout)} sensors are installed")
     locs = parse_force_locations(structure, candidates)
     if not locs:
         raise AKFInputError("no candidate locations")
@@ -275,8 +280,7 @@ def scan(structure, sensors, measurements, dt, splits, *, candidates, covariance
             it = tqdm(locs, desc="scan", unit="location", leave=False, delay=1.0)
         results = [location_errors(model, loc, splits, Y, [covariances], skip_n) for loc in it]
     else:
-        n_workers = n_jobs if n_jobs > 0 else max(1, (__import__("os").cpu_count() or 1) + 1 + n_jobs)
-        groups = _chunks(locs, n_workers)
+        groups = _chunks(locs, effective_n_jobs(n_jobs))
         out = Parallel(n_jobs=n_jobs)(delayed(_scan_task)(model, g, splits, Y, covariances, skip_n) for g in groups)
         results = [r for group in out for r in group]
     rel = np.stack([r[1][0] for r in results])        # (n_loc, n_splits, n_ad)

@@ -19,8 +19,8 @@ from core_akf.exceptions import AKFInputError
 
 from .scan import Covariances, ImpactModel, check_measurements, location_errors
 
-#: population evaluations per joblib task (each evaluation = n_splits filters)
-_MIN_TASK = 4
+#: covariance sets per fitness batch / joblib task (each = n_splits filters, ~0.1 s)
+_TASK = 4
 
 
 def _creator():
@@ -107,12 +107,14 @@ def tune_covariances(structure, sensors, measurements, dt, location, splits, *, 
     lo, hi = x0 - decades, x0 + decades
 
     def evaluate(xs):
+        # fixed-size chunks: the batch composition (and so every rounding) does not depend on n_jobs
         covs = [_to_covariances(x, names, start) for x in xs]
-        if n_jobs == 1 or len(covs) < 2 * _MIN_TASK:
-            return _fitness_task(model, location, tune_splits, Y, covs, skip_n)
-        k = max(_MIN_TASK, math.ceil(len(covs) / max(abs(n_jobs), 1)))
-        parts = Parallel(n_jobs=n_jobs)(delayed(_fitness_task)(model, location, tune_splits, Y, covs[i:i + k], skip_n)
-                                        for i in range(0, len(covs), k))
+        chunks = [covs[i:i + _TASK] for i in range(0, len(covs), _TASK)]
+        if n_jobs == 1 or len(chunks) == 1:
+            parts = [_fitness_task(model, location, tune_splits, Y, c, skip_n) for c in chunks]
+        else:
+            parts = Parallel(n_jobs=n_jobs)(delayed(_fitness_task)(model, location, tune_splits, Y, c, skip_n)
+                                            for c in chunks)
         return [f for p in parts for f in p]
 
     creator = _creator()
