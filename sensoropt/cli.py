@@ -52,6 +52,8 @@ def _place(args):
             if problem.budget:
                 raise AKFInputError("--sensors does not apply to a job with a budget per sensor type")
             problem.n_sensors = args.sensors
+    if args.window is not None:
+        problem.window = args.window
     settings = dict(THESIS)
     settings.update(ga)
     for key in ("generations", "population"):
@@ -111,6 +113,8 @@ def register(sub):
     p.add_argument("--generations", type=int, help="GA generations (default 100)")
     p.add_argument("--population", type=int, help="GA population (default 50)")
     p.add_argument("--operators", choices=["set", "thesis"], help="set-based (default) or the thesis' operators")
+    p.add_argument("--window", type=float, help="seconds of response per fitness evaluation (default 0.1; "
+                   "1 s generalises better to the full record, at little extra cost)")
     p.add_argument("--n-jobs", type=int, default=1, help="joblib workers for the fitness")
     p.add_argument("--checkpoint", help="checkpoint file (default OUT/checkpoint.pkl)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint")
