@@ -198,20 +198,30 @@ JOB_KEYS = {
 }
 
 
-def validate_job(job):
-    """Reject unknown keys (a typo must not silently fall back to a default) and missing ones."""
+def check_keys(table, allowed, where):
+    """Reject a key of ``table`` not in ``allowed``, naming the closest allowed one: a typo must
+    not silently fall back to a default."""
+    for key in table:
+        if key not in allowed:
+            hint = difflib.get_close_matches(key, allowed, n=1)
+            raise AKFInputError(f"unknown key {key!r} in {where}"
+                                + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"))
+
+
+def check_sections(job, keys, kind="job"):
+    """:func:`check_keys` on the top level (``keys[None]``) and on each section of a job."""
     if not isinstance(job, dict):
-        raise AKFInputError("a job is a table of settings (a dict)")
-    for section, allowed in JOB_KEYS.items():
+        raise AKFInputError(f"a {kind} is a table of settings (a dict)")
+    for section, allowed in keys.items():
         table = job if section is None else job.get(section, {})
         if not isinstance(table, dict):
             raise AKFInputError(f"[{section}] must be a table")
-        for key in table:
-            if key not in allowed:
-                hint = difflib.get_close_matches(key, allowed, n=1)
-                where = "the job" if section is None else f"[{section}]"
-                raise AKFInputError(f"unknown key {key!r} in {where}"
-                                    + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"))
+        check_keys(table, allowed, f"the {kind}" if section is None else f"[{section}]")
+
+
+def validate_job(job):
+    """Reject unknown keys (a typo must not silently fall back to a default) and missing ones."""
+    check_sections(job, JOB_KEYS)
     for key in ("dt", "sensors", "forces", "structure"):
         if key not in job:
             raise AKFInputError(f"the job has no {key!r}")

@@ -32,13 +32,13 @@ A locate job (TOML)::
 """
 from __future__ import annotations
 
-import difflib
 import json
 import os
 
 import numpy as np
 
 from core_akf.exceptions import AKFInputError
+from core_akf.jobs import check_keys, check_sections
 
 LOCATE_KEYS = {
     None: {"name", "description", "dt", "sensors", "structure", "locate", "measurements"},
@@ -49,23 +49,9 @@ LOCATE_KEYS = {
 TUNING_KEYS = {"population", "generations", "n_splits", "decades", "crossover", "mutation"}
 
 
-def _check_keys(table, allowed, where):
-    for key in table:
-        if key not in allowed:
-            hint = difflib.get_close_matches(key, allowed, n=1)
-            raise AKFInputError(f"unknown key {key!r} in {where}"
-                                + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"))
-
-
 def validate_locate_job(job):
-    if not isinstance(job, dict):
-        raise AKFInputError("a locate job is a table of settings")
-    for section, allowed in LOCATE_KEYS.items():
-        table = job if section is None else job.get(section, {})
-        if not isinstance(table, dict):
-            raise AKFInputError(f"[{section}] must be a table")
-        _check_keys(table, allowed, "the job" if section is None else f"[{section}]")
-    _check_keys(job.get("locate", {}).get("tuning", {}), TUNING_KEYS, "[locate.tuning]")
+    check_sections(job, LOCATE_KEYS, "locate job")
+    check_keys(job.get("locate", {}).get("tuning", {}), TUNING_KEYS, "[locate.tuning]")
     for key in ("dt", "sensors", "structure", "measurements"):
         if key not in job:
             raise AKFInputError(f"the locate job has no {key!r}")
@@ -79,7 +65,7 @@ def _covariances(spec):
 
     if spec is None:
         return None
-    _check_keys(spec, {"model_error", "force_increment", "noise"}, "[locate.covariances]")
+    check_keys(spec, {"model_error", "force_increment", "noise"}, "[locate.covariances]")
     try:
         return Covariances(float(spec["model_error"]), float(spec["force_increment"]),
                            {k: float(v) for k, v in spec["noise"].items()})

@@ -15,6 +15,14 @@ def _plt():
     return plt
 
 
+def _save(plt, fig, path):
+    fig.tight_layout()
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_convergence(logbook, path, title="placement GA"):
     """Best and mean fitness and the diversity per generation."""
     plt = _plt()
@@ -30,11 +38,7 @@ def plot_convergence(logbook, path, title="placement GA"):
         ax2.set_ylabel("diversity (grid units)", color="tab:orange")
     ax.legend(loc="upper right", fontsize=7)
     ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def plot_layout(encoding, layout, path, title="", forces=()):
@@ -66,11 +70,7 @@ def plot_layout(encoding, layout, path, title="", forces=()):
     ax.set_ylabel("y (m)")
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1, 0.5))
     ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def plot_pareto(front, path, title="error vs number of sensors"):
@@ -84,8 +84,4 @@ def plot_pareto(front, path, title="error vs number of sensors"):
     ax.set_ylabel("average strain error (µε)")
     ax.set_yscale("log")
     ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)

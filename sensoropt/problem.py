@@ -16,7 +16,7 @@ import numpy as np
 
 from core_akf.examples import TH_CASE2, th_job
 from core_akf.exceptions import AKFInputError
-from core_akf.jobs import build_loads, build_structure
+from core_akf.jobs import build_loads, build_structure, check_sections
 from core_akf.metrics import average_strain_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.simulate import simulate
@@ -116,18 +116,7 @@ GA_KEYS = ("population", "generations", "elite", "crossover", "mutation", "tourn
 
 def problem_from_job(job):
     """A :class:`PlacementProblem` and GA settings from a place job (dict from TOML)."""
-    import difflib
-
-    if not isinstance(job, dict):
-        raise AKFInputError("a place job is a table of settings")
-    for section, allowed in PLACE_KEYS.items():
-        table = job if section is None else job.get(section, {})
-        for key in table:
-            if key not in allowed:
-                hint = difflib.get_close_matches(key, allowed, n=1)
-                where = "the job" if section is None else f"[{section}]"
-                raise AKFInputError(f"unknown key {key!r} in {where}"
-                                    + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"))
+    check_sections(job, PLACE_KEYS, "place job")
     for key in ("dt", "forces", "structure", "place", "simulation"):
         if key not in job:
             raise AKFInputError(f"the place job has no {key!r}")
