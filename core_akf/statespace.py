@@ -212,7 +212,7 @@ class DetectabilityReport:
         return self.detectable
 
 
-def _is_supported(structure, tol=1e-13):
+def is_supported(structure, tol=1e-13):
     """True if K is positive definite (no rigid-body modes): the Jacobi-scaled stiffness
     ``K_ij / sqrt(K_ii K_jj)`` minus ``tol * I`` has a Cholesky factor.  Scaling makes the
     test independent of units and of the spread of the frequencies (a thin cantilever plate
@@ -290,16 +290,12 @@ def static_gain(structure, sensors, forces):
     return H0
 
 
-def _static_pbh(structure, layout, locs):
-    """PBH at s = 0 when ``A_c`` is invertible: full rank iff the static gain from forces to
-    sensors, ``H0 = D - G A_c^-1 B_c = (S_s + S_d) K^-1 S_p`` (m x n_p), has full column rank
-    -- a tiny SVD instead of one of size 2n + n_p.  Written with K directly: velocities and
-    accelerations are exactly zero in a static state (the subtraction form would leave
-    rounding noise that a scaled rank test reads as information).
-
-    Returns the relative smallest singular value and the least visible force combination
-    (unit vector over the force locations, in N per unit)."""
-    H0 = static_gain(structure, layout, locs)
+def static_visibility(H0):
+    """How well a static gain ``H0`` (m x n_p, from :func:`static_gain`) sees every force
+    combination: the relative smallest singular value after unit row and column scaling (0 when
+    some combination is invisible; the PBH test at s = 0 needs it above ``tol``) and that least
+    visible combination (unit vector over the force locations)."""
+    H0 = np.asarray(H0, float)
     n_p = H0.shape[1]
     if not np.any(H0):
         return 0.0, np.eye(n_p)[0]
@@ -309,6 +305,18 @@ def _static_pbh(structure, layout, locs):
     combo /= np.linalg.norm(combo)
     rel = float(sv[-1] / sv[0]) if sv.size == n_p else 0.0
     return rel, combo
+
+
+def _static_pbh(structure, layout, locs):
+    """PBH at s = 0 when ``A_c`` is invertible: full rank iff the static gain from forces to
+    sensors, ``H0 = D - G A_c^-1 B_c = (S_s + S_d) K^-1 S_p`` (m x n_p), has full column rank
+    -- a tiny SVD instead of one of size 2n + n_p.  Written with K directly: velocities and
+    accelerations are exactly zero in a static state (the subtraction form would leave
+    rounding noise that a scaled rank test reads as information).
+
+    Returns the relative smallest singular value and the least visible force combination
+    (unit vector over the force locations, in N per unit)."""
+    return static_visibility(static_gain(structure, layout, locs))
 
 
 def _describe_combination(locs, combo):
@@ -330,7 +338,7 @@ def detectability(structure, sensors, forces, tol=1e-9):
     locs = parse_force_locations(structure, forces)
     critical = _critical_eigenvalues(structure, tol)
     checked, failures = [], []
-    if len(critical) == 1 and _is_supported(structure):  # supported and damped: only s = 0
+    if len(critical) == 1 and is_supported(structure):  # supported and damped: only s = 0
         rel, combo = _static_pbh(structure, layout, locs)
         checked.append(0j)
         if rel < tol:

@@ -14,7 +14,7 @@ from core_akf._validate import as_finite_array
 from core_akf.exceptions import AKFInputError
 from core_akf.reduced import ModalFilterModel, auto_modes, steady_outputs
 from core_akf.sensors import as_layout, parse_force_locations
-from core_akf.statespace import _is_supported, detectability, static_gain
+from core_akf.statespace import detectability, is_supported, static_gain
 from .roles import RoleSplit
 
 #: budget of (filters x steps x states) per kernel call: bounds memory (~16 bytes each)
@@ -121,7 +121,7 @@ class ImpactModel:
 
     def detectable(self, loc, se):
         """PBH detectability of a force at ``loc`` from the SE sensors ``se`` (indices)."""
-        if _is_supported(self.full):   # damped and supported: only s = 0 is critical
+        if is_supported(self.full):   # damped and supported: only s = 0 is critical
             if loc not in self._static:
                 self._static[loc] = static_gain(self.full, self.layout, [loc])[:, 0]
             return bool(np.any(self._static[loc][list(se)] != 0))

@@ -15,7 +15,7 @@ from core_akf.exceptions import AKFInputError
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.riccati import RiccatiError
 from core_akf.simulate import simulate
-from core_akf.statespace import static_gain
+from core_akf.statespace import static_gain, static_visibility
 
 
 class FunctionObjective:
@@ -85,17 +85,9 @@ class StrainErrorObjective:
         self.n_forces = len(self.model.forces)
 
     def detectable(self, idx):
-        """PBH at s = 0 (supported, damped plate): the static gain of the layout has full rank."""
-        H0 = self.static[list(idx)]
-        if np.linalg.matrix_rank(H0) < self.n_forces:
-            return False
-        r = np.linalg.norm(H0, axis=1)
-        H0 = H0[r > 0] / r[r > 0, None]
-        c = np.linalg.norm(H0, axis=0)
-        if np.any(c == 0):
-            return False
-        sv = np.linalg.svd(H0 / c, compute_uv=False)
-        return bool(sv[-1] / sv[0] > 1e-9)
+        """PBH at s = 0 (supported, damped plate): the static gain of the layout sees every force
+        combination (the same test as :func:`core_akf.statespace.detectability`)."""
+        return static_visibility(self.static[list(idx)])[0] >= 1e-9
 
     def evaluate(self, layouts):
         """Average strain error (µε) per layout; ``inf`` for an undetectable or failing one."""

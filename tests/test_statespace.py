@@ -192,14 +192,14 @@ def test_pbh_thin_cantilever_plate_counts_as_supported():
     still a supported structure, so the static test applies and two gauges are detectable."""
     from core_akf.examples import TH_FLEXIBLE_PLATE
     from core_akf.jobs import build_structure
-    from core_akf.statespace import _is_supported
+    from core_akf.statespace import is_supported
 
     s = build_structure(TH_FLEXIBLE_PLATE)
     f = s.frequencies()
     assert f[0] / f[-1] < 1e-7
-    assert _is_supported(s)
+    assert is_supported(s)
     assert detectability(s, ["strain:2:gxy", "strain:100:gxy"], ["121:w", "111:w"]).detectable
     import types
 
     free_truss = types.SimpleNamespace(K=s17_truss(200e9, 7800).meta["K_full"])  # no supports: 3 rigid modes
-    assert not _is_supported(free_truss)
+    assert not is_supported(free_truss)
