@@ -74,7 +74,7 @@ def _covariances(spec):
 
 
 def run_locate_job(job, job_dir=".", n_jobs=1, seed=0, progress=False, tune=None):
-    """Run a locate job (dict from TOML); returns ``(LocateResult, None)``."""
+    """Run a locate job (dict from TOML); returns the :class:`~impactloc.locate.LocateResult`."""
     from core_akf.jobs import build_structure, read_measurements
 
     from .locate import locate
@@ -97,10 +97,11 @@ def run_locate_job(job, job_dir=".", n_jobs=1, seed=0, progress=False, tune=None
                  covariances=_covariances(spec.get("covariances")), tune=spec.get("tune", True) if tune is None else tune,
                  max_splits=spec.get("max_splits"), n_modes=n_modes, skip=float(spec.get("skip", 0.0)),
                  n_jobs=n_jobs, seed=seed, progress=progress, tuning=spec.get("tuning"))
-    return res, None
+    return res
 
 
-def _write(result, out, scenario=None, plot=True):
+def write_outputs(result, out, scenario=None, plot=True):
+    """Write ranking.csv, scan.csv, force.csv, response.csv, tuning.csv and the figures; returns {name: path}."""
     import pandas as pd
 
     from .locate import plot_locate
@@ -153,11 +154,11 @@ def _locate(args):
         if args.impact_node is not None:
             raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")
         job = _load_toml(args.job)
-        result, _ = run_locate_job(job, os.path.dirname(os.path.abspath(args.job)), n_jobs=args.n_jobs,
+        result = run_locate_job(job, os.path.dirname(os.path.abspath(args.job)), n_jobs=args.n_jobs,
                                    seed=args.seed, progress=progress, tune=False if args.no_tune else None)
         name = job.get("name", os.path.splitext(os.path.basename(args.job))[0])
     out = args.out or os.path.join("akf-out", "locate", name)
-    files = _write(result, out, scenario, plot=not args.no_plot)
+    files = write_outputs(result, out, scenario, plot=not args.no_plot)
     d = result.to_dict()
     if args.json:
         d["files"] = files

@@ -16,7 +16,7 @@ import numpy as np
 from core_akf.metrics import rms_error
 from core_akf.studies._common import StudyResult, output_dir
 
-from .cli import _write
+from .cli import write_outputs
 from .examples import EXAMPLES, example_scenario
 from .locate import locate
 from .scan import candidate_locations
@@ -55,7 +55,7 @@ def run_cases(out=None, quick=False, seed=0):
             "true_peak_N": float(sc.true_force.max()), "peak_N": f1.summary.peak,
             "seconds": res.seconds["total"]})
         sub = os.path.join(out, f"{name}-{noise}")
-        for k, v in _write(res, sub, sc).items():
+        for k, v in write_outputs(res, sub, sc).items():
             files[f"{name}-{noise}:{k}"] = v
     table = pd.DataFrame(rows)
     files["table"] = os.path.join(out, "imp_cases.csv")
