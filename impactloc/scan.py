@@ -12,6 +12,7 @@ import numpy as np
 
 from core_akf._validate import as_finite_array
 from core_akf.exceptions import AKFInputError
+from core_akf.metrics import rms, rms_error
 from core_akf.reduced import ModalFilterModel, auto_modes, steady_outputs
 from core_akf.sensors import as_layout, parse_force_locations
 from core_akf.statespace import detectability, is_supported, static_gain
@@ -140,10 +141,8 @@ class ImpactModel:
 def rms_errors(pred, Y_ad, skip=0):
     """RMS error per filter and AD channel over samples ``skip..N-1``, absolute and relative
     to the RMS of the measured channel: two arrays (B, a)."""
-    d = pred[:, skip:] - Y_ad[:, skip:]
-    err = np.sqrt(np.mean(d * d, axis=1))
-    ref = np.sqrt(np.mean(Y_ad[:, skip:] ** 2, axis=1))
-    return err, err / np.maximum(ref, np.finfo(float).tiny)
+    err = rms_error(pred[:, skip:], Y_ad[:, skip:], axis=1)
+    return err, err / np.maximum(rms(Y_ad[:, skip:], axis=1), np.finfo(float).tiny)
 
 
 def location_errors(model, loc, splits, Y, covs, skip=0):
@@ -252,7 +251,6 @@ def scan(structure, sensors, measurements, dt, splits, *, candidates, covariance
     -------
     :class:`ScanResult`
     """
-    import pandas as pd
     from joblib import Parallel, delayed, effective_n_jobs
 
     layout = as_layout(sensors)
@@ -285,10 +283,12 @@ def scan(structure, sensors, measurements, dt, splits, *, candidates, covariance
         results = [r for group in out for r in group]
     rel = np.stack([r[1][0] for r in results])        # (n_loc, n_splits, n_ad)
     ab = np.stack([r[0][0] for r in results])
-    return _summarise(layout, locs, splits, rel, ab, covariances, pd)
+    return _summarise(layout, locs, splits, rel, ab, covariances)
 
 
-def _summarise(layout, locs, splits, rel, ab, covariances, pd):
+def _summarise(layout, locs, splits, rel, ab, covariances):
+    import pandas as pd
+
     err = np.nanmean(rel, axis=2) if rel.size else rel     # (n_loc, n_splits)
     kinds = np.array([s.kind for s in layout])
     rows = []
