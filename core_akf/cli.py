@@ -28,12 +28,9 @@ def _load_toml(path):
 
 
 def _plot(result, path):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return None
+    from .figures import pyplot, save_figure
+
+    plt = pyplot()
     est, sim = result.estimate, result.simulation
     nf = est.forces.shape[1]
     fig, axes = plt.subplots(nf + 1, 1, figsize=(9, 2.2 * (nf + 1)), squeeze=False)
@@ -52,10 +49,7 @@ def _plot(result, path):
         ax.set_ylabel("RMS strain\nerror (µε)")
     axes[-2, 0].set_xlabel("time (s)")
     fig.suptitle(result.job.get("name", "AKF estimate"))
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def _estimate(args):

@@ -109,13 +109,9 @@ def plot_locate(result, out, true_force=None, true_strains=None, split=0):
     * ``strain_errors.png`` -- RMS strain error per member/component before and after tuning
       (Fig. 8; needs ``true_strains``).
     """
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:  # pragma: no cover
-        return {}
-    os.makedirs(out, exist_ok=True)
+    from core_akf.figures import pyplot, save_figure
+
+    plt = pyplot()
     files = {}
     sc = result.scan
     nodes = [n for n, _ in sc.locations]
@@ -130,10 +126,7 @@ def plot_locate(result, out, true_force=None, true_strains=None, split=0):
     axes[1].set_xlabel("assumed impact node")
     axes[1].set_title(f"all {sc.errors.shape[1]} splits: identified node {sc.identified[0]} "
                       f"(confidence {sc.confidence:.2f}, margin {sc.margin:.1f})", fontsize=8)
-    fig.tight_layout()
-    files["error_vs_location"] = os.path.join(out, "error_vs_location.png")
-    fig.savefig(files["error_vs_location"], dpi=110)
-    plt.close(fig)
+    files["error_vs_location"] = save_figure(fig, os.path.join(out, "error_vs_location.png"))
 
     est0, est1 = result.initial.estimate, result.reconstruction.estimate
     fig, axes = plt.subplots(2, 1, figsize=(9, 5))
@@ -150,10 +143,7 @@ def plot_locate(result, out, true_force=None, true_strains=None, split=0):
     axes[0].legend(fontsize=7)
     axes[0].set_title(f"impact force at node {sc.identified[0]}: peak {result.reconstruction.summary.peak / 1e3:.2f} kN",
                       fontsize=9)
-    fig.tight_layout()
-    files["force"] = os.path.join(out, "force.png")
-    fig.savefig(files["force"], dpi=110)
-    plt.close(fig)
+    files["force"] = save_figure(fig, os.path.join(out, "force.png"))
 
     if true_strains is not None:
         fig, ax = plt.subplots(figsize=(9, 3.2))
@@ -165,8 +155,5 @@ def plot_locate(result, out, true_force=None, true_strains=None, split=0):
         ax.set_xlabel("member / strain component")
         ax.set_ylabel("RMS strain error (µε)")
         ax.legend(fontsize=7)
-        fig.tight_layout()
-        files["strain_errors"] = os.path.join(out, "strain_errors.png")
-        fig.savefig(files["strain_errors"], dpi=110)
-        plt.close(fig)
+        files["strain_errors"] = save_figure(fig, os.path.join(out, "strain_errors.png"))
     return files

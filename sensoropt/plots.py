@@ -1,31 +1,16 @@
 """Figures: GA convergence, a layout drawn on the plate mesh, the Pareto front."""
 from __future__ import annotations
 
-import os
-
 import numpy as np
+
+from core_akf.figures import pyplot, save_figure
 
 _MARKERS = {"ex": ("s", "tab:blue"), "ey": ("D", "tab:green"), "gxy": ("^", "tab:purple"), "acc": ("o", "tab:red")}
 
 
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _save(plt, fig, path):
-    fig.tight_layout()
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 def plot_convergence(logbook, path, title="placement GA"):
     """Best and mean fitness and the diversity per generation."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 3.6))
     ax.plot(logbook["generation"], logbook["best"], "k-", label="best")
     ax.plot(logbook["generation"], logbook["mean"], "b--", lw=0.8, label="mean")
@@ -38,13 +23,13 @@ def plot_convergence(logbook, path, title="placement GA"):
         ax2.set_ylabel("diversity (grid units)", color="tab:orange")
     ax.legend(loc="upper right", fontsize=7)
     ax.set_title(title, fontsize=9)
-    return _save(plt, fig, path)
+    return save_figure(fig, path)
 
 
 def plot_layout(encoding, layout, path, title="", forces=()):
     """The mesh (nodes as dots, clamped nodes grey), the sensors with kind markers and node ids,
     and the force locations (red crosses)."""
-    plt = _plt()
+    plt = pyplot()
     s = encoding.structure
     xy = s.nodes
     fig, ax = plt.subplots(figsize=(6, 5))
@@ -70,11 +55,11 @@ def plot_layout(encoding, layout, path, title="", forces=()):
     ax.set_ylabel("y (m)")
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1, 0.5))
     ax.set_title(title, fontsize=9)
-    return _save(plt, fig, path)
+    return save_figure(fig, path)
 
 
 def plot_pareto(front, path, title="error vs number of sensors"):
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 3.6))
     x = front["cost"] if "cost" in front else front["n_sensors"]
     ax.plot(x, front["error"], "o-")
@@ -84,4 +69,4 @@ def plot_pareto(front, path, title="error vs number of sensors"):
     ax.set_ylabel("average strain error (µε)")
     ax.set_yscale("log")
     ax.set_title(title, fontsize=9)
-    return _save(plt, fig, path)
+    return save_figure(fig, path)

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..figures import save_figure
+
 
 @dataclass
 class StudyResult:
@@ -33,24 +35,9 @@ def psd(signal, dt, nperseg=None):
     return welch(signal, fs=1.0 / dt, nperseg=min(n, nperseg or 2048), axis=0)
 
 
-def pyplot():
-    """matplotlib.pyplot with the non-interactive backend, or None if matplotlib is missing."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:  # pragma: no cover - matplotlib is a dependency
-        return None
-    return plt
-
-
 def save(fig, path, files, key):
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    files[key] = path
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
+    """Write ``fig`` to ``path`` and record it as ``files[key]``."""
+    files[key] = save_figure(fig, path)
 
 
 def drift_ratio(error):

@@ -38,8 +38,9 @@ import os
 import numpy as np
 
 from ..examples import S17_ACC_ONLY, S17_MULTI, S17_STRAIN_ONLY, s17_job
+from ..figures import pyplot
 from ..jobs import run_job
-from ._common import StudyResult, drift_ratio, output_dir, psd, pyplot, save
+from ._common import StudyResult, drift_ratio, output_dir, psd, save
 
 NAME = "s17_truss"
 DESCRIPTION = "S17 truss: force RMS error per case and load, Fig. 19-21 configurations, force spectra"
@@ -114,8 +115,6 @@ def _print(table, summary):
 
 def _figures(results, table, out, files):
     plt = pyplot()
-    if plt is None:
-        return
     loads = list(dict.fromkeys(table["load"]))
     # Fig. 19/21: RMS error per case and load
     for key, cases, title in (("fig19_rms", ["1b", "2b", "3", "4"], "acceleration only vs strain only vs multi-metric"),

@@ -37,8 +37,9 @@ import os
 import numpy as np
 
 from ..examples import TH_CASE1, TH_CASE2, TH_CASE3, TH_CASE4, TH_FLEXIBLE_PLATE, th_job
+from ..figures import pyplot
 from ..jobs import run_job
-from ._common import StudyResult, drift_ratio, output_dir, psd, pyplot, save
+from ._common import StudyResult, drift_ratio, output_dir, psd, save
 
 NAME = "th_plate"
 DESCRIPTION = "TH plate: average strain error over all 363 components, cases 1, 2, 3a-d, 4, 5a-d"
@@ -123,8 +124,6 @@ def run(out=None, quick=False, seed=0, cases=None):
 
 def _figures(results, table, out, files):
     plt = pyplot()
-    if plt is None:
-        return
     for case, res in results.items():
         est, sim = res.estimate, res.simulation
         labels = est.structure.strain_labels
