@@ -20,9 +20,9 @@ import numpy as np
 
 import scipy.linalg
 
-from ._validate import as_finite_array
+from ._validate import as_finite_array, check_covariance
 from .exceptions import AKFInputError
-from .riccati import steady_gain
+from .riccati import RiccatiError, steady_gain
 from .sensors import as_layout, parse_force_locations
 from .statespace import (augment, check_detectable, continuous, diag_levels, modal_state_transform,
                          modal_zoh, observation, zoh)
@@ -35,6 +35,8 @@ def _batchify(A_a, G_a, Q_a, R, Y):
     Q_a = as_finite_array(Q_a, "Q_a", ndim=(2, 3))
     R = as_finite_array(R, "R", ndim=(2, 3))
     Y = as_finite_array(Y, "measurements Y", ndim=(2, 3))
+    if Y.shape[-2] < 1:
+        raise AKFInputError("measurements Y have no time steps")
     n = A_a.shape[-1]
     m = G_a.shape[-2]
     if A_a.shape[-2] != n:
@@ -47,6 +49,8 @@ def _batchify(A_a, G_a, Q_a, R, Y):
         raise AKFInputError(f"R must be {m}x{m} for {m} channels, got {R.shape}")
     if Y.shape[-1] != m:
         raise AKFInputError(f"measurements have {Y.shape[-1]} channels but G_a has {m} rows")
+    check_covariance(Q_a, "process covariance Q_a")
+    check_covariance(R, "measurement-noise covariance R", definite=True)
     batched = any(x.ndim == 3 for x in (A_a, G_a, Q_a, R, Y))
     if not batched:
         return A_a[None], G_a[None], Q_a[None], R[None], Y[None], False
@@ -275,11 +279,19 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_to
     """
     A, G, Q, Rb, Yb, batched = _batchify(A_a, G_a, Q_a, R, Y)
     B, n = Yb.shape[0], A.shape[-1]
-    x = np.zeros((B, n)) if x0 is None else np.broadcast_to(as_finite_array(x0, "x0"), (B, n)).copy()
+    if x0 is not None:
+        x0 = as_finite_array(x0, "x0")
+        if x0.shape[-1:] != (n,):
+            raise AKFInputError(f"x0 must have {n} entries (the augmented state), got shape {x0.shape}")
+    x = np.zeros((B, n)) if x0 is None else np.broadcast_to(x0, (B, n)).copy()
     if steady:
         out, innov, L, P = _steady(A, G, Q, Rb, Yb, x)
     else:
-        P = Q.copy() if P0 is None else np.broadcast_to(as_finite_array(P0, "P0"), (B, n, n)).copy()
+        if P0 is not None:
+            P0 = check_covariance(P0, "initial covariance P0")
+            if P0.shape[-2:] != (n, n):
+                raise AKFInputError(f"P0 must be {n}x{n}, got {P0.shape}")
+        P = Q.copy() if P0 is None else np.broadcast_to(P0, (B, n, n)).copy()
         out, innov, L, P = _time_varying(A, G, Q, Rb, Yb, x, P, switch_tol, transition)
     if not batched:
         out, innov, L, P = out[0], innov[0], L[0], P[0]
@@ -331,11 +343,12 @@ def noise_covariance(sensors, noise_cov):
         missing = sorted({s.kind for s in layout} - set(noise_cov))
         if missing:
             raise AKFInputError(f"noise_cov has no variance for sensor kind(s) {missing}")
+        for kind, var in noise_cov.items():
+            if isinstance(var, (bool, np.bool_)) or not isinstance(var, (int, float, np.integer, np.floating)) \
+                    or not np.isfinite(var) or var <= 0:
+                raise AKFInputError(f"noise_cov[{kind!r}] must be a positive variance in SI units squared, got {var!r}")
         return np.diag([float(noise_cov[s.kind]) for s in layout])
-    R = diag_levels(noise_cov, m, "noise_cov")
-    if np.any(np.linalg.eigvalsh(R) <= 0):
-        raise AKFInputError("noise_cov must be positive definite (every channel needs some noise)")
-    return R
+    return diag_levels(noise_cov, m, "noise_cov", definite=True)
 
 
 @dataclass
@@ -483,11 +496,15 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     Q_a = augmented_covariance(nx, nf, state_covariance(structure, model_error_cov), force_increment_cov)
     Q_a = Ta_inv @ Q_a @ Ta_inv.T
     Q_a = 0.5 * (Q_a + Q_a.T)
-    z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", shape=(nx + nf,))
-    Pz0 = None if P0 is None else Ta_inv @ as_finite_array(P0, "P0", shape=(nx + nf, nx + nf)) @ Ta_inv.T
+    z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", ndim=1, shape=(nx + nf,))
+    Pz0 = None if P0 is None else Ta_inv @ diag_levels(P0, nx + nf, "P0") @ Ta_inv.T
     # classically damped structures are block-diagonal in these coordinates: cheap A P A^T
     transition = None if steady else ModalBlockTransition.detect(A_a, structure.n)
-    res = filter_states(A_a, G_a, Q_a, R, Y, x0=z0, P0=Pz0, steady=steady, transition=transition)
+    try:
+        res = filter_states(A_a, G_a, Q_a, R, Y, x0=z0, P0=Pz0, steady=steady, transition=transition)
+    except RiccatiError as exc:
+        names = "; ".join(", ".join(s.label for s in layouts[b]) for b in exc.problems)
+        raise RiccatiError(f"steady-state gain failed for the layout(s) [{names}]: {exc}", exc.problems) from None
     states = res.states @ Ta.T                      # back to physical [u; u'; f]
     gains = Ta @ res.gain                           # gain for the physical state
     return [Estimate(structure, l, locs, float(dt), states[b, :, :nx], states[b, :, nx:],

@@ -7,6 +7,7 @@ import os
 import sys
 
 from .exceptions import AKFInputError, UndetectableError
+from .outputs import OutputFolder, write_csv
 
 
 #: above this many (channel x step) rows, "all" strain histories are not written to the CSV
@@ -71,11 +72,14 @@ def _estimate(args):
     if args.seed is not None:
         job.setdefault("simulation", {})["seed"] = args.seed
     steady = {"steady": True, "time-varying": False, None: None}[args.filter]
-    result = run_job(job, allow_undetectable=args.allow_undetectable or None, steady=steady)
-
     name = job.get("name", os.path.splitext(os.path.basename(args.job or "job"))[0])
-    out = args.out or os.path.join("akf-out", name)
-    os.makedirs(out, exist_ok=True)
+    out = args.out or os.path.join("akf-out", str(name))
+    with OutputFolder(out, "--out"):      # checked and locked before the work starts
+        result = run_job(job, allow_undetectable=args.allow_undetectable or None, steady=steady)
+        return _write_estimate(args, job, result, name, out)
+
+
+def _write_estimate(args, job, result, name, out):
     files = {}
     import pandas as pd
 
@@ -93,9 +97,9 @@ def _estimate(args):
     if wanted != []:
         frames.append(result.strain_frame(wanted))
     files["timeseries"] = os.path.join(out, "timeseries.csv")
-    pd.concat(frames, ignore_index=True).to_csv(files["timeseries"], index=False)
+    write_csv(pd.concat(frames, ignore_index=True), files["timeseries"])
     files["summary"] = os.path.join(out, "summary.csv")
-    result.summary_frame().to_csv(files["summary"], index=False)
+    write_csv(result.summary_frame(), files["summary"])
     if not args.no_plot:
         png = _plot(result, os.path.join(out, "estimate.png"))
         if png:
@@ -186,6 +190,13 @@ def main(argv=None):
     except AKFInputError as exc:
         print(f"akf: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:        # an unreadable input or an output that cannot be written
+        where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+        print(f"akf: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("akf: interrupted; files already written are complete, the others were not written", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

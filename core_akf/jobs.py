@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -36,10 +37,11 @@ import numpy as np
 
 from . import loads as L
 from .akf import estimate
+from ._validate import check_memory
 from .exceptions import AKFInputError
 from .metrics import average_strain_error, rms_error
 from .models import imp_plate, plate, s17_truss, th_plate
-from .sensors import as_layout, parse_force_locations
+from .sensors import as_layout, parse_force_locations, selection_matrices
 from .simulate import MG, MICROSTRAIN, simulate
 
 _MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate}
@@ -101,38 +103,94 @@ def _absolute_noise(spec):
     return out
 
 
-def read_measurements(path, sensors, dt, time_column="time"):
-    """Measured data from CSV or Parquet: a time column and one column per sensor label.
+#: a time stamp may lie off the uniform grid ``t_0 + k dt`` by this fraction of a step (a time
+#: column rounded to 6 decimals is off by <= 5e-7 s: 0.2 % of a step at 4 kHz)
+_TIME_GRID_RTOL = 0.01
 
-    Checks the sampling interval against ``dt`` and rejects missing columns and NaN samples.
+#: a strain channel whose RMS exceeds this (m/m) is not in SI units: 1 % is five times the yield
+#: strain of structural steel, far beyond the elastic range every model here assumes
+_MAX_PLAUSIBLE_STRAIN = 0.01
+
+
+def read_measurements(path, sensors, dt, time_column="time"):
+    """Measured data (N x m, SI) from CSV or Parquet: a time column and one column per sensor label.
+
+    Checks, each with a message naming the file, column and row: the file exists and is a file;
+    it parses and has data rows; every column is numeric and finite; time stamps increase and lie
+    on the grid ``t_0 + k dt`` (within :data:`_TIME_GRID_RTOL` of a step); no channel is constant
+    (a disconnected or saturated sensor); strain channels are plausible in m/m.
     """
     import pandas as pd
 
+    path = os.fspath(path)
     if not os.path.exists(path):
         raise AKFInputError(f"measurement file {path!r} not found")
+    if os.path.isdir(path):
+        raise AKFInputError(f"measurement file {path!r} is a folder; give the data file (CSV or Parquet)")
     if str(path).endswith((".parquet", ".pq")):
         try:
             df = pd.read_parquet(path)
         except ImportError as exc:
-            raise AKFInputError(f"reading Parquet needs pyarrow or fastparquet ({exc}); "
-                                "pip install pyarrow, or give a CSV file") from None
+            raise AKFInputError(f"reading Parquet needs pyarrow ({exc}); pip install pyarrow, or give a CSV file") from None
+        except Exception as exc:  # noqa: BLE001 -- pyarrow raises its own error types
+            raise AKFInputError(f"{path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
     else:
-        df = pd.read_csv(path)
-    labels = [s.label for s in as_layout(sensors)]
+        try:
+            df = pd.read_csv(path)
+        except pd.errors.EmptyDataError:
+            raise AKFInputError(f"{path}: the file is empty; expected a header row and one row per time step") from None
+        except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+            raise AKFInputError(f"{path}: not a readable CSV file ({exc})") from None
+    layout = as_layout(sensors)
+    labels = [s.label for s in layout]
     missing = [c for c in [time_column] + labels if c not in df.columns]
     if missing:
         raise AKFInputError(f"{path}: missing column(s) {missing}; found {list(df.columns)}")
+    if len(df) < 2:
+        raise AKFInputError(f"{path}: {len(df)} data row(s); a record needs at least two time steps")
+    for col in [time_column] + labels:
+        values = pd.to_numeric(df[col], errors="coerce")
+        bad = np.flatnonzero(values.isna().to_numpy())
+        if bad.size:
+            r = int(bad[0])
+            raise AKFInputError(f"{path}: column {col!r} has {bad.size} missing/NaN or non-numeric sample(s); first "
+                                f"{str(df[col].iloc[r])!r} in data row {r + 1}")
+        df[col] = values
     t = df[time_column].to_numpy(float)
-    if t.size < 2:
-        raise AKFInputError(f"{path}: fewer than two samples")
-    steps = np.diff(t)
-    if np.any(~np.isfinite(steps)) or np.max(np.abs(steps - dt)) > 1e-6 * dt + 1e-9:
-        raise AKFInputError(f"{path}: sampling interval {np.median(steps):.6g} s does not match the job's dt = {dt:.6g} s")
     Y = df[labels].to_numpy(float)
-    bad = np.argwhere(~np.isfinite(Y))
-    if bad.size:
-        r, c = bad[0]
-        raise AKFInputError(f"{path}: {len(bad)} missing/NaN sample(s); first in column {labels[c]!r} at t = {t[r]:.6g} s")
+    inf = np.argwhere(~np.isfinite(np.column_stack([t, Y])))
+    if inf.size:
+        r, c = inf[0]
+        raise AKFInputError(f"{path}: infinite value in column {([time_column] + labels)[c]!r}, data row {r + 1}")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        r = int(np.flatnonzero(steps <= 0)[0])
+        what = "repeats" if steps[r] == 0 else "goes back"
+        raise AKFInputError(f"{path}: time {what} at data row {r + 2} (t = {t[r + 1]:.9g} s after "
+                            f"t = {t[r]:.9g} s in row {r + 1}); time stamps must increase by dt")
+    median = float(np.median(steps))
+    if abs(median - dt) > _TIME_GRID_RTOL * dt:
+        raise AKFInputError(f"{path}: sampling interval {median:.9g} s (median step) does not match the job's "
+                            f"dt = {dt:.9g} s ({median / dt:.4g} x dt)")
+    off = np.abs(t - t[0] - dt * np.arange(t.size))
+    if np.max(off) > _TIME_GRID_RTOL * dt:
+        r = int(np.argmax(off > _TIME_GRID_RTOL * dt))
+        raise AKFInputError(
+            f"{path}: data row {r + 1} (t = {t[r]:.9g} s) is {off[r]:.3g} s ({off[r] / dt:.3g} steps) off the "
+            f"uniform grid t0 + k dt (dt = {dt:.9g} s): the record has a gap or jitter there")
+    for j, s in enumerate(layout):
+        col = Y[:, j]
+        if np.ptp(col) == 0:
+            raise AKFInputError(f"{path}: channel {labels[j]!r} is constant ({col[0]:.9g}) over the whole record: "
+                                "a disconnected, saturated or unmapped sensor gives no information; remove it from "
+                                "the job's sensors")
+        if s.kind == "strain":
+            level = float(np.sqrt(np.mean(col ** 2)))
+            if level > _MAX_PLAUSIBLE_STRAIN:
+                raise AKFInputError(
+                    f"{path}: strain channel {labels[j]!r} has an RMS of {level:.4g}, impossible in m/m (SI) for an "
+                    f"elastic structure (> {_MAX_PLAUSIBLE_STRAIN:g}); it looks like microstrain: divide the column "
+                    "by 1e6")
     return Y
 
 
@@ -186,26 +244,82 @@ class JobResult:
         return pd.DataFrame(rows)
 
 
-#: the keys a job may hold, per section (None: the top level)
+class Spec:
+    """The type a job key must have: ``check(value) -> bool`` and how to say it in a message."""
+
+    def __init__(self, check, describe):
+        self.check, self.describe = check, describe
+
+
+def _is_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _is_int(v):
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_cov(v):
+    """A scalar variance, a vector of variances or a matrix (nested lists of numbers)."""
+    if _is_number(v):
+        return v >= 0
+    return isinstance(v, list) and len(v) > 0 and all(_is_number(x) or (isinstance(x, list) and all(map(_is_number, x)))
+                                                     for x in v)
+
+
+BOOLEAN = Spec(lambda v: isinstance(v, bool), "true or false (a TOML boolean, not a string or a number)")
+POSITIVE = Spec(lambda v: _is_number(v) and v > 0, "a positive number")
+NON_NEGATIVE = Spec(lambda v: _is_number(v) and v >= 0, "a number >= 0")
+FRACTION = Spec(lambda v: _is_number(v) and 0 <= v <= 1, "a number between 0 and 1")
+SEED = Spec(lambda v: _is_int(v) and v >= 0, "an integer >= 0")
+COUNT = Spec(lambda v: _is_int(v) and v >= 1, "an integer >= 1")
+COUNT0 = Spec(lambda v: _is_int(v) and v >= 0, "an integer >= 0")
+TEXT = Spec(lambda v: isinstance(v, str) and v != "", "a non-empty string")
+TEXTS = Spec(lambda v: isinstance(v, list) and len(v) > 0 and all(isinstance(x, str) for x in v),
+             "a non-empty list of strings")
+TABLE = Spec(lambda v: isinstance(v, dict), "a table")
+TABLES = Spec(lambda v: isinstance(v, list) and all(isinstance(x, dict) for x in v), "a list of tables")
+COVARIANCE = Spec(_is_cov, "a variance >= 0, a list of variances or a matrix (list of lists)")
+NOISE_COV = Spec(lambda v: v == "simulated" or (isinstance(v, dict) and all(_is_number(x) and x > 0 for x in v.values()))
+                 or (_is_cov(v) and v != 0),
+                 "\"simulated\", a table of positive variances per sensor kind (e.g. {strain = 1e-12, acc = 1e-4}), "
+                 "or positive variances per channel")
+STRAINS = Spec(lambda v: v == "all" or (isinstance(v, list) and all(isinstance(x, str) for x in v)),
+               "\"all\" or a list of strain labels")
+ANY = Spec(lambda v: True, "anything")
+INTS = Spec(lambda v: isinstance(v, list) and len(v) > 0 and all(_is_int(x) for x in v), "a non-empty list of integers")
+MODES = Spec(lambda v: (_is_int(v) and v >= 1) or v in ("auto", "full"), "an integer >= 1, \"auto\" or \"full\"")
+POSITIVE_TABLE = Spec(lambda v: isinstance(v, dict) and len(v) > 0 and all(_is_number(x) and x > 0 for x in v.values()),
+                      "a table of positive numbers")
+
+#: the keys a job may hold per section (None: the top level), with the type of each value
 JOB_KEYS = {
-    None: {"name", "description", "dt", "sensors", "forces", "structure", "filter", "simulation",
-           "measurements", "output"},
-    "filter": {"stiffness_factor", "reduce_modes", "model_error_cov", "force_increment_cov", "noise_cov",
-               "steady", "allow_undetectable"},
-    "simulation": {"duration", "relative_noise", "absolute_noise", "seed", "loads"},
-    "measurements": {"file", "time_column"},
-    "output": {"strains"},
+    None: {"name": TEXT, "description": Spec(lambda v: isinstance(v, str), "a string"), "dt": POSITIVE,
+           "sensors": TEXTS, "forces": TEXTS, "structure": TABLE, "filter": TABLE, "simulation": TABLE,
+           "measurements": TABLE, "output": TABLE},
+    "filter": {"stiffness_factor": POSITIVE, "reduce_modes": COUNT, "model_error_cov": COVARIANCE,
+               "force_increment_cov": COVARIANCE, "noise_cov": NOISE_COV, "steady": BOOLEAN,
+               "allow_undetectable": BOOLEAN},
+    "simulation": {"duration": POSITIVE, "relative_noise": NON_NEGATIVE, "absolute_noise": TABLE, "seed": SEED,
+                   "loads": TABLES},
+    "measurements": {"file": TEXT, "time_column": TEXT},
+    "output": {"strains": STRAINS},
 }
 
 
 def check_keys(table, allowed, where):
     """Reject a key of ``table`` not in ``allowed``, naming the closest allowed one: a typo must
-    not silently fall back to a default."""
-    for key in table:
+    not silently fall back to a default.  If ``allowed`` maps keys to :class:`Spec`, every value
+    must have its type: a string where a boolean or a number belongs is refused, never coerced."""
+    for key, value in table.items():
         if key not in allowed:
             hint = difflib.get_close_matches(key, allowed, n=1)
             raise AKFInputError(f"unknown key {key!r} in {where}"
                                 + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"))
+        spec = allowed.get(key) if isinstance(allowed, dict) else None
+        if spec is not None and not spec.check(value):
+            raise AKFInputError(f"{key} in {where} must be {spec.describe}; got {value!r} "
+                                f"({type(value).__name__})")
 
 
 def check_sections(job, keys, kind="job"):
@@ -220,7 +334,8 @@ def check_sections(job, keys, kind="job"):
 
 
 def validate_job(job):
-    """Reject unknown keys (a typo must not silently fall back to a default) and missing ones."""
+    """Reject unknown keys (a typo must not silently fall back to a default), values of the wrong
+    type and missing keys."""
     check_sections(job, JOB_KEYS)
     for key in ("dt", "sensors", "forces", "structure"):
         if key not in job:
@@ -242,8 +357,13 @@ def run_job(job, allow_undetectable=None, steady=None):
     if filt.get("reduce_modes"):
         model = model.reduce(int(filt["reduce_modes"]))
     sensors = as_layout(job["sensors"])
+    selection_matrices(true_structure, sensors)      # every sensor exists on this structure
     forces = parse_force_locations(true_structure, job["forces"])
 
+    # float64 values held per time step: simulated states, filter states and their products
+    # (about 4 copies of the augmented state), strains of the truth and the estimate, channels
+    n_a = 2 * model.n + len(forces)
+    per_step = 4 * n_a + 2 * 2 * true_structure.n + 3 * true_structure.n_strain + 4 * len(sensors)
     sim = None
     if "measurements" in job:
         meas = job["measurements"]
@@ -252,7 +372,12 @@ def run_job(job, allow_undetectable=None, steady=None):
         sp = job["simulation"]
         if "duration" not in sp or not float(sp["duration"]) > 0:
             raise AKFInputError("[simulation] needs a positive duration (s)")
-        n_steps = int(round(float(sp["duration"]) / dt))
+        n_steps = float(sp["duration"]) / dt
+        check_memory(n_steps, per_step, f"a {sp['duration']:g} s record at dt = {dt:g} s",
+                     "shorten [simulation] duration (CLI: --duration) or check dt")
+        n_steps = int(round(n_steps))
+        if n_steps < 2:
+            raise AKFInputError(f"[simulation] duration {sp['duration']:g} s is shorter than two steps of dt = {dt:g} s")
         loads = build_loads(sp.get("loads", []), n_steps, dt, len(forces))
         absolute = _absolute_noise(sp["absolute_noise"]) if "absolute_noise" in sp else None
         sim = simulate(true_structure, sensors, forces, loads, dt, relative_noise=sp.get("relative_noise"),

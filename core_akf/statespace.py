@@ -12,8 +12,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from ._validate import as_finite_array
+from . import rank
+from ._validate import as_finite_array, check_covariance
 from .exceptions import AKFInputError, UndetectableError
+from .rank import is_supported  # noqa: F401  (public here as before)
 from .sensors import as_layout, parse_force_locations, selection_matrices
 
 
@@ -212,26 +214,6 @@ class DetectabilityReport:
         return self.detectable
 
 
-def is_supported(structure, tol=1e-13):
-    """True if K is positive definite (no rigid-body modes): the Jacobi-scaled stiffness
-    ``K_ij / sqrt(K_ii K_jj)`` minus ``tol * I`` has a Cholesky factor.  Scaling makes the
-    test independent of units and of the spread of the frequencies (a thin cantilever plate
-    has f1 / f_max ~ 1e-8 yet is properly supported; a free truss gives ~1e-16)."""
-    cache = structure.__dict__
-    if "_supported" not in cache:
-        K = structure.K
-        d = np.sqrt(np.abs(np.diag(K)))
-        if np.any(d == 0):
-            cache["_supported"] = False
-        else:
-            try:
-                np.linalg.cholesky(K / np.outer(d, d) - tol * np.eye(K.shape[0]))
-                cache["_supported"] = True
-            except np.linalg.LinAlgError:
-                cache["_supported"] = False
-    return cache["_supported"]
-
-
 def _critical_eigenvalues(structure, tol):
     """Distinct eigenvalues ``s`` of ``A_c`` with Re s >= 0 (one of each conjugate pair), plus 0
     for the force states.  Depends on the structure only, so it is cached on it."""
@@ -255,68 +237,21 @@ def _critical_eigenvalues(structure, tol):
     return cache[tol]
 
 
-def _unit_scaled(mat):
-    """Rows, then columns scaled to unit 2-norm (zero ones left alone), and the column scales.
-
-    Strain rows are O(1), acceleration rows O(omega^2): unscaled, a rank test would be
-    meaningless."""
-    r = np.linalg.norm(mat, axis=1)
-    r[r == 0] = 1
-    mat = mat / r[:, None]
-    c = np.linalg.norm(mat, axis=0)
-    c[c == 0] = 1
-    return mat / c[None, :], c
-
-
-#: static responses below this fraction of the largest of their kind count as exactly zero
-_STATIC_ZERO = 1e-10
-
-
 def static_gain(structure, sensors, forces):
-    """Static gain (m x n_p) from forces to the strain and displacement sensors,
-    ``(S_s + S_d) K^-1 S_p`` (velocity and acceleration rows are exactly zero in a static
-    state).  Responses below ``_STATIC_ZERO`` of the largest of their kind are set to exactly
-    zero: a zero-force member or a node at rest reads rounding noise (~1e-16 of the largest
-    response), which a scaled rank test would read as information."""
+    """:class:`~core_akf.rank.StaticGain` (m x n_p, with its rounding bound) from forces to the
+    strain and displacement sensors, ``(S_s + S_d) K^-1 S_p``; velocity and acceleration rows are
+    exactly zero in a static state.  Entries at rounding level (a zero-force member, a node at
+    rest) are exactly zero; see :mod:`core_akf.rank`."""
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
     S = selection_matrices(structure, layout)
-    X = np.linalg.solve(structure.K, force_selection(structure, locs))
-    H0 = np.zeros((len(layout), X.shape[1]))
-    for kind in ("strain", "disp"):
-        H = S[kind] @ X
-        H[np.abs(H) <= _STATIC_ZERO * np.max(np.abs(H), initial=0.0)] = 0.0
-        H0 += H
-    return H0
+    return rank.static_gain(structure, S["strain"] + S["disp"], force_selection(structure, locs))
 
 
-def static_visibility(H0):
-    """How well a static gain ``H0`` (m x n_p, from :func:`static_gain`) sees every force
-    combination: the relative smallest singular value after unit row and column scaling (0 when
-    some combination is invisible; the PBH test at s = 0 needs it above ``tol``) and that least
-    visible combination (unit vector over the force locations)."""
-    H0 = np.asarray(H0, float)
-    n_p = H0.shape[1]
-    if not np.any(H0):
-        return 0.0, np.eye(n_p)[0]
-    scaled, col = _unit_scaled(H0)
-    _, sv, vh = np.linalg.svd(scaled)
-    combo = vh[-1] / col
-    combo /= np.linalg.norm(combo)
-    rel = float(sv[-1] / sv[0]) if sv.size == n_p else 0.0
-    return rel, combo
-
-
-def _static_pbh(structure, layout, locs):
-    """PBH at s = 0 when ``A_c`` is invertible: full rank iff the static gain from forces to
-    sensors, ``H0 = D - G A_c^-1 B_c = (S_s + S_d) K^-1 S_p`` (m x n_p), has full column rank
-    -- a tiny SVD instead of one of size 2n + n_p.  Written with K directly: velocities and
-    accelerations are exactly zero in a static state (the subtraction form would leave
-    rounding noise that a scaled rank test reads as information).
-
-    Returns the relative smallest singular value and the least visible force combination
-    (unit vector over the force locations, in N per unit)."""
-    return static_visibility(static_gain(structure, layout, locs))
+def static_test_suffices(structure):
+    """True if the PBH test reduces to the static gain: the structure is supported and damped, so
+    the force states' ``s = 0`` is the only critical eigenvalue."""
+    return len(_critical_eigenvalues(structure, rank.CRITICAL_RTOL)) == 1 and is_supported(structure)
 
 
 def _describe_combination(locs, combo):
@@ -324,7 +259,7 @@ def _describe_combination(locs, combo):
     return " ".join(terms)
 
 
-def detectability(structure, sensors, forces, tol=1e-9):
+def detectability(structure, sensors, forces):
     """PBH detectability of the augmented system for a sensor layout (DESIGN A4).
 
     The pair ``(A_ac, H_ac)`` with ``A_ac = [[A_c, B_c], [0, 0]]`` and ``H_ac = [G, D]`` is
@@ -332,16 +267,18 @@ def detectability(structure, sensors, forces, tol=1e-9):
     Re s >= 0.  For a supported, damped structure only ``s = 0`` (the force states) is
     critical and the test reduces to the rank of the static gain from forces to sensors.
 
+    Every rank decision is taken in :mod:`core_akf.rank` against a rounding-error bound, so the
+    verdict does not depend on the BLAS kernel.
+
     Returns a :class:`DetectabilityReport`; its ``str`` names the failing eigenvalues.
     """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
-    critical = _critical_eigenvalues(structure, tol)
     checked, failures = [], []
-    if len(critical) == 1 and is_supported(structure):  # supported and damped: only s = 0
-        rel, combo = _static_pbh(structure, layout, locs)
+    if static_test_suffices(structure):
+        rel, combo, seen = static_gain(structure, layout, locs).visibility()
         checked.append(0j)
-        if rel < tol:
+        if not seen:
             failures.append(dict(s=0.0, sigma_rel=rel, unseen=(
                 "displacements, forces: no strain/displacement sensor sees the static response to the "
                 f"force combination {_describe_combination(locs, combo)}")))
@@ -354,13 +291,11 @@ def detectability(structure, sensors, forces, tol=1e-9):
     A_ac[:n, :n] = A_c
     A_ac[:n, n:] = B_c
     H = np.hstack([G, D])
-    for s in critical:
-        scaled, _ = _unit_scaled(np.vstack([s * np.eye(n + npf) - A_ac, H]).astype(complex))
-        _, sv, vh = np.linalg.svd(scaled)
-        rel = sv[-1] / sv[0]
+    for s in _critical_eigenvalues(structure, rank.CRITICAL_RTOL):
+        rel, null, deficient = rank.column_rank_test(np.vstack([s * np.eye(n + npf) - A_ac, H]).astype(complex))
         checked.append(complex(s))
-        if rel < tol:
-            v = np.abs(vh[-1])  # in the scaled coordinates: comparable across blocks
+        if deficient:
+            v = np.abs(null)  # in the scaled coordinates: comparable across blocks
             v = v / max(v.max(), 1e-300)
             parts = {"displacements": v[:nu].max(), "velocities": v[nu:2 * nu].max(), "forces": v[n:].max()}
             unseen = ", ".join(k for k, val in parts.items() if val > 1e-2)
@@ -427,8 +362,12 @@ def check_detectable(structure, sensors, forces, allow_undetectable=False):
     return report
 
 
-def diag_levels(level, size, name):
-    """A covariance matrix from a scalar level, a vector of variances or a full matrix."""
+def diag_levels(level, size, name, definite=False):
+    """A covariance matrix (size x size) from a scalar level, a vector of variances or a full
+    matrix, checked by :func:`~core_akf._validate.check_covariance` (symmetric, PSD; PD with
+    ``definite=True``)."""
+    if isinstance(level, (bool, np.bool_)):
+        raise AKFInputError(f"{name} must be a number, a vector of variances or a matrix, got {level!r}")
     arr = as_finite_array(level, name)
     if arr.ndim == 0:
         out = float(arr) * np.eye(size)
@@ -440,6 +379,4 @@ def diag_levels(level, size, name):
         out = arr
     else:
         raise AKFInputError(f"{name} must be a scalar, a vector of {size} variances or a {size}x{size} matrix; got shape {arr.shape}")
-    if np.any(np.diag(out) < 0):
-        raise AKFInputError(f"{name} has negative variances")
-    return out
+    return check_covariance(out, name, definite=definite)

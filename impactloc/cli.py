@@ -38,15 +38,20 @@ import os
 import numpy as np
 
 from core_akf.exceptions import AKFInputError
+from core_akf import jobs as J
 from core_akf.jobs import check_keys, check_sections
+from core_akf.outputs import OutputFolder, write_csv
 
 LOCATE_KEYS = {
-    None: {"name", "description", "dt", "sensors", "structure", "locate", "measurements"},
-    "locate": {"n_ad", "ad_kinds", "direction", "candidates", "max_splits", "tune", "n_modes", "covariances",
-               "tuning", "skip"},
-    "measurements": {"file", "time_column"},
+    None: {"name": J.TEXT, "description": J.ANY, "dt": J.POSITIVE, "sensors": J.TEXTS, "structure": J.TABLE,
+           "locate": J.TABLE, "measurements": J.TABLE},
+    "locate": {"n_ad": J.COUNT, "ad_kinds": J.TEXTS, "direction": J.TEXT, "candidates": J.INTS,
+               "max_splits": J.COUNT, "tune": J.BOOLEAN, "n_modes": J.MODES, "covariances": J.TABLE,
+               "tuning": J.TABLE, "skip": J.NON_NEGATIVE},
+    "measurements": {"file": J.TEXT, "time_column": J.TEXT},
 }
-TUNING_KEYS = {"population", "generations", "n_splits", "decades", "crossover", "mutation"}
+TUNING_KEYS = {"population": J.COUNT, "generations": J.COUNT0, "n_splits": J.COUNT, "decades": J.POSITIVE,
+               "crossover": J.FRACTION, "mutation": J.FRACTION}
 
 
 def validate_locate_job(job):
@@ -65,7 +70,8 @@ def _covariances(spec):
 
     if spec is None:
         return None
-    check_keys(spec, {"model_error", "force_increment", "noise"}, "[locate.covariances]")
+    check_keys(spec, {"model_error": J.NON_NEGATIVE, "force_increment": J.POSITIVE, "noise": J.POSITIVE_TABLE},
+               "[locate.covariances]")
     try:
         return Covariances(float(spec["model_error"]), float(spec["force_increment"]),
                            {k: float(v) for k, v in spec["noise"].items()})
@@ -109,20 +115,20 @@ def write_outputs(result, out, scenario=None, plot=True):
     os.makedirs(out, exist_ok=True)
     files = {"ranking": os.path.join(out, "ranking.csv"), "scan": os.path.join(out, "scan.csv"),
              "force_history": os.path.join(out, "force.csv")}
-    result.scan.summary.to_csv(files["ranking"], index=False)
-    result.scan.frame.to_csv(files["scan"], index=False)
+    write_csv(result.scan.summary, files["ranking"])
+    write_csv(result.scan.frame, files["scan"])
     est = result.reconstruction.estimate
     cols = {"time": est.time, "force_assumed": result.initial.force, "force_tuned": result.reconstruction.force}
     if scenario is not None:
         cols["force_true"] = scenario.true_force
-    pd.DataFrame(cols).to_csv(files["force_history"], index=False)
+    write_csv(pd.DataFrame(cols), files["force_history"])
     files["response"] = os.path.join(out, "response.csv")   # strain at every member / node component
     strains = pd.DataFrame(est.strains, columns=est.structure.strain_labels)
     strains.insert(0, "time", est.time)
-    strains.to_csv(files["response"], index=False, float_format="%.6e")
+    write_csv(strains, files["response"], float_format="%.6e")
     if result.tuning is not None:
         files["tuning"] = os.path.join(out, "tuning.csv")
-        result.tuning.logbook.to_csv(files["tuning"], index=False)
+        write_csv(result.tuning.logbook, files["tuning"])
     if plot:
         files.update(plot_locate(result, out, true_force=None if scenario is None else scenario.true_force,
                                  true_strains=None if scenario is None else scenario.simulation.strains))
@@ -140,6 +146,8 @@ def _locate(args):
         return 0
     if (args.job is None) == (args.example is None):
         raise AKFInputError("give a locate job file or --example NAME (see --list-examples)")
+    if args.n_jobs == 0:
+        raise AKFInputError("--n-jobs must be a positive number of workers, or negative (-1: all cores), not 0")
     progress = not args.json
     scenario = None
     if args.example:
@@ -158,7 +166,8 @@ def _locate(args):
                                    seed=args.seed, progress=progress, tune=False if args.no_tune else None)
         name = job.get("name", os.path.splitext(os.path.basename(args.job))[0])
     out = args.out or os.path.join("akf-out", "locate", name)
-    files = write_outputs(result, out, scenario, plot=not args.no_plot)
+    with OutputFolder(out, "--out"):
+        files = write_outputs(result, out, scenario, plot=not args.no_plot)
     d = result.to_dict()
     if args.json:
         d["files"] = files

@@ -15,7 +15,7 @@ from core_akf.exceptions import AKFInputError
 from core_akf.metrics import rms, rms_error
 from core_akf.reduced import ModalFilterModel, auto_modes, steady_outputs
 from core_akf.sensors import as_layout, parse_force_locations
-from core_akf.statespace import detectability, is_supported, static_gain
+from core_akf.statespace import detectability, static_gain, static_test_suffices
 from .roles import RoleSplit
 
 #: budget of (filters x steps x states) per kernel call: bounds memory (~16 bytes each)
@@ -122,10 +122,10 @@ class ImpactModel:
 
     def detectable(self, loc, se):
         """PBH detectability of a force at ``loc`` from the SE sensors ``se`` (indices)."""
-        if is_supported(self.full):   # damped and supported: only s = 0 is critical
+        if static_test_suffices(self.full):
             if loc not in self._static:
-                self._static[loc] = static_gain(self.full, self.layout, [loc])[:, 0]
-            return bool(np.any(self._static[loc][list(se)] != 0))
+                self._static[loc] = static_gain(self.full, self.layout, [loc])
+            return self._static[loc].rows(se).sees_every_force
         return detectability(self.full, [self.layout[i] for i in se], [loc]).detectable
 
     def Q_a(self, cov, loc):

@@ -14,6 +14,7 @@ import os
 import numpy as np
 
 from core_akf.metrics import rms_error
+from core_akf.outputs import write_csv
 from core_akf.studies._common import StudyResult, output_dir
 
 from .cli import write_outputs
@@ -59,7 +60,7 @@ def run_cases(out=None, quick=False, seed=0):
             files[f"{name}-{noise}:{k}"] = v
     table = pd.DataFrame(rows)
     files["table"] = os.path.join(out, "imp_cases.csv")
-    table.to_csv(files["table"], index=False)
+    write_csv(table, files["table"])
     print("IMP: impact localisation, paper settings (AD error: mean relative RMS error at the AD sensors)")
     print(table.drop(columns=["n_locations"]).round(4).to_string(index=False))
     return StudyResult("imp_cases", table, table, files, data)
@@ -92,8 +93,8 @@ def run_hit_rate(out=None, quick=False, seed=0, examples=None, seeds=None):
                                             hit_rate=("hit", "mean"), min_margin_of_hits=("margin", "min"))
                .reset_index())
     files = {"table": os.path.join(out, "imp_hit_rate.csv"), "summary": os.path.join(out, "imp_hit_rate_summary.csv")}
-    table.to_csv(files["table"], index=False)
-    summary.to_csv(files["summary"], index=False)
+    write_csv(table, files["table"])
+    write_csv(summary, files["summary"])
     print("IMP: impacts at every candidate node, located without tuning")
     print(summary.round(3).to_string(index=False))
     misses = table[~table["hit"]]

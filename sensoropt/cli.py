@@ -29,11 +29,11 @@ import json
 import os
 
 from core_akf.exceptions import AKFInputError
+from core_akf.outputs import OutputFolder, write_csv
 
 
 def _place(args):
-    from .ga import THESIS, place
-    from .plots import plot_convergence, plot_layout
+    from .ga import THESIS
     from .problem import EXAMPLES, example_problem, problem_from_job
 
     if args.list_examples:
@@ -54,6 +54,8 @@ def _place(args):
             problem.n_sensors = args.sensors
     if args.window is not None:
         problem.window = args.window
+    if args.n_jobs == 0:
+        raise AKFInputError("--n-jobs must be a positive number of workers, or negative (-1: all cores), not 0")
     settings = dict(THESIS)
     settings.update(ga)
     for key in ("generations", "population"):
@@ -62,7 +64,14 @@ def _place(args):
     if args.operators:
         settings["operators"] = args.operators
     out = args.out or os.path.join("akf-out", "place", f"{problem.name}-{problem.n_sensors or 'budget'}-seed{args.seed}")
-    os.makedirs(out, exist_ok=True)
+    with OutputFolder(out, "--out"):      # checked and locked before the work starts
+        return _run_place(args, problem, settings, out)
+
+
+def _run_place(args, problem, settings, out):
+    from .ga import place
+    from .plots import plot_convergence, plot_layout
+
     checkpoint = args.checkpoint or os.path.join(out, "checkpoint.pkl")
     enc = problem.encoding()
     obj = problem.objective(enc)
@@ -72,7 +81,7 @@ def _place(args):
     refs = {name: problem.full_record_error(s) for name, s in problem.reference_layouts.items()
             if len(s) == enc.n_sensors and not problem.budget}
     files = {"logbook": os.path.join(out, "logbook.csv"), "checkpoint": checkpoint}
-    res.logbook.to_csv(files["logbook"], index=False)
+    write_csv(res.logbook, files["logbook"])
     if not args.no_plot:
         files["convergence"] = plot_convergence(res.logbook, os.path.join(out, "convergence.png"),
                                                 f"{problem.name}: {enc.n_sensors} sensors, seed {args.seed}")

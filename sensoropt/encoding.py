@@ -15,6 +15,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from core_akf.exceptions import AKFInputError
+from core_akf.rank import zero_rows
 
 STRAIN_KINDS = ("ex", "ey", "gxy")
 KINDS = STRAIN_KINDS + ("acc",)
@@ -50,8 +51,7 @@ class Encoding:
             raise AKFInputError("the plate's nodes do not form a rectangular grid")
         ix = np.searchsorted(xs, np.round(structure.nodes[:, 0], 12)) + 1
         iy = np.searchsorted(ys, np.round(structure.nodes[:, 1], 12)) + 1
-        ops = structure.strain_operator
-        scale = np.abs(ops).max()
+        dead = zero_rows(structure.strain_operator)      # identically zero outputs (e_x along a clamp)
         cands = []
         for node in range(1, structure.n_nodes + 1):
             for kind in self.kinds:
@@ -61,8 +61,7 @@ class Encoding:
                     except (AKFInputError, ValueError, KeyError):
                         continue
                 else:
-                    row = ops[structure.strain_labels.index(f"{kind}{node}")]
-                    if not np.any(np.abs(row) > 1e-12 * scale):
+                    if dead[structure.strain_labels.index(f"{kind}{node}")]:
                         continue
                 cands.append((node, int(ix[node - 1]), int(iy[node - 1]), kind))
         if not cands:

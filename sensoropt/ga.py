@@ -151,13 +151,13 @@ def place(objective, encoding, *, population=50, generations=100, elite=2, cross
                     mutation=mutation, tournament=tournament, stall_generations=stall_generations,
                     stall_tol=stall_tol, operators=operators, seed=seed)
     evaluate = Evaluator(objective, encoding, n_jobs=n_jobs, penalty=penalty)
+    if checkpoint and not resume and os.path.exists(checkpoint):
+        raise AKFInputError(f"a checkpoint of an earlier run exists at {checkpoint!r}; pass resume=True (CLI: --resume) "
+                            "to continue it, or remove it / choose another output folder to start afresh")
     state = random.getstate()
     try:
         if resume:
-            if not checkpoint or not os.path.exists(checkpoint):
-                raise AKFInputError(f"no checkpoint to resume from at {checkpoint!r}")
-            with open(checkpoint, "rb") as fh:
-                ck = pickle.load(fh)
+            ck = load_checkpoint(checkpoint)
             if ck["settings"] != settings or ck["candidates"] != encoding.candidates:
                 raise AKFInputError("the checkpoint was written by a run with other settings or candidates")
             rng = ck["rng"]
@@ -232,11 +232,40 @@ def place(objective, encoding, *, population=50, generations=100, elite=2, cross
                            evaluate.hits, evaluate.infeasible, stopped, seed, settings)
 
 
+#: identifies a placement checkpoint and its layout; a file with another tag or version is refused
+CHECKPOINT_FORMAT = ("akf-toolkit placement checkpoint", 1)
+
+
 def _save(path, data):
+    """Write a checkpoint atomically; the previous one is kept as ``PATH.bak``."""
     tmp = f"{path}.tmp"
     with open(tmp, "wb") as fh:
-        pickle.dump(data, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        pickle.dump(dict(data, format=CHECKPOINT_FORMAT), fh, protocol=pickle.HIGHEST_PROTOCOL)
+    if os.path.exists(path):
+        os.replace(path, f"{path}.bak")
     os.replace(tmp, path)   # atomic: a kill mid-write leaves the previous checkpoint
+
+
+def load_checkpoint(path):
+    """Read and check a checkpoint written by :func:`place`; a missing, truncated or foreign file
+    is an :class:`AKFInputError` that names the backup to use instead.
+
+    Checkpoints are pickles: load only files your own runs wrote."""
+    if not path or not os.path.exists(path):
+        raise AKFInputError(f"no checkpoint to resume from at {path!r}")
+    backup = f" (the previous checkpoint is kept at {path}.bak: rename it to {os.path.basename(path)} to resume from it)" \
+        if os.path.exists(f"{path}.bak") else ""
+    try:
+        with open(path, "rb") as fh:
+            ck = pickle.load(fh)
+    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError, IndexError, TypeError, ValueError) as exc:
+        raise AKFInputError(f"checkpoint {path!r} is truncated or not a placement checkpoint "
+                            f"({type(exc).__name__}: {exc}){backup}") from None
+    if not isinstance(ck, dict) or ck.get("format") != CHECKPOINT_FORMAT:
+        found = ck.get("format") if isinstance(ck, dict) else type(ck).__name__
+        raise AKFInputError(f"{path!r} is not a placement checkpoint of this version (found {found!r}, "
+                            f"expected {CHECKPOINT_FORMAT!r}){backup}")
+    return ck
 
 
 def independent_runs(objective, encoding, runs=4, seed=0, **ga):

@@ -16,6 +16,7 @@ import numpy as np
 
 from core_akf.examples import TH_CASE2, th_job
 from core_akf.exceptions import AKFInputError
+from core_akf import jobs as J
 from core_akf.jobs import build_loads, build_structure, check_sections
 from core_akf.metrics import average_strain_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
@@ -105,11 +106,13 @@ def example_problem(name, n_sensors=None):
 
 
 PLACE_KEYS = {
-    None: {"name", "description", "dt", "forces", "structure", "place", "filter", "simulation"},
-    "place": {"sensors", "budget", "kinds", "window", "population", "generations", "elite", "crossover", "mutation",
-              "tournament", "stall_generations", "operators", "n_modes"},
-    "filter": {"stiffness_factor", "model_error_cov", "force_increment_cov"},
-    "simulation": {"duration", "relative_noise", "seed", "loads"},
+    None: {"name": J.TEXT, "description": J.ANY, "dt": J.POSITIVE, "forces": J.TEXTS, "structure": J.TABLE,
+           "place": J.TABLE, "filter": J.TABLE, "simulation": J.TABLE},
+    "place": {"sensors": J.COUNT, "budget": J.TABLE, "kinds": J.TEXTS, "window": J.POSITIVE, "population": J.COUNT,
+              "generations": J.COUNT0, "elite": J.COUNT0, "crossover": J.FRACTION, "mutation": J.FRACTION,
+              "tournament": J.COUNT, "stall_generations": J.COUNT0, "operators": J.TEXT, "n_modes": J.MODES},
+    "filter": {"stiffness_factor": J.POSITIVE, "model_error_cov": J.NON_NEGATIVE, "force_increment_cov": J.POSITIVE},
+    "simulation": {"duration": J.POSITIVE, "relative_noise": J.NON_NEGATIVE, "seed": J.SEED, "loads": J.TABLES},
 }
 GA_KEYS = ("population", "generations", "elite", "crossover", "mutation", "tournament", "stall_generations", "operators")
 
@@ -136,5 +139,6 @@ def problem_from_job(job):
                                relative_noise=float(sim.get("relative_noise", 0.02)),
                                model_error_cov=float(f.get("model_error_cov", 1e-16)),
                                force_increment_cov=float(f.get("force_increment_cov", 1.0)),
-                               n_modes=p.get("n_modes", "auto"), seed=int(sim.get("seed", 0)))
+                               n_modes=None if p.get("n_modes") == "full" else p.get("n_modes", "auto"),
+                               seed=int(sim.get("seed", 0)))
     return problem, {k: p[k] for k in GA_KEYS if k in p}

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 
+from core_akf.outputs import write_csv
 from core_akf.sensors import parse_force_locations
 from core_akf.studies._common import StudyResult, output_dir
 
@@ -87,7 +88,7 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
                  "sensors": " ".join(p5.reference_layouts["TH case 2 (trial and error)"]),
                  "window_error_ue": obj5.evaluate([p5.reference_layouts["TH case 2 (trial and error)"]])[0],
                  "full_record_error_ue": case2})
-    agreement.to_csv(os.path.join(out, "case5_agreement.csv"), index=False)
+    write_csv(agreement, os.path.join(out, "case5_agreement.csv"))
     files["case5_agreement"] = os.path.join(out, "case5_agreement.csv")
     # case 6: 3, 4, 5, 8 gauges
     for n in ((3, 4) if quick else (3, 4, 5, 8)):
@@ -113,18 +114,18 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
     # the thesis' operators as the baseline
     ops = compare_operators(seeds=(seed,) if quick else (seed, seed + 1, seed + 2, seed + 3), n_jobs=n_jobs,
                             **({"population": 16, "generations": 6} if quick else {}))
-    ops.to_csv(os.path.join(out, "operators.csv"), index=False)
+    write_csv(ops, os.path.join(out, "operators.csv"))
     files["operators"] = os.path.join(out, "operators.csv")
     # Pareto: error vs number of gauges
     pp = example_problem("th-case6", 3)
     front = pareto(pp.objective(pp.encoding()), pp.structure, sizes=(1, 4 if quick else 8),
                    population=16 if quick else 60, generations=4 if quick else 40, seed=seed, n_jobs=n_jobs).front
-    front.to_csv(os.path.join(out, "pareto_front.csv"), index=False)
+    write_csv(front, os.path.join(out, "pareto_front.csv"))
     files["pareto_front"] = os.path.join(out, "pareto_front.csv")
     files["pareto"] = plot_pareto(front, os.path.join(out, "pareto.png"))
     table = pd.DataFrame(rows)
     files["table"] = os.path.join(out, f"{NAME}.csv")
-    table.to_csv(files["table"], index=False)
+    write_csv(table, files["table"])
     print("TH placement: average strain error (µε) of the GA layouts; full record = 6 s, window = 0.1 s fitness")
     print(table[["study", "label", "sensors", "window_error_ue", "full_record_error_ue", "generations",
                  "evaluations", "seconds"]].round(4).to_string(index=False))

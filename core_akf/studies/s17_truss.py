@@ -40,6 +40,7 @@ import numpy as np
 from ..examples import S17_ACC_ONLY, S17_MULTI, S17_STRAIN_ONLY, s17_job
 from ..figures import pyplot
 from ..jobs import run_job
+from ..outputs import write_csv
 from ._common import StudyResult, drift_ratio, output_dir, psd, save
 
 NAME = "s17_truss"
@@ -99,8 +100,8 @@ def run(out=None, quick=False, seed=0, cases=None):
                     avg_strain_error_ue=("avg_strain_error_ue", "first"), detectable=("detectable", "first"))
                .reset_index())
     files = {"table": os.path.join(out, f"{NAME}.csv"), "summary": os.path.join(out, f"{NAME}_summary.csv")}
-    table.to_csv(files["table"], index=False)
-    summary.to_csv(files["summary"], index=False)
+    write_csv(table, files["table"])
+    write_csv(summary, files["summary"])
     _figures(results, table, out, files)
     _print(table, summary)
     return StudyResult(NAME, table, summary, files, results)

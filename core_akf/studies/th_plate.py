@@ -39,6 +39,7 @@ import numpy as np
 from ..examples import TH_CASE1, TH_CASE2, TH_CASE3, TH_CASE4, TH_FLEXIBLE_PLATE, th_job
 from ..figures import pyplot
 from ..jobs import run_job
+from ..outputs import write_csv
 from ._common import StudyResult, drift_ratio, output_dir, psd, save
 
 NAME = "th_plate"
@@ -113,8 +114,8 @@ def run(out=None, quick=False, seed=0, cases=None):
     table = pd.concat(rows, ignore_index=True)
     summary = pd.DataFrame(summary)
     files = {"table": os.path.join(out, f"{NAME}.csv"), "summary": os.path.join(out, f"{NAME}_summary.csv")}
-    table.to_csv(files["table"], index=False)
-    summary.to_csv(files["summary"], index=False)
+    write_csv(table, files["table"])
+    write_csv(summary, files["summary"])
     _figures(results, table, out, files)
     print("TH plate: average strain error over all strain components (µε; thesis values in 'µ-strain')")
     print(summary[["case", "description", "detectable", "avg_strain_error_ue", "worst_component",
