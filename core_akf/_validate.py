@@ -58,35 +58,46 @@ def check_covariance(mat, name, definite=False):
     symmetric and positive semi-definite (``definite=True``: positive definite, as a measurement
     noise covariance must be).  Returns it as a float array.
 
-    Tolerances: an asymmetry above 1e-9 of the largest entry is a mistake, not the rounding of
-    the products that formed the matrix (about n eps); an eigenvalue below ``-n eps ||C||`` is
-    negative beyond the rounding of an eigenvalue solver (Weyl), and for ``definite=True`` every
-    eigenvalue must exceed ``n eps ||C||``.
+    The tests are free of units (strain variances of 1e-16 next to acceleration variances of 1
+    are common): a diagonal entry must be >= 0 (> 0 if definite), and the correlation matrix
+    ``D^-1/2 C D^-1/2`` (unit diagonal) must have no eigenvalue below ``-n eps`` (definite: none
+    below ``n eps``), the rounding level of an eigenvalue solver on it (Weyl).  An asymmetry above
+    1e-9 of the larger diagonal entry of the pair is a mistake, not the rounding of the products
+    that formed the matrix (about n eps).
     """
     arr = as_finite_array(mat, name)
     if arr.ndim < 2 or arr.shape[-1] != arr.shape[-2]:
         raise AKFInputError(f"{name} must be a square matrix, got shape {arr.shape}")
     n = arr.shape[-1]
-    scale = np.max(np.abs(arr), axis=(-2, -1), initial=0.0)
-    asym = np.max(np.abs(arr - np.swapaxes(arr, -1, -2)), axis=(-2, -1), initial=0.0)
-    bad = np.flatnonzero(np.ravel(asym > 1e-9 * np.maximum(scale, np.finfo(float).tiny)))
-    if bad.size:
-        where = f" (batch entry {bad[0]})" if arr.ndim > 2 else ""
-        raise AKFInputError(f"{name} is not symmetric{where}: max |C - C^T| = {np.ravel(asym)[bad[0]]:.3g} "
-                            f"against max |C| = {np.ravel(scale)[bad[0]]:.3g}")
-    diagonal = not np.any(arr - np.eye(n) * np.diagonal(arr, axis1=-2, axis2=-1)[..., None, :])
-    eig = np.diagonal(arr, axis1=-2, axis2=-1) if diagonal else np.linalg.eigvalsh(arr)
-    tol = n * np.finfo(float).eps * np.maximum(scale, np.finfo(float).tiny)
-    low = np.min(eig, axis=-1)
-    bad = np.flatnonzero(np.ravel(low <= tol if definite else low < -tol))
-    if bad.size:
-        b = bad[0]
-        where = f" (batch entry {b})" if arr.ndim > 2 else ""
-        e = np.reshape(eig, (-1, n))[b]
-        what = "positive definite (every channel needs a noise variance > 0)" if definite else "positive semi-definite"
-        detail = (f"variance {e.min():.3g} at position {int(np.argmin(e)) + 1}" if diagonal
-                  else f"smallest eigenvalue {e.min():.3g}, largest {e.max():.3g}")
-        raise AKFInputError(f"{name} must be {what}{where}; it has {detail}")
+    flat = arr.reshape(-1, n, n)
+    where = (lambda b: f" (batch entry {b})") if arr.ndim > 2 else (lambda b: "")
+    for b, C in enumerate(flat):
+        d = np.diag(C)
+        low = int(np.argmin(d)) if n else 0
+        if n and (d[low] < 0 or (definite and d[low] == 0)):
+            need = "> 0: every channel needs some noise" if definite else ">= 0"
+            raise AKFInputError(f"{name} must be positive {'definite' if definite else 'semi-definite'}{where(b)}; "
+                                f"its variance at position {low + 1} is {d[low]:.3g} (variances must be {need})")
+        off = C - np.diag(d)
+        if not np.any(off):
+            continue
+        scale = np.sqrt(np.outer(d, d))
+        asym = np.abs(C - C.T)
+        if np.any(asym > 1e-9 * np.maximum(np.maximum.outer(d, d), np.finfo(float).tiny)):
+            i, j = np.unravel_index(int(np.argmax(asym)), asym.shape)
+            raise AKFInputError(f"{name} is not symmetric{where(b)}: entries ({i + 1}, {j + 1}) and ({j + 1}, {i + 1}) "
+                                f"are {C[i, j]:.6g} and {C[j, i]:.6g}")
+        if np.any((scale == 0) & (off != 0)):
+            i, j = np.argwhere((scale == 0) & (off != 0))[0]
+            raise AKFInputError(f"{name} is not positive semi-definite{where(b)}: entry ({i + 1}, {j + 1}) is "
+                                f"{C[i, j]:.3g} although a variance of that pair is 0")
+        corr = np.divide(0.5 * (C + C.T), scale, out=np.zeros_like(C), where=scale > 0)
+        w = np.linalg.eigvalsh(corr)
+        tol = n * np.finfo(float).eps
+        if w[0] < -tol or (definite and w[0] <= tol):
+            raise AKFInputError(f"{name} must be positive {'definite' if definite else 'semi-definite'}{where(b)}; "
+                                f"its correlation matrix has the eigenvalue {w[0]:.3g} (correlations above 1 "
+                                "or inconsistent ones)")
     return arr
 
 

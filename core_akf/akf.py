@@ -363,6 +363,11 @@ class Estimate:
     innovations : ndarray (N, m)
     gain : ndarray (n_a, m) -- steady-state (or last) Kalman gain for ``[u; u'; f]``
     detectability : DetectabilityReport -- the PBH test of the sensor layout
+    measurements : ndarray (N, m) -- the data the filter ran on (SI)
+    innovation_cov : ndarray (m, m) -- predicted innovation covariance ``G_a P G_a^T + R`` of the
+        steady-state (or last) prior covariance ``P``, in squared sensor units
+    closed_loop : ndarray (n_a, n_a) -- ``(I - L G_a) A_a`` of the steady-state (or last) gain, in
+        the filter's internal coordinates (its spectral radius sets the filter's transient)
     """
 
     structure: object
@@ -374,6 +379,21 @@ class Estimate:
     innovations: np.ndarray
     gain: np.ndarray = field(repr=False, default=None)
     detectability: object = field(repr=False, default=None)
+    measurements: np.ndarray = field(repr=False, default=None)
+    innovation_cov: np.ndarray = field(repr=False, default=None)
+    closed_loop: np.ndarray = field(repr=False, default=None)
+
+    @property
+    def predicted(self):
+        """One-step predictions of the measurements, ``y_k - innovation_k``, shape (N, m)."""
+        return self.measurements - self.innovations
+
+    @cached_property
+    def transient_time(self):
+        """Time constant (s) of the filter's slowest error mode, ``-dt / ln(rho)`` with ``rho`` the
+        spectral radius of :attr:`closed_loop`; ``inf`` if it does not decay."""
+        rho = float(np.max(np.abs(np.linalg.eigvals(self.closed_loop))))
+        return self.dt / -np.log(rho) if rho < 1 else np.inf
 
     @property
     def time(self):
@@ -507,8 +527,11 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
         raise RiccatiError(f"steady-state gain failed for the layout(s) [{names}]: {exc}", exc.problems) from None
     states = res.states @ Ta.T                      # back to physical [u; u'; f]
     gains = Ta @ res.gain                           # gain for the physical state
+    S_innov = G_a @ res.P_prior @ np.swapaxes(G_a, -1, -2) + R
+    closed = (np.eye(A_a.shape[0]) - res.gain @ G_a) @ A_a
     return [Estimate(structure, l, locs, float(dt), states[b, :, :nx], states[b, :, nx:],
-                     res.innovations[b], gains[b], reports[b]) for b, l in enumerate(layouts)]
+                     res.innovations[b], gains[b], reports[b], Y[b], 0.5 * (S_innov[b] + S_innov[b].T), closed[b])
+            for b, l in enumerate(layouts)]
 
 
 def estimate(structure, sensors, forces, measurements, dt, *, model_error_cov,

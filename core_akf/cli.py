@@ -53,6 +53,27 @@ def _plot(result, path):
     return save_figure(fig, path)
 
 
+def _plot_sensors(result, path, max_channels=8):
+    """Measured against one-step predicted signal at (up to ``max_channels``) sensors."""
+    from .figures import pyplot, save_figure
+    from .sensors import UNITS
+
+    plt = pyplot()
+    est = result.estimate
+    k = min(len(est.sensors), max_channels)
+    fig, axes = plt.subplots(k, 1, figsize=(9, 1.8 * k + 0.6), squeeze=False, sharex=True)
+    pred = est.predicted
+    for j in range(k):
+        ax = axes[j, 0]
+        ax.plot(est.time, est.measurements[:, j], "k-", lw=0.6, label="measured")
+        ax.plot(est.time, pred[:, j], "r-", lw=0.6, alpha=0.8, label="predicted (one step)")
+        ax.set_ylabel(f"{est.sensors[j].label}\n({UNITS[est.sensors[j].kind]})", fontsize=8)
+        ax.legend(loc="upper right", fontsize=7)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(f"{result.job.get('name', 'AKF estimate')}: measured vs. predicted at the sensors")
+    return save_figure(fig, path)
+
+
 def _estimate(args):
     from .examples import EXAMPLES, example_job
     from .jobs import run_job
@@ -101,15 +122,18 @@ def _write_estimate(args, job, result, name, out):
     files["summary"] = os.path.join(out, "summary.csv")
     write_csv(result.summary_frame(), files["summary"])
     if not args.no_plot:
-        png = _plot(result, os.path.join(out, "estimate.png"))
-        if png:
-            files["figure"] = png
+        files["figure"] = _plot(result, os.path.join(out, "estimate.png"))
+        files["sensors_figure"] = _plot_sensors(result, os.path.join(out, "sensors.png"))
 
     m = result.metrics
     if args.json:
         print(json.dumps({"name": name, "detectable": m["detectable"], "n_steps": m["n_steps"],
                           "rms_force": m.get("rms_force"), "avg_strain_error": m.get("avg_strain_error"),
-                          "files": files, "notes": notes}))
+                          "avg_strain_error_microstrain": m.get("avg_strain_error_microstrain"),
+                          "forces": m["forces"], "sensors": m["sensors"], "warnings": m["warnings"],
+                          "units": m["units"], "files": files, "notes": notes}))
+        for w in m["warnings"]:
+            print(f"akf: warning: {w}", file=sys.stderr)
         return 0
     print(f"{name}: {job.get('description', '')}")
     print(f"  {len(est.sensors)} sensors, {len(est.force_locations)} unknown forces, {m['n_steps']} steps, "
@@ -118,7 +142,16 @@ def _write_estimate(args, job, result, name, out):
         print("  RMS force error (N):")
         for k, v in m["rms_force"].items():
             print(f"    {k:>8s}  {v:10.2f}")
-        print(f"  average strain error: {m['avg_strain_error'] * 1e6:.4f} µε over {est.structure.n_strain} strain outputs")
+        print(f"  average strain error: {m['avg_strain_error_microstrain']:.4f} µε over {est.structure.n_strain} strain outputs")
+    print("  estimated forces (N):            RMS          peak   at (s)")
+    for f in m["forces"]:
+        print(f"    {f['channel']:>8s}           {f['rms']:10.4g}   {f['peak']:11.4g}   {f['time_of_peak']:.4f}")
+    print("  sensors: measured RMS, innovation RMS (SI), consistency (innovation / predicted; ~1 is good), whiteness")
+    for d in m["sensors"]:
+        print(f"    {d['channel']:>14s}  {d['measured_rms']:10.4g}  {d['innovation_rms']:10.4g}  {d['consistency']:8.3g}"
+              f"  {d['whiteness']:6.2f}")
+    for w in m["warnings"]:
+        print(f"  WARNING: {w}")
     for k, v in files.items():
         print(f"  wrote {k}: {v}")
     for note in notes:

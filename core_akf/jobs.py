@@ -37,6 +37,7 @@ import numpy as np
 
 from . import loads as L
 from .akf import estimate
+from .diagnostics import CONSISTENCY_LIMIT, force_statistics, scale_check, sensor_diagnostics, warnings_for
 from ._validate import check_memory
 from .exceptions import AKFInputError
 from .metrics import average_strain_error, rms_error
@@ -233,15 +234,30 @@ class JobResult:
         return pd.concat(frames, ignore_index=True)
 
     def summary_frame(self):
-        """One row per channel (forces and strains) with the RMS error against the reference."""
+        """One row per channel: every force location (estimated RMS and peak, and the RMS error
+        against the reference if there is one), every sensor (measured RMS and the innovation
+        statistics of :mod:`core_akf.diagnostics`) and, with a reference, every strain output (RMS
+        error).  Never empty: measured data without a reference still has forces and sensors."""
         import pandas as pd
 
-        rows = []
-        for k, v in self.metrics.get("rms_force", {}).items():
-            rows.append({"quantity": "force", "channel": k, "unit": "N", "rms_error": v})
-        for k, v in self.metrics.get("rms_strain", {}).items():
-            rows.append({"quantity": "strain", "channel": k, "unit": "m/m", "rms_error": v})
-        return pd.DataFrame(rows)
+        m = self.metrics
+        errors = m.get("rms_force", {})
+        rows = [dict(quantity="force", **f, rms_error=errors.get(f["channel"], np.nan)) for f in m.get("forces", [])]
+        rows += [dict(quantity="sensor", channel=d["channel"], unit=d["unit"], rms=d["measured_rms"],
+                      **{k: v for k, v in d.items() if k not in ("channel", "unit", "measured_rms")})
+                 for d in m.get("sensors", [])]
+        rows += [{"quantity": "strain", "channel": k, "unit": "m/m", "rms_error": v}
+                 for k, v in m.get("rms_strain", {}).items()]
+        columns = ["quantity", "channel", "unit", "rms_error", "rms", "peak", "time_of_peak", "innovation_rms",
+                   "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation"]
+        return pd.DataFrame(rows, columns=columns)
+
+
+#: units of the numbers in :attr:`JobResult.metrics` (and the CLI's JSON)
+METRIC_UNITS = {"rms_force": "N", "rms_strain": "m/m", "avg_strain_error": "m/m", "avg_strain_error_microstrain": "µε",
+                "forces": {"rms": "N", "peak": "N", "time_of_peak": "s"},
+                "sensors": "per channel: the sensor's SI unit (m/m, m/s^2, m/s, m); consistency and whiteness "
+                           "are dimensionless"}
 
 
 class Spec:
@@ -391,14 +407,24 @@ def run_job(job, allow_undetectable=None, steady=None):
         if noise_cov != "simulated" or sim is None:
             raise AKFInputError("filter.noise_cov = 'simulated' needs a simulated job; give variances per sensor kind")
         noise_cov = np.diag(np.maximum(sim.noise_std, 1e-30) ** 2)
-    est = estimate(model, sensors, forces, Y, dt, model_error_cov=filt.get("model_error_cov", 1e-16),
-                   force_increment_cov=filt.get("force_increment_cov", 1.0), noise_cov=noise_cov,
-                   steady=bool(filt.get("steady", True)), allow_undetectable=bool(filt.get("allow_undetectable", False)))
-    metrics = {"detectable": est.detectability.detectable, "n_steps": int(Y.shape[0])}
+    est_kw = dict(model_error_cov=filt.get("model_error_cov", 1e-16),
+                  force_increment_cov=filt.get("force_increment_cov", 1.0))
+    est = estimate(model, sensors, forces, Y, dt, noise_cov=noise_cov, steady=bool(filt.get("steady", True)),
+                   allow_undetectable=bool(filt.get("allow_undetectable", False)), **est_kw)
+    metrics = {"detectable": est.detectability.detectable, "n_steps": int(Y.shape[0]), "units": METRIC_UNITS}
     if sim is not None:
         rf = rms_error(est.forces, sim.loads)
         metrics["rms_force"] = {f"{n}:{d}": float(v) for (n, d), v in zip(forces, rf)}
         rs = rms_error(est.strains, sim.strains)
         metrics["rms_strain"] = dict(zip(true_structure.strain_labels, map(float, rs)))
         metrics["avg_strain_error"] = float(average_strain_error(est.strains, sim.strains))
+        metrics["avg_strain_error_microstrain"] = metrics["avg_strain_error"] / MICROSTRAIN
+    metrics["forces"] = force_statistics(est)
+    metrics["sensors"] = sensor_diagnostics(est)
+    metrics["warnings"] = warnings_for(est, metrics["sensors"])
+    if est.detectability.detectable and any(d["consistency"] > CONSISTENCY_LIMIT for d in metrics["sensors"]):
+        # some channel does not fit: find out whether a unit or a sign is wrong
+        metrics["warnings"] = scale_check(model, sensors, forces, Y, dt, model_error_cov=est_kw["model_error_cov"],
+                                          force_increment_cov=est_kw["force_increment_cov"],
+                                          noise_cov=noise_cov) + metrics["warnings"]
     return JobResult(job=job, estimate=est, simulation=sim, metrics=metrics)

@@ -21,7 +21,10 @@ def test_cli_example_json(tmp_path, capsys):
     assert set(ts["quantity"]) == {"force", "strain"}
     assert ts.query("quantity == 'strain'")["channel"].nunique() == 34
     summary = pd.read_csv(out["files"]["summary"])
-    assert len(summary) == 4 + 34
+    assert len(summary) == 4 + 9 + 34                          # forces, sensors, strain outputs
+    assert set(summary["quantity"]) == {"force", "sensor", "strain"}
+    assert out["units"]["rms_force"] == "N" and out["units"]["avg_strain_error"] == "m/m"
+    assert out["avg_strain_error_microstrain"] == pytest.approx(out["avg_strain_error"] * 1e6)
     assert (tmp_path / "estimate.png").stat().st_size > 10_000
 
 

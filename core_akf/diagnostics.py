@@ -1,0 +1,174 @@
+"""What an estimate can say about itself without a reference: innovation statistics per sensor,
+force statistics, and warnings for results that should not be trusted.
+
+On measured data there is no true force to compare with; what remains measurable is how well the
+filter predicts each sensor one step ahead.  For a filter whose model and covariances fit the data,
+the innovations ``e_k = y_k - G_a X_k^-`` are white with covariance ``S = G_a P G_a^T + R``
+(Mehra 1970).  Per channel this module reports the innovation RMS, its ratio to the predicted
+``sqrt(S_ii)`` (the *consistency*: about 1 when the noise levels fit, >> 1 when the channel is
+off -- a wrong unit or sign, a broken sensor, too small a ``noise_cov``) and the share of the
+first 20 autocorrelation lags inside the 95 % band of white noise (the *whiteness*).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .sensors import UNITS
+
+#: a channel whose innovations are this many times their predicted size is flagged
+CONSISTENCY_LIMIT = 10.0
+#: lags of the innovation autocorrelation checked for whiteness
+WHITENESS_LAGS = 20
+#: a record should be this many filter time constants long (transient plus a useful part)
+TRANSIENT_MULTIPLE = 3.0
+
+
+def _skip(n):
+    """Samples left out of the statistics as the start-up transient: the first 5 %."""
+    return n // 20
+
+
+def whiteness(e, lags=WHITENESS_LAGS):
+    """Share of the autocorrelation lags ``1..lags`` of ``e`` (N,) inside the 95 % band
+    ``+-1.96 / sqrt(N)`` of white noise (about 0.95 for white innovations), and the lag-1 value."""
+    e = np.asarray(e, float) - np.mean(e)
+    n = e.size
+    denom = float(e @ e)
+    lags = min(lags, n - 1)
+    if denom == 0 or lags < 1:
+        return float("nan"), float("nan")
+    rho = np.array([float(e[:-k] @ e[k:]) / denom for k in range(1, lags + 1)])
+    return float(np.mean(np.abs(rho) < 1.96 / np.sqrt(n))), float(rho[0])
+
+
+def sensor_diagnostics(est):
+    """One record per sensor: ``channel``, ``unit``, ``measured_rms``, ``innovation_rms``,
+    ``predicted_innovation_std`` (``sqrt(S_ii)``), ``consistency`` (their ratio), ``whiteness`` and
+    ``lag1_autocorrelation``, over the record after the first 5 %."""
+    Y, E = est.measurements, est.innovations
+    k0 = _skip(Y.shape[0])
+    out = []
+    for j, s in enumerate(est.sensors):
+        e = E[k0:, j]
+        irms = float(np.sqrt(np.mean(e ** 2)))
+        std = float(np.sqrt(max(est.innovation_cov[j, j], 0.0)))
+        white, lag1 = whiteness(e)
+        out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": float(np.sqrt(np.mean(Y[k0:, j] ** 2))),
+                    "innovation_rms": irms, "predicted_innovation_std": std,
+                    "consistency": irms / std if std > 0 else float("inf"), "whiteness": white,
+                    "lag1_autocorrelation": lag1})
+    return out
+
+
+def force_statistics(est):
+    """One record per force location: ``channel``, ``unit`` (N), ``rms``, ``peak`` (signed value of
+    the largest magnitude) and ``time_of_peak`` (s), after the first 5 %."""
+    k0 = _skip(est.forces.shape[0])
+    out = []
+    for j, (node, d) in enumerate(est.force_locations):
+        f = est.forces[k0:, j]
+        i = int(np.argmax(np.abs(f)))
+        out.append({"channel": f"{node}:{d}", "unit": "N", "rms": float(np.sqrt(np.mean(f ** 2))),
+                    "peak": float(f[i]), "time_of_peak": float((k0 + i) * est.dt)})
+    return out
+
+
+def warnings_for(est, sensors=None):
+    """Plain-language warnings about an estimate (list of str): channels whose innovations do not
+    fit their predicted size, and a record shorter than the filter's transient."""
+    sensors = sensor_diagnostics(est) if sensors is None else sensors
+    notes = []
+    off = sorted((d for d in sensors if d["consistency"] > CONSISTENCY_LIMIT), key=lambda d: -d["consistency"])
+    if off:
+        listed = ", ".join(f"{d['channel']} ({d['consistency']:.3g}x)" for d in off)
+        notes.append(f"innovations larger than predicted at {listed}: the data do not fit the model and noise_cov "
+                     "there; check each channel's unit (SI), sign and noise variance")
+    duration = est.forces.shape[0] * est.dt
+    tau = est.transient_time
+    if duration < TRANSIENT_MULTIPLE * tau:
+        notes.append(f"the record ({duration:.3g} s) is shorter than {TRANSIENT_MULTIPLE:g} time constants of the "
+                     f"filter's transient ({tau:.3g} s): the estimate has not settled; use a longer record or a "
+                     "larger force_increment_cov")
+    return notes
+
+
+#: units a channel may have been given in by mistake: factor (data / SI) -> what it looks like
+_UNIT_GUESSES = [
+    (1 / 9.80665, "acceleration in g instead of m/s^2 (multiply by 9.81)"),
+    (1e3, "millimetres (mm, mm/s, mm/s^2) instead of metres (divide by 1000)"),
+    (1e-3, "kilo-units or a gain of 1/1000 (multiply by 1000)"),
+    (1e6, "microstrain instead of m/m (divide by 1e6)"),
+    (-1.0, "a flipped sign (multiply by -1)"),
+]
+#: a channel (or kind) whose data are this far from what the other sensors imply is reported
+_SCALE_LIMIT = 3.0
+#: ... if the data and that prediction are this well correlated (so a scale, not noise, differs)
+_CORRELATION_MIN = 0.7
+#: the filter ignores a channel whose noise variance is inflated by this factor
+_IGNORE = 1e10
+
+
+def _closest(c):
+    """The unit mistake whose factor is closest to ``c`` (same sign), and the log-distance."""
+    same = [g for g in _UNIT_GUESSES if np.sign(g[0]) == np.sign(c)] or _UNIT_GUESSES
+    best = min(same, key=lambda g: abs(np.log(abs(c) / abs(g[0]))))
+    return best, abs(np.log(abs(c) / abs(best[0])))
+
+
+def _misfit(c):
+    return _closest(c)[1]
+
+
+def _guess(c):
+    """What a scale factor ``c`` (data / implied by the other sensors) looks like."""
+    best, dist = _closest(c)
+    return best[1] if dist < np.log(2.5) else "a wrong unit, gain or sign"
+
+
+def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov, force_increment_cov, noise_cov):
+    """Which channels or sensor kinds disagree with the rest by a scale factor (a wrong unit or sign).
+
+    Each sensor kind (when there are several) and each single channel is held out in turn -- the
+    filter ignores it (noise variance x 1e10) -- and the held-out data are regressed on what the
+    other sensors imply for them (one-step predictions): ``y ~ c y_hat``.  A factor ``c`` outside
+    [1/3, 3] (or negative) with a correlation above 0.7 is reported with the unit it looks like.
+    All hold-outs run as one batched steady-state filter.  Returns a list of warnings (str).
+    """
+    from .akf import estimate_batch, noise_covariance
+    from .sensors import as_layout
+
+    layout = as_layout(sensors)
+    Y = np.asarray(measurements, float)
+    R = noise_covariance(layout, noise_cov)
+    kinds = np.array([s.kind for s in layout])
+    groups = [("kind", k, np.flatnonzero(kinds == k)) for k in dict.fromkeys(kinds)] if len(set(kinds)) > 1 else []
+    groups += [("channel", s.label, np.array([j])) for j, s in enumerate(layout)]
+    Rs = np.stack([R.copy() for _ in groups])
+    for b, (_, _, idx) in enumerate(groups):
+        Rs[b, idx, idx] *= _IGNORE
+    ests = estimate_batch(structure, [layout] * len(groups), forces, np.broadcast_to(Y, (len(groups),) + Y.shape), dt,
+                          model_error_cov=model_error_cov, force_increment_cov=force_increment_cov, noise_cov=Rs,
+                          steady=True)
+    k0 = _skip(Y.shape[0])
+    found = []                                   # (what, name, idx, c, r)
+    for (what, name, idx), est in zip(groups, ests):
+        y, yh = Y[k0:, idx].ravel(), est.predicted[k0:, idx].ravel()
+        if not np.any(yh) or np.ptp(y) == 0:
+            continue
+        c = float(yh @ y / (yh @ yh))
+        r = float(np.corrcoef(yh, y)[0, 1])
+        if abs(r) >= _CORRELATION_MIN and (c < 0 or not 1 / _SCALE_LIMIT <= c <= _SCALE_LIMIT):
+            found.append((what, name, idx, c, r))
+    kinds_off = [f for f in found if f[0] == "kind"]
+    if len(kinds_off) > 1 and len(kinds_off) == len({s.kind for s in layout}):
+        # every kind disagrees with the others: mirror images of one mistake; keep the best-explained
+        kinds_off = [min(kinds_off, key=lambda f: _misfit(f[3]))]
+    off_kinds = {f[1] for f in kinds_off}
+    notes = []
+    for what, name, idx, c, r in kinds_off + [f for f in found if f[0] == "channel"]:
+        if what == "channel" and kinds[idx[0]] in off_kinds:
+            continue                             # the whole kind is off: said once
+        label = f"the {name} channels" if what == "kind" else f"channel {name}"
+        notes.append(f"{label} read {c:.3g} times what the other sensors imply (correlation {r:.2f}): "
+                     f"this looks like {_guess(c)}")
+    return notes
