@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 
 import numpy as np
 
@@ -175,6 +176,8 @@ def _locate(args):
             d["true_node"] = int(scenario.impact[0])
             d["true_peak_force"] = float(scenario.true_force[np.argmax(np.abs(scenario.true_force))])
         print(json.dumps(d))
+        for w in result.warnings:
+            print(f"akf: warning: {w}", file=sys.stderr)
         return 0
     print(f"{name}: {len(result.scan.splits)} role splits x {len(result.scan.locations)} candidate locations")
     print("  rank  node    mean AD error    spread   votes")
@@ -189,6 +192,8 @@ def _locate(args):
         print(f"  covariance tuning: AD error {d['ad_error_before_tuning']:.4f} -> {d['ad_error_after_tuning']:.4f}")
     if scenario is not None:
         print(f"  truth: node {scenario.impact[0]}, peak {np.max(np.abs(scenario.true_force)) / 1e3:.3f} kN")
+    for w in result.warnings:
+        print(f"  WARNING: {w}")
     print("  time: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.seconds.items()))
     for k, v in files.items():
         print(f"  wrote {k}: {v}")

@@ -35,6 +35,11 @@ class LocateResult:
     def identified(self):
         return self.scan.identified
 
+    @property
+    def warnings(self):
+        """Why a result should be read with care (list of str): low confidence, tuning at a bound."""
+        return list(self.scan.warnings) + (self.tuning.warnings if self.tuning is not None else [])
+
     def to_dict(self):
         """JSON-ready summary: identified node, confidence, margin, force characteristics, ranking."""
         node, d = self.scan.identified
@@ -42,7 +47,7 @@ class LocateResult:
                "margin": self.scan.margin if np.isfinite(self.scan.margin) else None,
                **self.reconstruction.summary.as_dict(),
                "covariances": (self.tuning.covariances if self.tuning else self.scan.covariances).as_dict(),
-               "ranking": self.scan.ranking(), "seconds": self.seconds}
+               "ranking": self.scan.ranking(), "warnings": self.warnings, "seconds": self.seconds}
         if self.tuning is not None:
             out["ad_error_before_tuning"] = self.tuning.initial_error
             out["ad_error_after_tuning"] = self.tuning.tuned_error

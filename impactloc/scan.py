@@ -193,9 +193,13 @@ class ScanResult:
     summary : DataFrame, one row per location, best first: ``mean``, ``std``, ``n_splits``,
         ``votes`` (share of splits whose own best location it is), ``rank``.
     identified : (node, direction) of the lowest mean (spread as tie-breaker)
-    confidence : float -- share of the splits that pick the identified location on their own
+    confidence : float -- share of the splits that pick the identified location on their own,
+        scaled down when even the best location explains the AD data poorly (mean relative AD
+        error above 0.5, down to 0 at 1: no better than predicting zero), and 0 with a single
+        candidate (nothing to compare)
     margin : float -- (runner-up mean - best mean) / pooled std of the two: separation in
         units of the spread; small (< ~1) means two locations are hard to tell apart
+    warnings : list of str -- why the confidence is low, in plain language
     """
 
     frame: object
@@ -207,6 +211,7 @@ class ScanResult:
     locations: list = field(default_factory=list)
     splits: list = field(default_factory=list)
     covariances: Covariances = None
+    warnings: list = field(default_factory=list)
 
     def ranking(self):
         """``[{"node", "direction", "mean", "std"}, ...]``, best first."""
@@ -322,11 +327,26 @@ def _summarise(layout, locs, splits, rel, ab, covariances):
     summary["rank"] = np.arange(1, len(summary) + 1)
     best = summary.iloc[0]
     identified = (int(best.node), best.direction)
+    notes = []
+    fit = float(np.clip((1.0 - best["mean"]) / (1.0 - _WELL_EXPLAINED), 0.0, 1.0))
+    confidence = float(best["votes"]) * fit
     if len(summary) > 1:
         second = summary.iloc[1]
         pooled = math.sqrt(0.5 * (best["std"] ** 2 + second["std"] ** 2))
         margin = float((second["mean"] - best["mean"]) / pooled) if pooled > 0 else math.inf
     else:
         margin = math.inf
-    return ScanResult(frame, summary, identified, float(best["votes"]), margin, err, list(locs), list(splits),
-                      covariances)
+        confidence = 0.0
+        notes.append("only one candidate location: nothing to compare it with, so the data cannot confirm it "
+                     "(confidence 0); give several candidates to locate an impact")
+    if best["mean"] > _WELL_EXPLAINED:
+        notes.append(f"no candidate explains the data well: the best one (node {identified[0]}) leaves a mean relative "
+                     f"AD error of {best['mean']:.2f} (1 = no better than predicting zero); the impact may lie outside "
+                     "the candidates, or the model, sensors or data do not match")
+    return ScanResult(frame, summary, identified, confidence, margin, err, list(locs), list(splits),
+                      covariances, notes)
+
+
+#: a location whose AD predictions leave at most this relative error explains the data well
+#: (the IMP cases leave 0.04-0.24); above it the confidence is scaled down to 0 at an error of 1
+_WELL_EXPLAINED = 0.5

@@ -41,6 +41,8 @@ class TuningResult:
     initial_error, tuned_error : mean relative AD error with the starting / tuned levels
     logbook : DataFrame, one row per generation (best, mean, std, evaluations, seconds)
     genes : names of the tuned log10 levels
+    at_bound : {gene: "lower"|"upper"} for tuned levels on (within 1 % of the range of) a search
+        bound: the optimum may lie beyond it; widen ``decades`` or move the starting levels
     """
 
     covariances: Covariances
@@ -48,6 +50,18 @@ class TuningResult:
     tuned_error: float
     logbook: object
     genes: list = field(default_factory=list)
+    at_bound: dict = field(default_factory=dict)
+
+    @property
+    def warnings(self):
+        """Plain-language warnings (list of str): levels tuned to a search bound."""
+        def level(gene):
+            c = self.covariances
+            return c.noise[gene[len("noise_"):]] if gene.startswith("noise_") else getattr(c, gene)
+
+        return [f"covariance tuning stopped at the {side} search bound of {gene} ({level(gene):.3g}); the best "
+                "level may lie beyond it: widen tuning.decades or start from other levels"
+                for gene, side in self.at_bound.items()]
 
 
 def _to_covariances(x, names, start):
@@ -171,5 +185,8 @@ def tune_covariances(structure, sensors, measurements, dt, location, splits, *, 
     finally:
         random.setstate(state)
     best = tools.selBest(pop, 1)[0]
+    edge = 0.01 * (hi - lo)
+    at_bound = {g: ("lower" if v <= l + e else "upper") for g, v, l, h, e in zip(names, best, lo, hi, edge)
+                if v <= l + e or v >= h - e}
     return TuningResult(_to_covariances(list(best), names, start), float(initial_error), float(best.fitness.values[0]),
-                        pd.DataFrame(rows), names)
+                        pd.DataFrame(rows), names, at_bound)
