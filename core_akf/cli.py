@@ -7,25 +7,12 @@ import os
 import sys
 
 from .exceptions import AKFInputError, UndetectableError
+from .jobs import load_job_file
 from .outputs import OutputFolder, write_csv
 
 
 #: above this many (channel x step) rows, "all" strain histories are not written to the CSV
 _MAX_STRAIN_ROWS = 2_000_000
-
-
-def _load_toml(path):
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python < 3.11
-        import tomli as tomllib
-    if not os.path.exists(path):
-        raise AKFInputError(f"job file {path!r} not found")
-    with open(path, "rb") as fh:
-        try:
-            return tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise AKFInputError(f"{path}: not valid TOML: {exc}") from None
 
 
 def _plot(result, path):
@@ -84,7 +71,7 @@ def _estimate(args):
         return 0
     if (args.job is None) == (args.example is None):
         raise AKFInputError("give a job file or --example NAME (see --list-examples)")
-    job = example_job(args.example) if args.example else _load_toml(args.job)
+    job = example_job(args.example) if args.example else load_job_file(args.job)
     meas = job.get("measurements")
     if args.job and isinstance(meas, dict) and "file" in meas and not os.path.isabs(meas["file"]):
         meas["file"] = os.path.join(os.path.dirname(os.path.abspath(args.job)), meas["file"])  # relative to the job file

@@ -57,15 +57,34 @@ _LOADS = {
 }
 
 
+def load_job_file(path):
+    """A job (dict) from a TOML file, with clear errors for a missing, folder or invalid file."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python < 3.11
+        import tomli as tomllib
+    if not os.path.exists(path):
+        raise AKFInputError(f"job file {path!r} not found")
+    if os.path.isdir(path):
+        raise AKFInputError(f"job file {path!r} is a folder; give the TOML file")
+    with open(path, "rb") as fh:
+        try:
+            return tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise AKFInputError(f"{path}: not valid TOML: {exc}") from None
+
+
 def build_structure(spec):
     """A Structure from ``{"model": name, **arguments}``."""
     spec = dict(spec)
     name = spec.pop("model", None)
-    if name not in _MODELS:
+    if not isinstance(name, str) or name not in _MODELS:
         raise AKFInputError(f"structure.model must be one of {sorted(_MODELS)}, got {name!r}")
     try:
         return _MODELS[name](**spec)
-    except TypeError as exc:
+    except AKFInputError:
+        raise
+    except (TypeError, ValueError) as exc:
         raise AKFInputError(f"bad arguments for structure model {name!r}: {exc}") from None
 
 

@@ -38,9 +38,9 @@ import sys
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
 from core_akf import jobs as J
-from core_akf.jobs import check_keys, check_sections
+from core_akf.exceptions import AKFInputError
+from core_akf.jobs import check_keys, check_sections, load_job_file
 from core_akf.outputs import OutputFolder, write_csv
 
 LOCATE_KEYS = {
@@ -158,11 +158,9 @@ def _locate(args):
                         n_jobs=args.n_jobs, seed=args.seed, progress=progress)
         name = f"{args.example}-node{scenario.impact[0]}-{args.noise}"
     else:
-        from core_akf.cli import _load_toml
-
         if args.impact_node is not None:
             raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")
-        job = _load_toml(args.job)
+        job = load_job_file(args.job)
         result = run_locate_job(job, os.path.dirname(os.path.abspath(args.job)), n_jobs=args.n_jobs,
                                    seed=args.seed, progress=progress, tune=False if args.no_tune else None)
         name = job.get("name", os.path.splitext(os.path.basename(args.job))[0])

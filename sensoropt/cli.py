@@ -29,6 +29,7 @@ import json
 import os
 
 from core_akf.exceptions import AKFInputError
+from core_akf.jobs import load_job_file
 from core_akf.outputs import OutputFolder, write_csv
 
 
@@ -45,9 +46,7 @@ def _place(args):
     if args.example:
         problem, ga = example_problem(args.example, args.sensors), {}
     else:
-        from core_akf.cli import _load_toml
-
-        problem, ga = problem_from_job(_load_toml(args.job))
+        problem, ga = problem_from_job(load_job_file(args.job))
         if args.sensors is not None:
             if problem.budget:
                 raise AKFInputError("--sensors does not apply to a job with a budget per sensor type")
