@@ -53,6 +53,10 @@ def check_positive_definite(mat, name):
         ) from None
 
 
+#: a variance above this (in SI units squared) is a unit mistake: it would overflow the filter
+_MAX_VARIANCE = 1e100
+
+
 def check_covariance(mat, name, definite=False):
     """Check a covariance matrix (or a stack of them, leading batch axes): finite, real, square,
     symmetric and positive semi-definite (``definite=True``: positive definite, as a measurement
@@ -71,6 +75,10 @@ def check_covariance(mat, name, definite=False):
     n = arr.shape[-1]
     flat = arr.reshape(-1, n, n)
     where = (lambda b: f" (batch entry {b})") if arr.ndim > 2 else (lambda b: "")
+    big = np.max(np.abs(arr), initial=0.0)
+    if big > _MAX_VARIANCE:
+        raise AKFInputError(f"{name} has entries up to {big:.3g}: not a physical variance in SI units squared "
+                            f"(above {_MAX_VARIANCE:g}); check the units")
     for b, C in enumerate(flat):
         d = np.diag(C)
         low = int(np.argmin(d)) if n else 0
@@ -87,8 +95,9 @@ def check_covariance(mat, name, definite=False):
             i, j = np.unravel_index(int(np.argmax(asym)), asym.shape)
             raise AKFInputError(f"{name} is not symmetric{where(b)}: entries ({i + 1}, {j + 1}) and ({j + 1}, {i + 1}) "
                                 f"are {C[i, j]:.6g} and {C[j, i]:.6g}")
-        if np.any((scale == 0) & (off != 0)):
-            i, j = np.argwhere((scale == 0) & (off != 0))[0]
+        orphan = (scale == 0) & (np.abs(off) > n * np.finfo(float).eps * np.max(d))
+        if np.any(orphan):
+            i, j = np.argwhere(orphan)[0]
             raise AKFInputError(f"{name} is not positive semi-definite{where(b)}: entry ({i + 1}, {j + 1}) is "
                                 f"{C[i, j]:.3g} although a variance of that pair is 0")
         corr = np.divide(0.5 * (C + C.T), scale, out=np.zeros_like(C), where=scale > 0)

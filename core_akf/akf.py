@@ -1,4 +1,4 @@
-"""Augmented Kalman filter (AKF) with a random-walk force model (DESIGN A3).
+"""Augmented Kalman filter (AKF) with a random-walk force model (Lourens et al. 2012; S17 eq. 14-26, IMP eq. 12-25).
 
 Low level: :func:`run` / :func:`filter_states` work on the augmented matrices and a
 stack (batch) of filters at once.  High level: :func:`estimate` takes a

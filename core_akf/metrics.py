@@ -1,4 +1,4 @@
-"""Error metrics (DESIGN A6)."""
+"""Error metrics (S17 eq. 38, IMP eq. 31, TH eq. 29)."""
 from __future__ import annotations
 
 import numpy as np

@@ -37,14 +37,34 @@ class RiccatiWarning(RuntimeWarning):
     """The doubling solver fell back to scipy for at least one problem."""
 
 
+def _solve_each(S, B):
+    """``S^-1 B`` for a stack; a singular or non-finite problem gives NaN instead of failing the
+    whole stack."""
+    try:
+        return np.linalg.solve(S, B)
+    except np.linalg.LinAlgError:
+        if S.ndim == 2:
+            return np.full(np.broadcast_shapes(S.shape[:-1] + (1,), B.shape), np.nan)
+        out = np.full(np.broadcast_shapes(S.shape[:-2], B.shape[:-2]) + B.shape[-2:], np.nan)
+        for b in range(out.shape[0]):
+            try:
+                out[b] = np.linalg.solve(S[b], B[b] if B.ndim == S.ndim else B)
+            except np.linalg.LinAlgError:
+                pass
+        return out
+
+
 def dare_residual(A, G, Q, R, P):
-    """Relative residual of the filter DARE for each problem in the stack."""
+    """Relative residual of the filter DARE for each problem in the stack (``inf`` where ``P``
+    makes the innovation covariance singular or is not finite)."""
     APGt = A @ P @ np.swapaxes(G, -1, -2)
     S = G @ P @ np.swapaxes(G, -1, -2) + R
-    rhs = A @ P @ np.swapaxes(A, -1, -2) - APGt @ np.linalg.solve(S, np.swapaxes(APGt, -1, -2)) + Q
-    num = np.linalg.norm(rhs - P, axis=(-2, -1))
-    den = np.maximum(np.linalg.norm(P, axis=(-2, -1)), np.finfo(float).tiny)
-    return num / den
+    with np.errstate(all="ignore"):
+        rhs = A @ P @ np.swapaxes(A, -1, -2) - APGt @ _solve_each(S, np.swapaxes(APGt, -1, -2)) + Q
+        num = np.linalg.norm(rhs - P, axis=(-2, -1))
+        den = np.maximum(np.linalg.norm(P, axis=(-2, -1)), np.finfo(float).tiny)
+        res = num / den
+    return np.where(np.isfinite(res), res, np.inf)
 
 
 def _scale(A, G, Q):
@@ -133,7 +153,8 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
                 idx = np.flatnonzero(ok & (res > _RESIDUAL_POLISH))
                 if not idx.size:
                     break
-                P_new = newton_step(A[idx], G[idx], Q[idx], R[idx], P[idx])
+                with np.errstate(all="ignore"):
+                    P_new = newton_step(A[idx], G[idx], Q[idx], R[idx], P[idx])
                 finite = np.all(np.isfinite(P_new), axis=(-2, -1))
                 res_new = np.full(idx.size, np.inf)
                 if np.any(finite):
@@ -160,8 +181,9 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
                 raise RiccatiError(
                     f"no accurate stabilising steady-state gain for problem(s) {failed.tolist()} of the batch "
                     f"(relative DARE residual {worst:.2g} after doubling, Newton polishing and scipy; accepted "
-                    f"below {_RESIDUAL_OK:g}); the sensor set is probably undetectable or nearly so -- run the "
-                    "time-varying filter (steady=False) to see the drift", problems=failed)
+                    f"below {_RESIDUAL_OK:g}); the sensor set is probably undetectable or nearly so, or the covariance "
+                    "levels are far from the data's scale (check model_error_cov, force_increment_cov and "
+                    "noise_cov) -- run the time-varying filter (steady=False) to see the drift", problems=failed)
     return P.reshape(batch + (n, n))
 
 
@@ -199,7 +221,7 @@ def newton_step(A, G, Q, R, P):
     n = A.shape[-1]
     Gt = np.swapaxes(G, -1, -2)
     S = G @ P @ Gt + R
-    K = np.swapaxes(np.linalg.solve(S, G @ P), -1, -2)
+    K = np.swapaxes(_solve_each(S, G @ P), -1, -2)
     F = A @ (np.eye(n) - K @ G)
     AK = A @ K
     W = F @ P @ np.swapaxes(F, -1, -2) + AK @ R @ np.swapaxes(AK, -1, -2) + Q

@@ -9,7 +9,7 @@ A :class:`Sensor` is addressed by user ids, 1-based as in the papers:
 
 The short string form used in job files is ``"acc:4:y"``, ``"strain:5"`` (truss member),
 ``"strain:70:ex"`` (plate).  :func:`selection_matrices` turns a layout into the
-``S_a, S_v, S_d, S_s`` matrices of DESIGN A2 in a structure's generalised coordinates.
+``S_a, S_v, S_d, S_s`` matrices of S17 eq. 27-30 in a structure's generalised coordinates.
 """
 from __future__ import annotations
 
@@ -107,7 +107,7 @@ def as_layout(sensors):
 
 
 def selection_matrices(structure, sensors):
-    """The observation selection matrices of DESIGN A2 for a layout.
+    """The observation selection matrices of S17 eq. 27-30 for a layout.
 
     Returns
     -------

@@ -1,6 +1,6 @@
 """State space of a structure with unknown inputs: continuous model, zero-order-hold
 discretisation, heterogeneous observation matrices ``G``/``D``, augmentation with a
-random-walk force model and the PBH detectability test (DESIGN A1-A4).
+random-walk force model and the PBH detectability test (S17 §2 and eq. 14-30, IMP eq. 12-30).
 
 Everything that derives these matrices lives here; the filter, the simulator and the
 optimisers call these functions instead of re-deriving them.
@@ -99,7 +99,7 @@ def van_loan(A_c, Q_c, dt):
 
 
 def observation(structure, sensors, forces):
-    """``G`` (n_m x 2n) and ``D`` (n_m x n_p) of ``y = G x + D f`` (DESIGN A2).
+    """``G`` (n_m x 2n) and ``D`` (n_m x n_p) of ``y = G x + D f`` (S17 eq. 27-30, IMP eq. 26-30).
 
     ``G = [S_s + S_d - S_a M^-1 K, S_v - S_a M^-1 C]``, ``D = S_a M^-1 S_p``.
     """
@@ -113,7 +113,7 @@ def observation(structure, sensors, forces):
 
 
 def augment(A, B, G, D):
-    """Augmented matrices for the random-walk force model (DESIGN A3).
+    """Augmented matrices for the random-walk force model (Lourens et al. 2012; S17 eq. 14-26).
 
     ``A_a = [[A, B], [0, I]]`` and ``G_a = [G, D]``.
     """
@@ -260,7 +260,7 @@ def _describe_combination(locs, combo):
 
 
 def detectability(structure, sensors, forces):
-    """PBH detectability of the augmented system for a sensor layout (DESIGN A4).
+    """PBH detectability of the augmented system for a sensor layout (S17 §2.4).
 
     The pair ``(A_ac, H_ac)`` with ``A_ac = [[A_c, B_c], [0, 0]]`` and ``H_ac = [G, D]`` is
     detectable iff ``[[sI - A_ac], [H_ac]]`` has full column rank at every eigenvalue with

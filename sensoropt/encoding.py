@@ -1,4 +1,4 @@
-"""Layout encoding for the placement GA on a rectangular plate mesh (TH §4, DESIGN A8).
+"""Layout encoding for the placement GA on a rectangular plate mesh (TH §4).
 
 A sensor is a gene triple ``(ix, iy, kind)`` -- grid column and row (1-based, node number
 ``(iy - 1)(nx + 1) + ix``) and kind ``"ex"``, ``"ey"``, ``"gxy"`` (strain components) or

@@ -1,4 +1,12 @@
-"""The AKF against independent implementations: a textbook loop, filterpy, scipy's DARE."""
+"""The AKF against independent implementations: a textbook loop, filterpy, scipy's DARE.
+
+Tolerances: two filters that differ only in the order of their floating-point operations
+agree to about ``eps * kappa * sqrt(N)`` relative, with ``kappa`` the condition number of the
+innovation covariance (< 1e3 for these random systems) and ``N`` the steps (200-600):
+~1e-12, asserted at 1e-10.  Riccati solutions are compared at the DARE's sensitivity
+(``eps`` times its condition number, ~1e4-1e6 here): 1e-9 relative, 1e-7 for the stiff S17
+model whose DARE condition number is ~1e8.
+"""
 import warnings
 
 import numpy as np
@@ -94,6 +102,8 @@ def test_steady_state_equals_time_varying_after_transient():
     Y = np.tile(Y, (3, 1))
     tv = akf.run(A, G, Q, R, Y, x0=x0, P0=P0)
     ss = akf.run(A, G, Q, R, Y, x0=x0, steady=True)
+    # the time-varying gain converges geometrically (rate < 0.95 per step): after 400 steps it
+    # equals the steady gain to rounding, which the last 200 steps carry at ~eps * 200 * kappa
     assert np.max(np.abs(tv[-200:] - ss[-200:])) <= 1e-9 * np.max(np.abs(tv))
     assert np.max(np.abs(tv[:5] - ss[:5])) > 1e-6  # the transient really differs
 
@@ -102,7 +112,7 @@ def test_steady_gain_is_limit_of_time_varying_gain():
     A, G, Q, R, Y, x0, P0 = _random_system(8)
     res = akf.filter_states(A, G, Q, R, np.tile(Y, (2, 1)), x0=x0, P0=P0)
     _, L = steady_gain(A, G, Q, R)
-    assert np.allclose(res.gain, L, rtol=1e-8, atol=1e-12)
+    assert np.allclose(res.gain, L, rtol=1e-8, atol=1e-12)   # the switch to the fixed gain happens at 1e-14 change
 
 
 @pytest.mark.parametrize("steady", [False, True])
@@ -117,6 +127,7 @@ def test_batched_equals_one_by_one(steady):
     assert batch.shape == (4, Y.shape[1], A.shape[0])
     for b in range(4):
         one = akf.run(A, G[b], Q, R[b], Y[b], steady=steady)
+        # same operations, batched BLAS calls may block differently: rounding only (~1e-14)
         assert np.allclose(batch[b], one, rtol=1e-12, atol=1e-12 * np.abs(one).max())
 
 
@@ -133,6 +144,8 @@ def test_estimate_batch_equals_estimate():
         batch = akf.estimate_batch(s, layouts, forces, Ys, dt, steady=steady, **kw)
         for l, y, b in zip(layouts, Ys, batch):
             one = akf.estimate(s, l, forces, y, dt, steady=steady, **kw)
+            # rounding of batched vs single BLAS calls through a 66-state model: 1e-10 relative;
+            # atol = 1e-10 of the forces' scale (~100 N) and of the strains' (~1e-8)
             assert np.allclose(b.forces, one.forces, rtol=1e-10, atol=1e-8)
             assert np.allclose(b.strains, one.strains, rtol=1e-10, atol=1e-18)
 
@@ -149,7 +162,7 @@ def test_perfect_model_no_noise_recovers_force_and_strains():
                        force_increment_cov=1e3, noise_cov=np.diag(sim.noise_std ** 2), steady=True)
     tail = slice(N // 4, None)
     err = np.sqrt(np.mean((est.forces[tail, 0] - loads[tail, 0]) ** 2))
-    assert err < 0.02 * 2000
+    assert err < 0.02 * 2000          # noise 1e-4 and a perfect model: the filter's lag dominates (~0.5 %)
     strain_err = np.sqrt(np.mean((est.strains[tail] - sim.strains[tail]) ** 2, axis=0))
     assert np.max(strain_err) < 0.02 * np.max(np.abs(sim.strains))
     # estimated response at an unused sensor follows the truth as well
@@ -171,6 +184,7 @@ def test_lti_recursion_equals_step_loop():
     for k in range(1, N):
         x = np.einsum("bij,bj->bi", F, x) + U[:, k]
         ref[:, k] = x
+    # spectral radius 0.97: rounding grows at most like 1 / (1 - 0.97) = 33 eps per step -> ~1e-14
     assert np.allclose(akf.lti_recursion(F, U, x0), ref, rtol=1e-11, atol=1e-11)
     for path in (akf._recursion_stepwise, akf._recursion_chunked):
         assert np.allclose(path(F, U, x0), ref, rtol=1e-11, atol=1e-11)
@@ -190,6 +204,8 @@ def test_time_varying_gain_switch_is_exact_on_s17():
     full = akf.filter_states(ss.A_a, ss.G_a, Q, R, Y, switch_tol=0)
     fast = akf.filter_states(ss.A_a, ss.G_a, Q, R, Y)
     diff = np.abs(fast.states - full.states)
+    # the switch happens at a relative covariance change of 1e-14; through a gain of condition
+    # ~1e4 and 8192 steps that is < 1e-9 of the states
     assert diff.max() < 1e-9 * np.abs(full.states).max()
     assert np.max(diff / np.abs(full.states).max(axis=0)) < 1e-8  # every state, on its own scale
     chan = np.abs(full.innovations).max(axis=0)
@@ -208,12 +224,13 @@ def test_reduced_model_estimate_close_to_full_on_th_case3():
     full = run_job(job).metrics["avg_strain_error"]
     job["filter"]["reduce_modes"] = 80
     reduced = run_job(job).metrics["avg_strain_error"]
-    assert reduced == pytest.approx(full, rel=0.05)
+    assert reduced == pytest.approx(full, rel=0.05)    # truncation error of 80 modes (measured 0.3 %)
 
 
 def test_reduced_structure_projection_inverts_basis():
     from core_akf.models import th_plate
     r = th_plate().reduce(15)
+    # Phi^T M Phi = I from eigh: orthogonality to eps * cond(M) (~1e-13)
     assert np.allclose(r.projection @ r.basis, np.eye(15), atol=1e-10)
     rr = r.reduce(5)
     assert np.allclose(rr.projection @ rr.basis, np.eye(5), atol=1e-10)
@@ -224,7 +241,7 @@ def test_riccati_falls_back_to_scipy_with_a_warning():
     A, G, Q, R, *_ = _random_system(9, n=6, m=2)
     with pytest.warns(RiccatiWarning, match="falling back"):
         P = solve_filter_dare(A, G, Q, R, max_iter=1)
-    assert np.allclose(P, scipy.linalg.solve_discrete_are(A.T, G.T, Q, R), rtol=1e-9)
+    assert np.allclose(P, scipy.linalg.solve_discrete_are(A.T, G.T, Q, R), rtol=1e-9)   # DARE condition ~1e4
 
 
 def test_riccati_batch_of_mixed_problems():
@@ -273,12 +290,14 @@ def test_structured_time_varying_update_equals_dense():
     rng = np.random.default_rng(0)
     P = rng.normal(size=(62, 62))
     P = P @ P.T
+    # two orderings of the same 62 x 62 products: rounding ~ 62 eps
     assert np.allclose(tr.propagate(P, np.eye(62)), A_a @ P @ A_a.T + np.eye(62), rtol=1e-12, atol=1e-12)
     Y = rng.normal(size=(300, 3)) * np.array([1e-6, 1e-6, 1.0])
     Q = np.diag(np.r_[np.full(60, 1e-10), 1e-2, 1e-2])
     R = np.diag([1e-14, 1e-14, 1e-3])
     dense = akf.filter_states(A_a, G_a, Q, R, Y, switch_tol=0)
     fast = akf.filter_states(A_a, G_a, Q, R, Y, switch_tol=0, transition=tr)
+    # 300 steps of rounding differences through gains of condition ~1e6 (strain vs acceleration)
     assert np.allclose(fast.states, dense.states, rtol=1e-9, atol=1e-9 * np.abs(dense.states).max())
 
 
@@ -298,6 +317,8 @@ def test_estimate_with_non_classical_damping_uses_the_dense_path():
     kw = dict(model_error_cov=1e-16, force_increment_cov=1e5, noise_cov=np.diag(sim.noise_std ** 2))
     ss = akf.estimate(s2, sensors, ["8:y"], sim.measurements, 1 / 2048, steady=True, **kw)
     tv = akf.estimate(s2, sensors, ["8:y"], sim.measurements, 1 / 2048, steady=False, **kw)
+    # after 2000 steps the time-varying gain has converged to ~1e-7 (slowest pole of the error
+    # dynamics ~0.99); the last 1000 steps then agree to that
     assert np.allclose(ss.forces[-1000:], tv.forces[-1000:], rtol=1e-6, atol=1e-6 * np.abs(tv.forces).max())
     assert np.sqrt(np.mean((ss.forces[500:, 0] - loads[500:, 0]) ** 2)) < 0.5 * 500
 
@@ -321,6 +342,7 @@ def test_stein_doubling_matches_scipy_lyapunov():
     F *= 0.98 / np.max(np.abs(np.linalg.eigvals(F)))
     E = rng.normal(size=(7, 7))
     E = E @ E.T
+    # spectral radius 0.98: Stein condition ~1 / (1 - 0.98^2) = 25, both solvers to ~1e-14
     assert np.allclose(stein_doubling(F, E), scipy.linalg.solve_discrete_lyapunov(F, E), rtol=1e-9)
 
 
