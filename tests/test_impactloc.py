@@ -49,6 +49,8 @@ def test_batched_steady_scan_equals_time_varying_filter_one_at_a_time(truss1):
             est = estimate(s, se, [loc], Y[:, list(sp.se)], dt, model_error_cov=cov.model_error,
                            force_increment_cov=cov.force_increment, noise_cov=cov.noise, steady=False)
             ref = rms_error(est.response(ad)[skip:], Y[skip:, list(sp.ad)])
+            # steady vs time-varying filter after 0.5 s: the gain has converged to ~1e-8, and the
+            # reduced and the full model differ by rounding only (n_modes=None)
             np.testing.assert_allclose(ab[0, j], ref, rtol=1e-6)
 
 

@@ -60,4 +60,4 @@ def test_s17_steady_equals_time_varying_case4():
     job = example_job("s17-case4")
     tv = run_job(job, steady=False)
     ss = run_job(job, steady=True)
-    assert np.allclose(_rms(tv), _rms(ss), rtol=0.01)
+    assert np.allclose(_rms(tv), _rms(ss), rtol=0.01)   # they differ only in the transient (~1 % of 2 s)

@@ -62,7 +62,7 @@ def test_reduced_objective_within_5_percent_of_full_model_on_case3_layout():
     enc = Encoding(p.structure, kinds=("ex", "ey", "gxy", "acc"), n_sensors=3)
     full = StrainErrorObjective(p.structure, p.forces, p.loads, p.dt, enc, n_modes=None).evaluate([TH_CASE3])[0]
     red = StrainErrorObjective(p.structure, p.forces, p.loads, p.dt, enc).evaluate([TH_CASE3])[0]  # auto: 100 modes
-    assert red == pytest.approx(full, rel=0.05)
+    assert red == pytest.approx(full, rel=0.05)    # modal truncation error (measured 1.3 %)
 
 
 def test_ga_finds_the_exhaustive_optimum(small):
@@ -73,7 +73,7 @@ def test_ga_finds_the_exhaustive_optimum(small):
     for seed in (0, 1, 2):
         res = place(obj, enc, population=30, generations=40, stall_generations=0, seed=seed)
         assert res.best == best, (seed, enc.sensors(res.best), enc.sensors(best))
-        assert res.best_error == pytest.approx(values.min(), rel=1e-12)
+        assert res.best_error == pytest.approx(values.min(), rel=1e-12)   # same layout, batched differently: rounding
         assert res.evaluations < 0.6 * len(all_layouts)        # the cache and the search save work
 
 

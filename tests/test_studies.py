@@ -123,6 +123,7 @@ def test_flexible_plate_first_frequency_matches_plate_strip_theory():
     p = TH_FLEXIBLE_PLATE
     D = p["E"] * p["thickness"] ** 3 / (12 * (1 - p["nu"] ** 2))
     f1 = 1.8751 ** 2 / (2 * np.pi) * np.sqrt(D / (p["rho"] * p["thickness"])) / p["ly"] ** 2
+    # plate strip vs Euler-Bernoulli cantilever: Poisson's ratio and the 10 x 10 mesh, ~2 %
     assert build_structure(p).frequencies(1)[0] == pytest.approx(f1, rel=0.03)
 
 
