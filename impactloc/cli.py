@@ -83,6 +83,7 @@ def _covariances(spec):
 def run_locate_job(job, job_dir=".", n_jobs=1, seed=0, progress=False, tune=None):
     """Run a locate job (dict from TOML); returns the :class:`~impactloc.locate.LocateResult`."""
     from core_akf.jobs import build_structure, read_measurements
+    from core_akf.sensors import selection_matrices
 
     from .locate import locate
 
@@ -95,6 +96,7 @@ def run_locate_job(job, job_dir=".", n_jobs=1, seed=0, progress=False, tune=None
     if not os.path.isabs(path):
         path = os.path.join(job_dir, path)
     dt = float(job["dt"])
+    selection_matrices(structure, job["sensors"])     # every sensor exists on this structure
     Y = read_measurements(path, job["sensors"], dt, meas.get("time_column", "time"))
     spec = job["locate"]
     n_modes = spec.get("n_modes", "auto")

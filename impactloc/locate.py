@@ -16,6 +16,15 @@ from .scan import ImpactModel, candidate_locations, default_covariances, scan
 from .tuning import tune_covariances
 
 
+#: units of the numbers in :meth:`LocateResult.to_dict` (and ``akf locate --json``)
+LOCATE_UNITS = {"confidence": "share of role splits (0-1)", "margin": "runner-up distance in pooled spreads",
+                "peak_force": "N", "time_of_peak": "s", "duration": "s", "impulse": "N s",
+                "ranking.mean": "relative RMS error at the AD sensors", "ranking.std": "relative RMS error",
+                "covariances": "model_error m^2 (per step), force_increment N^2 (per step), noise SI^2",
+                "ad_error_before_tuning": "relative RMS error", "ad_error_after_tuning": "relative RMS error",
+                "seconds": "s"}
+
+
 @dataclass
 class LocateResult:
     """Outcome of :func:`locate`.
@@ -47,7 +56,8 @@ class LocateResult:
                "margin": self.scan.margin if np.isfinite(self.scan.margin) else None,
                **self.reconstruction.summary.as_dict(),
                "covariances": (self.tuning.covariances if self.tuning else self.scan.covariances).as_dict(),
-               "ranking": self.scan.ranking(), "warnings": self.warnings, "seconds": self.seconds}
+               "ranking": self.scan.ranking(), "warnings": self.warnings, "seconds": self.seconds,
+               "units": LOCATE_UNITS}
         if self.tuning is not None:
             out["ad_error_before_tuning"] = self.tuning.initial_error
             out["ad_error_after_tuning"] = self.tuning.tuned_error

@@ -92,7 +92,9 @@ def _run_place(args, problem, settings, out):
                           "window_error": res.best_error, "generations": int(res.logbook["generation"].iloc[-1]),
                           "evaluations": res.evaluations, "cache_hits": res.cache_hits, "infeasible": res.infeasible,
                           "stopped": res.stopped, "seconds": float(res.logbook["seconds"].iloc[-1]),
-                          "reference_errors": refs, "files": files}))
+                          "reference_errors": refs, "files": files,
+                          "units": {"error": "µε (average RMS strain error, full record)", "window_error": "µε",
+                                    "reference_errors": "µε", "seconds": "s"}}))
         return 0
     print(f"{problem.name}: {enc.n_sensors} sensors from {len(enc.candidates)} admissible positions "
           f"({', '.join(enc.kinds)}), seed {args.seed}")

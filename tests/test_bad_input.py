@@ -257,6 +257,11 @@ CLI_CASES = {
     "locate --n-jobs 0": (lambda tp: ["locate", "--example", "imp-truss-case1", "--n-jobs", "0", "--out", str(tp)],
                           "--n-jobs must be a positive number"),
     "unknown example": (lambda tp: ["estimate", "--example", "nope"], "unknown example 'nope'"),
+    "locate: strain:99 on measured data": (lambda tp: ["locate", _write_job(tp, 'dt = 0.001\nsensors = ["strain:5", '
+                                                                     '"strain:99", "acc:8:y"]\n[structure]\nmodel = '
+                                                                     '"s17_truss"\n[locate]\nn_ad = 1\ndirection = "y"\n'
+                                                                     '[measurements]\nfile = "x.csv"\n'),
+                                                       "--out", str(tp / "o")], "unknown member 99"),
 }
 
 
@@ -381,3 +386,29 @@ def test_any_array_shape_gives_a_result_or_a_clear_error(n, m, N, batch, wrong):
         assert str(exc)
     else:
         assert X.shape[-1] == n and np.all(np.isfinite(X))
+
+
+def test_locate_confidence_is_honest():
+    """One candidate: nothing to compare (confidence 0). Data that no candidate explains (noise):
+    confidence 0, not the share of votes; a warning says why."""
+    from impactloc.examples import example_scenario
+    from impactloc.locate import locate
+    sc = example_scenario("imp-truss-case1")
+    kw = dict(n_ad=sc.n_ad, ad_kinds=sc.ad_kinds, direction=sc.direction, tune=False)
+    one = locate(sc.structure, sc.sensors, sc.measurements, sc.dt, candidates=[14], **kw)
+    assert one.scan.confidence == 0.0 and "only one candidate" in one.warnings[0]
+    noise = np.random.default_rng(0).normal(size=sc.measurements.shape) * sc.measurements.std(axis=0)
+    res = locate(sc.structure, sc.sensors, noise, sc.dt, **kw)
+    assert res.scan.confidence == 0.0 and "no candidate explains the data" in res.warnings[0]
+    good = locate(sc.structure, sc.sensors, sc.measurements, sc.dt, **kw)
+    assert good.identified == (14, "y") and good.scan.confidence == 1.0 and not good.warnings
+
+
+def test_tuning_at_a_search_bound_is_reported():
+    from impactloc.examples import example_scenario
+    from impactloc.locate import locate
+    sc = example_scenario("imp-truss-case1")
+    res = locate(sc.structure, sc.sensors, sc.measurements, sc.dt, n_ad=sc.n_ad, ad_kinds=sc.ad_kinds,
+                 direction=sc.direction, tuning={"decades": 0.3, "generations": 3, "population": 6})
+    assert res.tuning.at_bound
+    assert any("search bound" in w for w in res.warnings)
