@@ -46,6 +46,11 @@ SAFETY = 10.0
 #: the noise of the best one, which no filter can use
 RANK_FLOOR = 1e-9
 
+#: an eigenvalue of ``A_c`` whose real part is above ``-CRITICAL_RTOL |s|`` counts as on the
+#: imaginary axis (an undamped mode): real damping ratios are >= 1e-4, while the damping computed
+#: for an undamped model is at rounding level (<= 1e-12 of the frequency)
+CRITICAL_RTOL = 1e-9
+
 
 def _cache(structure):
     return structure.__dict__
@@ -97,6 +102,17 @@ def zero_rows(mat):
     return np.max(mat, axis=1, initial=0.0) <= SAFETY * MODEL_RTOL * scale
 
 
+def _unit_scale(mat):
+    """``mat`` with its rows, then its columns scaled to unit 2-norm (zero ones left alone), and
+    the row and column scales: strain rows are O(1e-9) per N, acceleration rows O(omega^2), so an
+    unscaled rank test would be meaningless."""
+    r = np.linalg.norm(mat, axis=1)
+    r[r == 0] = 1.0
+    c = np.linalg.norm(mat / r[:, None], axis=0)
+    c[c == 0] = 1.0
+    return mat / r[:, None] / c[None, :], r, c
+
+
 @dataclass
 class StaticGain:
     """Static gain from unit forces to sensors with its rounding bound.
@@ -137,11 +153,7 @@ class StaticGain:
             if np.any(H):
                 combo = np.linalg.svd(H)[2][-1]
             return 0.0, combo, False
-        r = np.linalg.norm(H, axis=1)
-        r[r == 0] = 1.0
-        c = np.linalg.norm(H / r[:, None], axis=0)
-        c[c == 0] = 1.0
-        scaled = H / r[:, None] / c[None, :]
+        scaled, r, c = _unit_scale(H)
         _, sv, vh = np.linalg.svd(scaled)
         err = SAFETY * np.linalg.norm(self.bound / r[:, None] / c[None, :])   # Frobenius >= 2-norm
         combo = vh[-1] / c
@@ -171,12 +183,6 @@ def static_gain(structure, S_static, S_p):
     return StaticGain(H, bound)
 
 
-#: an eigenvalue of ``A_c`` whose real part is above ``-CRITICAL_RTOL |s|`` counts as on the
-#: imaginary axis (an undamped mode): real damping ratios are >= 1e-4, while the damping computed
-#: for an undamped model is at rounding level (<= 1e-12 of the frequency)
-CRITICAL_RTOL = 1e-9
-
-
 def column_rank_test(mat):
     """Column-rank decision for a PBH matrix whose rows mix units (strain, acceleration, rows of
     ``sI - A``): rows, then columns scaled to unit 2-norm.
@@ -188,12 +194,7 @@ def column_rank_test(mat):
     matrix counts as deficient below ``SAFETY`` times that, or below ``RANK_FLOOR`` (see there).
     """
     mat = np.asarray(mat)
-    r = np.linalg.norm(mat, axis=1)
-    r[r == 0] = 1.0
-    mat = mat / r[:, None]
-    c = np.linalg.norm(mat, axis=0)
-    c[c == 0] = 1.0
-    _, sv, vh = np.linalg.svd(mat / c[None, :])
+    _, sv, vh = np.linalg.svd(_unit_scale(mat)[0])
     rows, cols = mat.shape
     rel = float(sv[-1] / sv[0]) if sv.size == cols and sv[0] > 0 else 0.0
     tol = max(RANK_FLOOR, SAFETY * MODEL_RTOL * np.sqrt(rows * cols))
