@@ -366,8 +366,8 @@ class Estimate:
     measurements : ndarray (N, m) -- the data the filter ran on (SI)
     innovation_cov : ndarray (m, m) -- predicted innovation covariance ``G_a P G_a^T + R`` of the
         steady-state (or last) prior covariance ``P``, in squared sensor units
-    closed_loop : ndarray (n_a, n_a) -- ``(I - L G_a) A_a`` of the steady-state (or last) gain, in
-        the filter's internal coordinates (its spectral radius sets the filter's transient)
+    filter_matrices : tuple -- ``(A_a, G_a, L)`` in the filter's internal coordinates, with the
+        steady-state (or last) gain ``L``; the closed loop ``(I - L G_a) A_a`` sets the transient
     """
 
     structure: object
@@ -381,7 +381,7 @@ class Estimate:
     detectability: object = field(repr=False, default=None)
     measurements: np.ndarray = field(repr=False, default=None)
     innovation_cov: np.ndarray = field(repr=False, default=None)
-    closed_loop: np.ndarray = field(repr=False, default=None)
+    filter_matrices: tuple = field(repr=False, default=None)
 
     @property
     def predicted(self):
@@ -391,8 +391,9 @@ class Estimate:
     @cached_property
     def transient_time(self):
         """Time constant (s) of the filter's slowest error mode, ``-dt / ln(rho)`` with ``rho`` the
-        spectral radius of :attr:`closed_loop`; ``inf`` if it does not decay."""
-        rho = float(np.max(np.abs(np.linalg.eigvals(self.closed_loop))))
+        spectral radius of the closed loop ``(I - L G_a) A_a``; ``inf`` if it does not decay."""
+        A, G, L = self.filter_matrices
+        rho = float(np.max(np.abs(np.linalg.eigvals(A - L @ (G @ A)))))
         return self.dt / -np.log(rho) if rho < 1 else np.inf
 
     @property
@@ -528,10 +529,9 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     states = res.states @ Ta.T                      # back to physical [u; u'; f]
     gains = Ta @ res.gain                           # gain for the physical state
     S_innov = G_a @ res.P_prior @ np.swapaxes(G_a, -1, -2) + R
-    closed = (np.eye(A_a.shape[0]) - res.gain @ G_a) @ A_a
     return [Estimate(structure, l, locs, float(dt), states[b, :, :nx], states[b, :, nx:],
-                     res.innovations[b], gains[b], reports[b], Y[b], 0.5 * (S_innov[b] + S_innov[b].T), closed[b])
-            for b, l in enumerate(layouts)]
+                     res.innovations[b], gains[b], reports[b], Y[b], 0.5 * (S_innov[b] + S_innov[b].T),
+                     (A_a, G_a[b], res.gain[b])) for b, l in enumerate(layouts)]
 
 
 def estimate(structure, sensors, forces, measurements, dt, *, model_error_cov,
