@@ -57,7 +57,8 @@ def _plot_sensors(result, path, max_channels=8):
         ax.set_ylabel(f"{est.sensors[j].label}\n({UNITS[est.sensors[j].kind]})", fontsize=8)
         ax.legend(loc="upper right", fontsize=7)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle(f"{result.job.get('name', 'AKF estimate')}: measured vs. predicted at the sensors")
+    shown = "" if k == len(est.sensors) else f" (first {k} of {len(est.sensors)})"
+    fig.suptitle(f"{result.job.get('name', 'AKF estimate')}: measured vs. predicted at the sensors{shown}")
     return save_figure(fig, path)
 
 
