@@ -37,7 +37,8 @@ def check_square_symmetric(mat, name, rtol=1e-9):
     scale = np.max(np.abs(mat)) if mat.size else 0.0
     asym = np.max(np.abs(mat - mat.T)) if mat.size else 0.0
     if asym > rtol * max(scale, np.finfo(float).tiny):
-        raise ModelError(f"{name} is not symmetric (max |{name} - {name}^T| = {asym:.3g}, max |{name}| = {scale:.3g})")
+        sym = name.split()[-1]
+        raise ModelError(f"{name} is not symmetric (max |{sym} - {sym}^T| = {asym:.3g}, max |{sym}| = {scale:.3g})")
 
 
 def check_positive_definite(mat, name):
