@@ -85,7 +85,10 @@ def warnings_for(est, sensors=None):
                      "there; check each channel's unit (SI), sign and noise variance")
     duration = est.forces.shape[0] * est.dt
     tau = est.transient_time
-    if duration < TRANSIENT_MULTIPLE * tau:
+    if not np.isfinite(tau):
+        notes.append("the filter's estimation error does not decay (its closed loop has a pole on or outside the "
+                     "unit circle): the estimate drifts; add strain or displacement sensors")
+    elif duration < TRANSIENT_MULTIPLE * tau:
         notes.append(f"the record ({duration:.3g} s) is shorter than {TRANSIENT_MULTIPLE:g} time constants of the "
                      f"filter's transient ({tau:.3g} s): the estimate has not settled; use a longer record or a "
                      "larger force_increment_cov")

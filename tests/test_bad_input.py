@@ -412,3 +412,19 @@ def test_tuning_at_a_search_bound_is_reported():
                  direction=sc.direction, tuning={"decades": 0.3, "generations": 3, "population": 6})
     assert res.tuning.at_bound
     assert any("search bound" in w for w in res.warnings)
+
+
+def test_estimates_say_when_they_cannot_be_trusted():
+    """A forced undetectable run drifts; a record shorter than the filter's transient has not
+    settled; a good run says nothing."""
+    from core_akf.examples import example_job
+    job = example_job("s17-case2")
+    job["simulation"]["duration"] = 0.2
+    res = run_job(job, allow_undetectable=True, steady=False)
+    assert any("does not decay" in w for w in res.metrics["warnings"])
+    job = example_job("s17-case4")
+    job["simulation"]["duration"] = 0.02
+    res = run_job(job)
+    assert any("shorter than 3 time constants" in w for w in res.metrics["warnings"])
+    job["simulation"]["duration"] = 1.0
+    assert run_job(job).metrics["warnings"] == []
