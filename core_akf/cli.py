@@ -158,7 +158,10 @@ def _study(args):
                 desc = f"(unavailable: {exc})"
             print(f"{name:12s} {desc}")
         return 0
-    result = run_study(args.name, out=args.out, quick=args.quick, seed=args.seed)
+    study_module(args.name)                          # an unknown name fails before a folder is made
+    out = args.out or os.path.join("akf-out", "studies", args.name)
+    with OutputFolder(out, "--out"):
+        result = run_study(args.name, out=out, quick=args.quick, seed=args.seed)
     for key, path in result.files.items():
         if key in ("table", "summary"):
             print(f"  wrote {key}: {path}")
