@@ -1,4 +1,6 @@
 """Small input-validation helpers shared by the public functions."""
+import os
+
 import numpy as np
 
 from .exceptions import AKFInputError, ModelError
@@ -122,8 +124,6 @@ def available_memory():
     except OSError:
         pass
     try:
-        import os
-
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
         return None

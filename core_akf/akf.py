@@ -28,8 +28,9 @@ from .statespace import (augment, check_detectable, continuous, diag_levels, mod
                          modal_zoh, observation, zoh)
 
 
-def _batchify(A_a, G_a, Q_a, R, Y):
-    """Validate shapes; return arrays with a leading batch axis and the batch shape."""
+def _batchify(A_a, G_a, Q_a, R, Y, check=True):
+    """Validate shapes (and with ``check`` the covariances); return arrays with a leading batch
+    axis and the batch shape."""
     A_a = as_finite_array(A_a, "A_a", ndim=(2, 3))
     G_a = as_finite_array(G_a, "G_a", ndim=(2, 3))
     Q_a = as_finite_array(Q_a, "Q_a", ndim=(2, 3))
@@ -49,8 +50,9 @@ def _batchify(A_a, G_a, Q_a, R, Y):
         raise AKFInputError(f"R must be {m}x{m} for {m} channels, got {R.shape}")
     if Y.shape[-1] != m:
         raise AKFInputError(f"measurements have {Y.shape[-1]} channels but G_a has {m} rows")
-    check_covariance(Q_a, "process covariance Q_a")
-    check_covariance(R, "measurement-noise covariance R", definite=True)
+    if check:
+        check_covariance(Q_a, "process covariance Q_a")
+        check_covariance(R, "measurement-noise covariance R", definite=True)
     batched = any(x.ndim == 3 for x in (A_a, G_a, Q_a, R, Y))
     if not batched:
         return A_a[None], G_a[None], Q_a[None], R[None], Y[None], False
@@ -269,15 +271,18 @@ def _steady(A, G, Q, R, Y, x):
     return out, innov, L, P
 
 
-def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_tol=1e-14, transition=None):
+def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_tol=1e-14, transition=None,
+                  check=True):
     """Run one AKF or a batch of them; see :func:`run`.  Returns a :class:`FilterResult`.
 
     ``switch_tol``: the time-varying filter continues with its (then constant) gain once its
     covariance changes by less than this, relatively; 0 keeps it time-varying to the end.
     ``transition``: a structured form of a shared ``A_a`` (:class:`ModalBlockTransition`)
     for a cheaper time-varying covariance update.
+    ``check``: check that Q_a, R and P0 are symmetric PSD (R PD); ``False`` for matrices the
+    caller has already checked (as :func:`estimate_batch` does).
     """
-    A, G, Q, Rb, Yb, batched = _batchify(A_a, G_a, Q_a, R, Y)
+    A, G, Q, Rb, Yb, batched = _batchify(A_a, G_a, Q_a, R, Y, check)
     B, n = Yb.shape[0], A.shape[-1]
     if x0 is not None:
         x0 = as_finite_array(x0, "x0")
@@ -288,7 +293,7 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_to
         out, innov, L, P = _steady(A, G, Q, Rb, Yb, x)
     else:
         if P0 is not None:
-            P0 = check_covariance(P0, "initial covariance P0")
+            P0 = check_covariance(P0, "initial covariance P0") if check else np.asarray(P0, float)
             if P0.shape[-2:] != (n, n):
                 raise AKFInputError(f"P0 must be {n}x{n}, got {P0.shape}")
         P = Q.copy() if P0 is None else np.broadcast_to(P0, (B, n, n)).copy()
@@ -522,7 +527,8 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     # classically damped structures are block-diagonal in these coordinates: cheap A P A^T
     transition = None if steady else ModalBlockTransition.detect(A_a, structure.n)
     try:
-        res = filter_states(A_a, G_a, Q_a, R, Y, x0=z0, P0=Pz0, steady=steady, transition=transition)
+        # Q, S, R and P0 were checked as the user gave them; their modal transforms need no second check
+        res = filter_states(A_a, G_a, Q_a, R, Y, x0=z0, P0=Pz0, steady=steady, transition=transition, check=False)
     except RiccatiError as exc:
         names = "; ".join(", ".join(s.label for s in layouts[b]) for b in exc.problems)
         raise RiccatiError(f"steady-state gain failed for the layout(s) [{names}]: {exc}", exc.problems) from None

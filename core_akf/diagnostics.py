@@ -118,10 +118,6 @@ def _closest(c):
     return best, abs(np.log(abs(c) / abs(best[0])))
 
 
-def _misfit(c):
-    return _closest(c)[1]
-
-
 def _guess(c):
     """What a scale factor ``c`` (data / implied by the other sensors) looks like."""
     best, dist = _closest(c)
@@ -163,9 +159,9 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
         if abs(r) >= _CORRELATION_MIN and (c < 0 or not 1 / _SCALE_LIMIT <= c <= _SCALE_LIMIT):
             found.append((what, name, idx, c, r))
     kinds_off = [f for f in found if f[0] == "kind"]
-    if len(kinds_off) > 1 and len(kinds_off) == len({s.kind for s in layout}):
+    if len(kinds_off) > 1 and len(kinds_off) == len(set(kinds)):
         # every kind disagrees with the others: mirror images of one mistake; keep the best-explained
-        kinds_off = [min(kinds_off, key=lambda f: _misfit(f[3]))]
+        kinds_off = [min(kinds_off, key=lambda f: _closest(f[3])[1])]
     off_kinds = {f[1] for f in kinds_off}
     notes = []
     for what, name, idx, c, r in kinds_off + [f for f in found if f[0] == "channel"]:

@@ -129,10 +129,3 @@ def write_csv(frame, path, **kwargs):
         frame.to_csv(tmp, **kwargs)
     return path
 
-
-def write_text(text, path):
-    """Write a text file atomically; returns ``path``."""
-    with atomic_path(path) as tmp:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-    return path

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core_akf.exceptions import AKFInputError
+from core_akf.outputs import atomic_path
 
 #: layouts per fitness batch (fixed: the batch composition must not depend on n_jobs)
 BATCH = 10
@@ -238,12 +239,11 @@ CHECKPOINT_FORMAT = ("akf-toolkit placement checkpoint", 1)
 
 def _save(path, data):
     """Write a checkpoint atomically; the previous one is kept as ``PATH.bak``."""
-    tmp = f"{path}.tmp"
-    with open(tmp, "wb") as fh:
-        pickle.dump(dict(data, format=CHECKPOINT_FORMAT), fh, protocol=pickle.HIGHEST_PROTOCOL)
-    if os.path.exists(path):
-        os.replace(path, f"{path}.bak")
-    os.replace(tmp, path)   # atomic: a kill mid-write leaves the previous checkpoint
+    with atomic_path(path) as tmp:          # a kill mid-write leaves the previous checkpoint
+        with open(tmp, "wb") as fh:
+            pickle.dump(dict(data, format=CHECKPOINT_FORMAT), fh, protocol=pickle.HIGHEST_PROTOCOL)
+        if os.path.exists(path):
+            os.replace(path, f"{path}.bak")
 
 
 def load_checkpoint(path):
