@@ -10,9 +10,9 @@ import time
 import numpy as np
 import scipy.linalg
 
+from akf.examples import S17_FORCES, S17_MULTI, example_job
+from akf.jobs import run_job
 from core_akf import akf
-from core_akf.examples import S17_FORCES, S17_MULTI, example_job
-from core_akf.jobs import run_job
 from core_akf.models import s17_truss
 from core_akf.riccati import solve_filter_dare
 from core_akf.simulate import simulate
@@ -119,7 +119,7 @@ def main():
     print(f"{'filter model':28s} {'time (s)':>9s} {'avg strain error (µε)':>22s}")
     for modes in (None, 80, 40):
         model = plate if modes is None else plate.reduce(modes)
-        t, est = best_of(lambda: akf.estimate(model, job["sensors"], job["forces"], sim.measurements, job["dt"],
+        t, est = best_of(lambda model=model: akf.estimate(model, job["sensors"], job["forces"], sim.measurements, job["dt"],
                                               model_error_cov=1e-16, force_increment_cov=1e-2,
                                               noise_cov=noise, steady=True), 1)
         from core_akf.metrics import average_strain_error

@@ -12,7 +12,8 @@ import time
 
 os.environ.setdefault("PYTHONWARNINGS", "ignore")
 
-from impactloc import candidate_locations, default_covariances, example_scenario, locate, role_splits, scan  # noqa: E402
+from akf.examples.impact import example_scenario  # noqa: E402
+from impactloc import candidate_locations, default_covariances, locate, role_splits, scan  # noqa: E402
 
 PAPER_SECONDS = 20 * 60
 

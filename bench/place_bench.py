@@ -10,8 +10,9 @@ import time
 
 import numpy as np
 
-from core_akf.examples import TH_CASE2
-from sensoropt import THESIS, StrainErrorObjective, example_problem, place
+from akf.examples import TH_CASE2
+from akf.placement import example_problem
+from sensoropt import THESIS, StrainErrorObjective, place
 
 
 def main():
@@ -22,7 +23,8 @@ def main():
     prep = time.perf_counter() - t0
     print(f"TH case 5: {enc.n_sensors} strain gauges, {len(enc.candidates)} admissible positions, "
           f"objective set-up {prep:.2f} s (filter model {obj.model.n_a} states)")
-    print(f"{'workers':>7s} {'wall (s)':>9s} {'gens':>5s} {'evals':>6s} {'evals/s':>8s} {'cache hits':>10s}  best layout (window / full record µε)")
+    print(f"{'workers':>7s} {'wall (s)':>9s} {'gens':>5s} {'evals':>6s} {'evals/s':>8s} {'cache hits':>10s}  "
+          "best layout (window / full record µε)")
     best = {}
     for n_jobs in (1, 2):
         t0 = time.perf_counter()

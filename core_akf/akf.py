@@ -13,19 +13,32 @@ The returned states are the filtered (posterior) ones.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
-
 import scipy.linalg
 
-from ._validate import as_finite_array, check_covariance
+from .types import ArrayLike, Covariance, Forces, Layout, NoiseCovariance
+
+if TYPE_CHECKING:
+    from .structure import Structure
+from .checks import as_finite_array, check_covariance
 from .exceptions import AKFInputError
 from .riccati import RiccatiError, steady_gain
 from .sensors import as_layout, parse_force_locations
-from .statespace import (augment, check_detectable, continuous, diag_levels, modal_state_transform,
-                         modal_zoh, observation, zoh)
+from .statespace import (
+    augment,
+    check_detectable,
+    continuous,
+    diag_levels,
+    modal_state_transform,
+    modal_zoh,
+    observation,
+    zoh,
+)
 
 
 def _batchify(A_a, G_a, Q_a, R, Y, check=True):
@@ -303,7 +316,8 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_to
     return FilterResult(states=out, innovations=innov, gain=L, P_prior=P)
 
 
-def run(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False):
+def run(A_a: ArrayLike, G_a: ArrayLike, Q_a: ArrayLike, R: ArrayLike, Y: ArrayLike, x0: ArrayLike | None = None,
+        P0: ArrayLike | None = None, steady: bool = False) -> np.ndarray:
     """Filtered (posterior) augmented states of the AKF.
 
     Parameters
@@ -416,17 +430,32 @@ class Estimate:
         G, D = observation(self.structure, sensors, self.force_locations)
         return self.states @ G.T + self.forces @ D.T
 
-    def to_frame(self):
-        """Tidy :class:`pandas.DataFrame`: one row per time step, forces and strains as columns."""
+    def to_frame(self, wide=False):
+        """The estimated forces and strains as a :class:`pandas.DataFrame`.
+
+        Tidy (default): one row per time step and channel, columns ``time`` (s), ``quantity``
+        ("force" or "strain"), ``channel`` (``"8:y"``, ``"strain:13"``, ``"strain:70:ex"``: the
+        names of force locations and sensors), ``unit`` ("N", "m/m") and ``value``.
+        ``wide=True``: one row per time step and one column per channel (``force:8:y``,
+        ``strain:13``), for spreadsheets."""
         import pandas as pd
 
-        cols = {"time": self.time}
-        for j, (node, d) in enumerate(self.force_locations):
-            cols[f"force:{node}:{d}"] = self.forces[:, j]
-        strains = self.strains
-        for j, lab in enumerate(self.structure.strain_labels):
-            cols[f"strain:{lab}"] = strains[:, j]
-        return pd.DataFrame(cols)
+        forces = [f"{node}:{d}" for node, d in self.force_locations]
+        strains = self.structure.strain_labels
+        if wide:
+            cols = {"time": self.time}
+            cols.update({f"force:{c}": self.forces[:, j] for j, c in enumerate(forces)})
+            cols.update(dict(zip(strains, self.strains.T)))
+            return pd.DataFrame(cols)
+        N = self.time.size
+        values = np.hstack([self.forces, self.strains])
+        channels = forces + strains
+        return pd.DataFrame({
+            "time": np.tile(self.time, len(channels)),
+            "quantity": np.repeat(["force"] * len(forces) + ["strain"] * len(strains), N),
+            "channel": np.repeat(channels, N),
+            "unit": np.repeat(["N"] * len(forces) + ["m/m"] * len(strains), N),
+            "value": values.T.reshape(-1)})
 
 
 def state_covariance(structure, model_error_cov):
@@ -465,9 +494,10 @@ def _discrete(structure, forces, dt):
     return zoh(A_c, B_c, dt)
 
 
-def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_cov,
-                   force_increment_cov, noise_cov, steady=True, allow_undetectable=False,
-                   x0=None, P0=None):
+def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forces, measurements: ArrayLike,
+                   dt: float, *, model_error_cov: Covariance, force_increment_cov: Covariance,
+                   noise_cov: NoiseCovariance, steady: bool | None = None, allow_undetectable: bool = False,
+                   x0: ArrayLike | None = None, P0: ArrayLike | None = None) -> list[Estimate]:
     """AKF estimates for many sensor layouts (all with the same number of sensors) in one
     batched filter call.
 
@@ -493,10 +523,10 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
     if Y.shape[0] != len(layouts) or Y.shape[2] != m:
         raise AKFInputError(f"measurements must have shape ({len(layouts)}, N, {m}); got {Y.shape}")
     locs = parse_force_locations(structure, forces)
-    reports = []
-    for l in layouts:
-        report = check_detectable(structure, l, locs, allow_undetectable)
-        reports.append(report)
+    reports = [check_detectable(structure, l, locs, allow_undetectable) for l in layouts]
+    if steady is None:     # the default: the steady-state filter where it exists
+        steady = all(r.detectable for r in reports)
+    for l, report in zip(layouts, reports):
         if steady and not report.detectable:
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
                                 f"({', '.join(s.label for s in l)}); use steady=False (CLI: --filter time-varying) to run the "
@@ -540,9 +570,10 @@ def estimate_batch(structure, layouts, forces, measurements, dt, *, model_error_
                      (A_a, G_a[b], res.gain[b])) for b, l in enumerate(layouts)]
 
 
-def estimate(structure, sensors, forces, measurements, dt, *, model_error_cov,
-             force_increment_cov, noise_cov, steady=False, allow_undetectable=False,
-             x0=None, P0=None):
+def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements: ArrayLike, dt: float, *,
+             model_error_cov: Covariance, force_increment_cov: Covariance, noise_cov: NoiseCovariance,
+             steady: bool | None = None, allow_undetectable: bool = False, x0: ArrayLike | None = None,
+             P0: ArrayLike | None = None) -> Estimate:
     """Estimate unknown forces and the full response with the AKF.
 
     Parameters
@@ -564,8 +595,10 @@ def estimate(structure, sensors, forces, measurements, dt, *, model_error_cov,
         ``S``: variance of the force increment per step (N^2).
     noise_cov : float, ndarray or dict
         ``R``: measurement-noise variance(s), e.g. ``{"strain": (1e-6)**2, "acc": 0.01**2}``.
-    steady : bool
-        Steady-state gain (fast) instead of the time-varying filter.
+    steady : bool or None
+        True: the steady-state gain (fast); False: the time-varying filter.  None (default,
+        :data:`core_akf.defaults.DEFAULTS`): the steady-state filter, or the time-varying one for
+        an undetectable set run with ``allow_undetectable`` (no steady state exists there).
     allow_undetectable : bool
         Run even if the PBH test fails (the estimate will drift).
 

@@ -3,11 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import as_finite_array
+from .checks import as_finite_array
 from .exceptions import AKFInputError
+from .types import ArrayLike
 
 
-def rms_error(estimate, reference, axis=0):
+def rms_error(estimate: ArrayLike, reference: ArrayLike, axis: int = 0) -> np.ndarray:
     """RMS error per channel: ``sqrt(sum_k (est_k - ref_k)^2 / N)`` (S17 eq. 38, IMP eq. 31, TH eq. 29).
 
     ``estimate`` and ``reference`` have the same shape, time along ``axis``.
@@ -24,7 +25,7 @@ def rms(signal, axis=0):
     return np.sqrt(np.mean(np.asarray(signal, float) ** 2, axis=axis))
 
 
-def average_strain_error(estimate, reference, axis=0):
+def average_strain_error(estimate: ArrayLike, reference: ArrayLike, axis: int = 0) -> float:
     """Mean of the per-component RMS strain errors (TH's "average strain error"), in strain.
 
     For ``(N, n_strain)`` inputs this is one number; a leading batch axis gives one per batch.

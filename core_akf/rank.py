@@ -10,7 +10,7 @@ The bounds are first-order perturbation bounds (Higham, *Accuracy and Stability 
 Algorithms*, 2002).  The model's matrices are known to a relative accuracy ``delta`` per entry
 (:data:`MODEL_RTOL`: assembly rounding, values exchanged as text, and the rounding of a
 backward-stable solve, which returns the exact solution for ``K + dK`` with ``|dK| <~ eps |K|``),
-so the static response ``g = s^T K^-1 b`` of a sensor row ``s`` is uncertain by
+so the static response ``g = s^T K^-1 b`` of a sensor row ``s`` is uncertain by::
 
     |dg| <= delta (|w|^T |K| |x| + |s|^T |x|),      w = K^-1 s,  x = K^-1 b,
 

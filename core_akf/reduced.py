@@ -15,16 +15,11 @@ from __future__ import annotations
 import numpy as np
 
 from .akf import lti_recursion, state_covariance
+from .defaults import auto_modes
 from .exceptions import AKFInputError
 from .riccati import steady_gain
 from .sensors import as_layout, parse_force_locations, selection_matrices
 from .statespace import augment, continuous, force_selection, modal_state_transform, modal_zoh, observation, zoh
-
-
-def auto_modes(structure, dt, factor=10.0, minimum=4):
-    """Number of modes below ``factor`` x the sampling rate ``1/dt`` (at least ``minimum``)."""
-    f = structure.frequencies()
-    return int(max(min(minimum, structure.n), np.sum(f < factor / float(dt))))
 
 
 class ModalFilterModel:
@@ -35,7 +30,8 @@ class ModalFilterModel:
     structure : Structure -- the filter's (full) model
     forces : force locations
     dt : float -- s
-    n_modes : None (full model), an int, or ``"auto"`` (:func:`auto_modes`)
+    n_modes : None (full model), an int, or ``"auto"`` (:func:`core_akf.defaults.auto_modes`, with
+        accelerometers; resolve it with the sensors' kinds before if they are known)
 
     Attributes
     ----------
@@ -48,7 +44,7 @@ class ModalFilterModel:
         self.forces = parse_force_locations(structure, forces)
         self.dt = float(dt)
         if n_modes == "auto":
-            n_modes = auto_modes(structure, dt)
+            n_modes = auto_modes(structure, dt, accelerations=True)
         if n_modes is not None and not 1 <= int(n_modes) <= structure.n:
             raise AKFInputError(f"n_modes must be between 1 and {structure.n}, got {n_modes}")
         self.n_modes = None if n_modes is None or int(n_modes) == structure.n else int(n_modes)

@@ -46,7 +46,8 @@ class Sensor:
             if (self.member is None) == (self.node is None):
                 raise AKFInputError(f"a strain sensor needs either member= (truss) or node= and component= (plate): {self!r}")
             if self.node is not None and self.component not in STRAIN_COMPONENTS:
-                raise AKFInputError(f"plate strain sensor at node {self.node} needs component in {STRAIN_COMPONENTS}, got {self.component!r}")
+                raise AKFInputError(f"plate strain sensor at node {self.node} needs component in {STRAIN_COMPONENTS}, "
+                                    f"got {self.component!r}")
         else:
             if self.node is None or self.direction is None:
                 raise AKFInputError(f"a {kind} sensor needs node= and direction=: {self!r}")

@@ -4,10 +4,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._validate import as_finite_array
+from .types import ArrayLike, Forces, Layout
+
+if TYPE_CHECKING:
+    from .structure import Structure
+from .checks import as_finite_array
 from .exceptions import AKFInputError
 from .sensors import as_layout, parse_force_locations
 from .statespace import continuous, observation, zoh
@@ -77,8 +82,9 @@ def noise_levels(clean, sensors, relative=None, absolute=None):
     return np.sqrt(std2)
 
 
-def simulate(structure, sensors, forces, loads, dt, *, relative_noise=None, absolute_noise=None,
-             seed=None, x0=None):
+def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: ArrayLike, dt: float, *,
+             relative_noise: float | None = None, absolute_noise: dict[str, float] | None = None,
+             seed: int | None = None, x0: ArrayLike | None = None) -> Simulation:
     """Simulate the structure under known loads and read the sensors.
 
     Parameters

@@ -8,12 +8,17 @@ optimisers call these functions instead of re-deriving them.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg
 
+from .types import Forces, Layout
+
+if TYPE_CHECKING:
+    from .structure import Structure
 from . import rank
-from ._validate import as_finite_array, check_covariance
+from .checks import as_finite_array, check_covariance
 from .exceptions import AKFInputError, UndetectableError
 from .rank import is_supported  # noqa: F401  (public here as before)
 from .sensors import as_layout, parse_force_locations, selection_matrices
@@ -259,7 +264,7 @@ def _describe_combination(locs, combo):
     return " ".join(terms)
 
 
-def detectability(structure, sensors, forces):
+def detectability(structure: Structure, sensors: Layout, forces: Forces) -> DetectabilityReport:
     """PBH detectability of the augmented system for a sensor layout (S17 §2.4).
 
     The pair ``(A_ac, H_ac)`` with ``A_ac = [[A_c, B_c], [0, 0]]`` and ``H_ac = [G, D]`` is
@@ -343,7 +348,7 @@ class StateSpace:
         return self.A_a.shape[0]
 
 
-def state_space(structure, sensors, forces, dt):
+def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float):
     """Build the discrete augmented :class:`StateSpace` (validates every id once)."""
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
@@ -364,7 +369,7 @@ def check_detectable(structure, sensors, forces, allow_undetectable=False):
 
 def diag_levels(level, size, name, definite=False):
     """A covariance matrix (size x size) from a scalar level, a vector of variances or a full
-    matrix, checked by :func:`~core_akf._validate.check_covariance` (symmetric, PSD; PD with
+    matrix, checked by :func:`~core_akf.checks.check_covariance` (symmetric, PSD; PD with
     ``definite=True``)."""
     if isinstance(level, (bool, np.bool_)):
         raise AKFInputError(f"{name} must be a number, a vector of variances or a matrix, got {level!r}")

@@ -17,7 +17,7 @@ from functools import cached_property
 import numpy as np
 import scipy.linalg
 
-from ._validate import as_finite_array, check_positive_definite, check_square_symmetric
+from .checks import as_finite_array, check_positive_definite, check_square_symmetric
 from .exceptions import AKFInputError, ModelError
 
 STRAIN_COMPONENTS = ("ex", "ey", "gxy")
@@ -73,7 +73,8 @@ class Structure:
     strain_kind : {"member", "node"}
         How strains are addressed: by member number, or by (node, component).
     members : ndarray, shape (n_members, 2), optional
-        0-based end nodes of the bar members (truss only).
+        End nodes of the bar members as user node ids (1-based, as every id a user sees; truss
+        only): member ``m`` joins nodes ``members[m - 1]``.
     basis : ndarray, shape (n_phys, n), optional
         ``u_phys = basis @ q`` for a modally reduced structure; ``None`` for a full one.
     """
@@ -227,10 +228,28 @@ class Structure:
 
     @property
     def strain_labels(self):
-        """Labels of all strain outputs: ``m1, m2, ...`` or ``ex1, ..., ey1, ..., gxy1, ...``."""
+        """Labels of all strain outputs in the sensor grammar: ``strain:1, strain:2, ...`` (truss
+        members) or ``strain:1:ex, ..., strain:1:ey, ..., strain:1:gxy, ...`` (plate nodes), so that
+        a strain output and a strain gauge at the same place have the same name."""
         if self.strain_kind == "member":
-            return [f"m{i + 1}" for i in range(self.n_strain)]
-        return [f"{c}{i + 1}" for c in STRAIN_COMPONENTS for i in range(self.n_nodes)]
+            return [f"strain:{i + 1}" for i in range(self.n_strain)]
+        return [f"strain:{i + 1}:{c}" for c in STRAIN_COMPONENTS for i in range(self.n_nodes)]
+
+    def strain_label_index(self, labels):
+        """Rows of the strain outputs named ``labels`` (as :attr:`strain_labels`); an unknown
+        label is an :class:`AKFInputError` naming the closest known one."""
+        import difflib
+
+        known = {lab: i for i, lab in enumerate(self.strain_labels)}
+        rows = []
+        for lab in labels:
+            if lab not in known:
+                hint = difflib.get_close_matches(str(lab), list(known), n=1)
+                raise AKFInputError(f"unknown strain output {lab!r}; outputs are named like sensors "
+                                    f"({self.strain_labels[0]!r} ... {self.strain_labels[-1]!r})"
+                                    + (f"; did you mean {hint[0]!r}?" if hint else ""))
+            rows.append(known[lab])
+        return rows
 
     # ------------------------------------------------------------------ derived structures
     def _replace(self, **changes):

@@ -5,19 +5,19 @@ combination; for every candidate location the AKF with an assumed force there pr
 sensors, and the location with the lowest mean (then spread) of the AD error is the impact
 location.  A GA then tunes the covariance levels and the AKF reconstructs the force history.
 
->>> from impactloc import locate, example_scenario
+>>> from impactloc import locate
+>>> from akf.examples.impact import example_scenario              # the application layer's built-in cases
 >>> sc = example_scenario("imp-truss-case1")                       # doctest: +SKIP
 >>> res = locate(sc.structure, sc.sensors, sc.measurements, sc.dt, n_ad=4,
 ...              ad_kinds=("strain",), direction="y")              # doctest: +SKIP
 >>> res.identified, res.scan.confidence, res.reconstruction.summary.peak   # doctest: +SKIP
 """
-from .examples import EXAMPLES, example_scenario
 from .locate import LocateResult, locate, plot_locate
 from .reconstruct import ForceSummary, Reconstruction, force_summary, reconstruct
 from .roles import RoleSplit, role_splits
 from .scan import Covariances, ImpactModel, ScanResult, candidate_locations, default_covariances, scan
 from .tuning import TuningResult, tune_covariances
 
-__all__ = ["EXAMPLES", "example_scenario", "LocateResult", "locate", "plot_locate", "ForceSummary", "Reconstruction",
+__all__ = ["LocateResult", "locate", "plot_locate", "ForceSummary", "Reconstruction",
            "force_summary", "reconstruct", "RoleSplit", "role_splits", "Covariances", "ImpactModel", "ScanResult",
            "candidate_locations", "default_covariances", "scan", "TuningResult", "tune_covariances"]

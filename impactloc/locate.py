@@ -4,6 +4,14 @@ from __future__ import annotations
 
 import os
 import time
+from typing import TYPE_CHECKING
+
+from core_akf.types import ArrayLike, Layout
+
+if TYPE_CHECKING:
+    from core_akf.structure import Structure
+
+    from .scan import Covariances
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -14,7 +22,6 @@ from .reconstruct import reconstruct
 from .roles import role_splits
 from .scan import ImpactModel, candidate_locations, default_covariances, scan
 from .tuning import tune_covariances
-
 
 #: units of the numbers in :meth:`LocateResult.to_dict` (and ``akf locate --json``)
 LOCATE_UNITS = {"confidence": "share of role splits (0-1)", "margin": "runner-up distance in pooled spreads",
@@ -64,9 +71,11 @@ class LocateResult:
         return out
 
 
-def locate(structure, sensors, measurements, dt, *, n_ad, direction, ad_kinds=("strain",), candidates=None,
-           covariances=None, tune=True, max_splits=None, n_modes="auto", skip=0.0, n_jobs=1, seed=0,
-           progress=False, tuning=None):
+def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: float, *, n_ad: int, direction: str,
+           ad_kinds: tuple[str, ...] = ("strain",), candidates: list[int] | None = None,
+           covariances: Covariances | None = None, tune: bool = True, max_splits: int | None = None,
+           n_modes: int | str | None = "auto", skip: float = 0.0, n_jobs: int = 1, seed: int = 0,
+           progress: bool = False, tuning: dict | None = None) -> LocateResult:
     """Locate an impact and reconstruct its force history.
 
     Parameters
@@ -124,13 +133,12 @@ def plot_locate(result, out, true_force=None, true_strains=None, split=0):
     * ``strain_errors.png`` -- RMS strain error per member/component before and after tuning
       (Fig. 8; needs ``true_strains``).
     """
-    from core_akf.figures import pyplot, save_figure
+    from core_akf.figures import save_figure, subplots
 
-    plt = pyplot()
     files = {}
     sc = result.scan
     nodes = [n for n, _ in sc.locations]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.6))
+    fig, axes = subplots(1, 2, figsize=(11, 3.6))
     axes[0].plot(nodes, sc.errors[:, split], "o-")
     axes[0].set_xlabel("assumed impact node")
     axes[0].set_ylabel("mean relative AD error")
@@ -144,7 +152,7 @@ def plot_locate(result, out, true_force=None, true_strains=None, split=0):
     files["error_vs_location"] = save_figure(fig, os.path.join(out, "error_vs_location.png"))
 
     est0, est1 = result.initial.estimate, result.reconstruction.estimate
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5))
+    fig, axes = subplots(2, 1, figsize=(9, 5))
     for ax, zoom in zip(axes, (False, True)):
         if true_force is not None:
             ax.plot(est1.time, np.asarray(true_force) / 1e3, "k:", lw=1.2, label="true")
@@ -161,7 +169,7 @@ def plot_locate(result, out, true_force=None, true_strains=None, split=0):
     files["force"] = save_figure(fig, os.path.join(out, "force.png"))
 
     if true_strains is not None:
-        fig, ax = plt.subplots(figsize=(9, 3.2))
+        fig, ax = subplots(figsize=(9, 3.2))
         e0 = np.sqrt(np.mean((est0.strains - true_strains) ** 2, axis=0)) * 1e6
         e1 = np.sqrt(np.mean((est1.strains - true_strains) ** 2, axis=0)) * 1e6
         x = np.arange(1, e0.size + 1)

@@ -12,7 +12,7 @@ from core_akf.exceptions import AKFInputError
 @dataclass
 class ForceSummary:
     """Impact characteristics of a force history (SI): ``peak`` (N, signed), ``time_of_peak`` (s),
-    ``duration`` (s, the contiguous span around the peak where |f| exceeds ``level`` x |peak|),
+    ``duration`` (s, the contiguous span around the peak where ``|f|`` exceeds ``level`` x ``|peak|``),
     ``impulse`` (N s, the integral over that span)."""
 
     peak: float

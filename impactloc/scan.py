@@ -10,12 +10,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core_akf._validate import as_finite_array
+from core_akf.checks import as_finite_array
+from core_akf.defaults import auto_modes, default
 from core_akf.exceptions import AKFInputError
 from core_akf.metrics import rms, rms_error
-from core_akf.reduced import ModalFilterModel, auto_modes, steady_outputs
+from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.sensors import as_layout, parse_force_locations
 from core_akf.statespace import detectability, static_gain, static_test_suffices
+
 from .roles import RoleSplit
 
 #: budget of (filters x steps x states) per kernel call: bounds memory (~16 bytes each)
@@ -26,6 +28,8 @@ _CALL_BUDGET = 6_000_000
 class Covariances:
     """Assumed AKF covariance levels.
 
+    Attributes
+    ----------
     model_error : float -- ``Q``, variance per step per physical DOF (m^2 and (m/s)^2)
     force_increment : float -- ``S``, variance of the force increment per step (N^2)
     noise : dict -- ``R``, measurement-noise variance per sensor kind (SI^2), e.g.
@@ -52,7 +56,9 @@ class Covariances:
                 **{f"noise_{k}": v for k, v in self.noise.items()}}
 
 
-def default_covariances(sensors, measurements, model_error=1e-16, force_increment=1e6, relative_noise=0.05):
+def default_covariances(sensors, measurements, model_error=default("model_error_cov"),
+                        force_increment=default("impact_force_increment_cov"),
+                        relative_noise=default("impact_relative_noise")):
     """Assumed levels before tuning: ``Q`` and ``S`` as given, ``R`` per sensor kind from the
     data, ``(relative_noise x median RMS of that kind's channels)^2``."""
     layout = as_layout(sensors)
@@ -101,7 +107,8 @@ class ImpactModel:
         self.dt = float(dt)
         if n_modes is not None and n_modes != "auto" and not 1 <= int(n_modes) <= structure.n:
             raise AKFInputError(f"n_modes must be between 1 and {structure.n}, got {n_modes}")
-        self.n_modes = auto_modes(structure, dt) if n_modes == "auto" else n_modes
+        accelerations = any(s.kind == "acc" for s in as_layout(sensors))
+        self.n_modes = auto_modes(structure, dt, accelerations) if n_modes == "auto" else n_modes
         if self.n_modes is not None and int(self.n_modes) == structure.n:
             self.n_modes = None
         self.kinds = np.array([s.kind for s in self.layout])
@@ -187,6 +194,8 @@ def _scan_task(model, locs, splits, Y, cov, skip):
 class ScanResult:
     """Outcome of :func:`scan`.
 
+    Attributes
+    ----------
     frame : DataFrame, one row per (location, split): ``node``, ``direction``, ``split``,
         ``ad_sensors``, ``error`` (mean relative RMS error at the AD sensors), ``detectable`` and
         the mean absolute error per AD sensor kind (``error_strain`` in m/m, ``error_acc`` in m/s^2).

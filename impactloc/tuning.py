@@ -1,4 +1,4 @@
-"""Covariance tuning (IMP §3): a DEAP genetic algorithm over the log10 levels of ``Q`` (model
+"""Covariance tuning (IMP §3): a genetic algorithm (on the engine of :mod:`core_akf.evolution`) over the log10 levels of ``Q`` (model
 error), ``S`` (force increment) and ``R`` (noise per sensor kind) that minimises the AD error at
 the identified location, averaged over role splits.
 
@@ -9,12 +9,11 @@ relative to it: one gene fewer, no flat direction.
 from __future__ import annotations
 
 import math
-import random
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, best, blend, gaussian, tournament
 from core_akf.exceptions import AKFInputError
 
 from .scan import Covariances, ImpactModel, check_measurements, location_errors
@@ -23,20 +22,12 @@ from .scan import Covariances, ImpactModel, check_measurements, location_errors
 _TASK = 4
 
 
-def _creator():
-    """DEAP creator classes, made once per process (never pickled: workers get plain lists)."""
-    from deap import base, creator
-
-    if not hasattr(creator, "ImpactTuneFitness"):
-        creator.create("ImpactTuneFitness", base.Fitness, weights=(-1.0,))
-        creator.create("ImpactTuneIndividual", list, fitness=creator.ImpactTuneFitness)
-    return creator
-
-
 @dataclass
 class TuningResult:
     """Outcome of :func:`tune_covariances`.
 
+    Attributes
+    ----------
     covariances : the best :class:`Covariances` found
     initial_error, tuned_error : mean relative AD error with the starting / tuned levels
     logbook : DataFrame, one row per generation (best, mean, std, evaluations, seconds)
@@ -73,17 +64,58 @@ def _to_covariances(x, names, start):
     return Covariances(vals["model_error"], vals["force_increment"], noise)
 
 
-def _fitness_task(model, loc, splits, Y, covs, skip):
-    _, rel = location_errors(model, loc, splits, Y, covs, skip)
-    with np.errstate(all="ignore"):
-        f = np.nanmean(rel, axis=(1, 2))
-    return [float(v) if np.isfinite(v) else math.inf for v in f]
+class _TuningFitness:
+    """Fitness of a batch of log10 covariance levels: the mean relative AD error over the tuning
+    splits at the known location (``inf`` where a filter fails)."""
+
+    def __init__(self, model, location, splits, Y, names, start, skip):
+        self.model, self.location, self.splits, self.Y = model, location, splits, Y
+        self.names, self.start, self.skip = names, start, skip
+
+    def __call__(self, xs):
+        covs = [_to_covariances(x, self.names, self.start) for x in xs]
+        _, rel = location_errors(self.model, self.location, self.splits, self.Y, covs, self.skip)
+        with np.errstate(all="ignore"):
+            f = np.nanmean(rel, axis=(1, 2))
+        return [float(v) if np.isfinite(v) else math.inf for v in f]
+
+
+class TuningGA(Algorithm):
+    """An elitist real-coded GA on the log10 levels: the starting levels plus uniform draws in the
+    box, tournament of 3, blend crossover (alpha 0.3), Gaussian mutation, clipped to the box."""
+
+    def __init__(self, x0, lo, hi, population, crossover, mutation, decades):
+        self.x0, self.lo, self.hi, self.size = x0, lo, hi, population
+        self.cx, self.mut, self.sigma = crossover, mutation, 0.4 * decades / 3
+
+    def initial(self, rng, pyrng):
+        return [self.x0.tolist()] + [rng.uniform(self.lo, self.hi).tolist() for _ in range(self.size - 1)]
+
+    def next_generation(self, pop, gen, rng, pyrng, evaluate):
+        elite = best(pop, 1)[0].copy()
+        offspring = [i.copy() for i in tournament(pop, len(pop) - 1, 3, pyrng)]
+        for a, b in zip(offspring[::2], offspring[1::2]):
+            if pyrng.random() < self.cx:
+                blend(a, b, 0.3, pyrng)
+                del a.fitness.values, b.fitness.values
+        for ind in offspring:
+            if pyrng.random() < self.mut:
+                gaussian(ind, self.sigma, 0.5, pyrng)
+                del ind.fitness.values
+        for ind in offspring:
+            ind[:] = np.clip(ind, self.lo, self.hi).tolist()
+        return [elite] + offspring
+
+    def record(self, pop):
+        row = super().record(pop)
+        row["infeasible_in_population"] = int(sum(not math.isfinite(i.fitness.values[0]) for i in pop))
+        return row
 
 
 def tune_covariances(structure, sensors, measurements, dt, location, splits, *, start, decades=3.0,
                      population=12, generations=8, n_splits=8, crossover=0.7, mutation=0.3, seed=0,
                      skip=0.0, n_modes="auto", n_jobs=1, progress=False, model=None):
-    """Tune the AKF covariance levels with a GA (DEAP) at a known force location.
+    """Tune the AKF covariance levels with a GA at a known force location.
 
     Parameters
     ----------
@@ -98,10 +130,6 @@ def tune_covariances(structure, sensors, measurements, dt, location, splits, *, 
     -------
     :class:`TuningResult`
     """
-    import pandas as pd
-    from deap import base, tools
-    from joblib import Parallel, delayed
-
     if population < 2 or generations < 0:
         raise AKFInputError("population must be >= 2 and generations >= 0")
     if not decades > 0:
@@ -120,73 +148,15 @@ def tune_covariances(structure, sensors, measurements, dt, location, splits, *, 
                   + [start.noise[k] for k in kinds[1:]])
     lo, hi = x0 - decades, x0 + decades
 
-    def evaluate(xs):
-        # fixed-size chunks: the batch composition (and so every rounding) does not depend on n_jobs
-        covs = [_to_covariances(x, names, start) for x in xs]
-        chunks = [covs[i:i + _TASK] for i in range(0, len(covs), _TASK)]
-        if n_jobs == 1 or len(chunks) == 1:
-            parts = [_fitness_task(model, location, tune_splits, Y, c, skip_n) for c in chunks]
-        else:
-            parts = Parallel(n_jobs=n_jobs)(delayed(_fitness_task)(model, location, tune_splits, Y, c, skip_n)
-                                            for c in chunks)
-        return [f for p in parts for f in p]
-
-    creator = _creator()
-    tb = base.Toolbox()
-    state = random.getstate()            # DEAP's operators draw from the global `random`
-    random.seed(seed)
-    try:
-        pop = [creator.ImpactTuneIndividual(x0.tolist())]
-        pop += [creator.ImpactTuneIndividual(rng.uniform(lo, hi).tolist()) for _ in range(population - 1)]
-        tb.register("mate", tools.cxBlend, alpha=0.3)
-        tb.register("mutate", tools.mutGaussian, mu=0.0, sigma=0.4 * decades / 3, indpb=0.5)
-        tb.register("select", tools.selTournament, tournsize=3)
-        for ind, f in zip(pop, evaluate([list(p) for p in pop])):
-            ind.fitness.values = (f,)
-        initial_error = pop[0].fitness.values[0]
-        rows = []
-        t0 = time.perf_counter()
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-            bar = tqdm(total=generations, desc="tuning", unit="gen", leave=False, delay=1.0)
-        for gen in range(generations + 1):
-            if gen > 0:
-                elite = tools.selBest(pop, 1)[0]
-                offspring = [tb.clone(i) for i in tb.select(pop, len(pop) - 1)]
-                for a, b in zip(offspring[::2], offspring[1::2]):
-                    if random.random() < crossover:
-                        tb.mate(a, b)
-                        del a.fitness.values, b.fitness.values
-                for ind in offspring:
-                    if random.random() < mutation:
-                        tb.mutate(ind)
-                        del ind.fitness.values
-                for ind in offspring:
-                    ind[:] = np.clip(ind, lo, hi).tolist()
-                fresh = [ind for ind in offspring if not ind.fitness.valid]
-                for ind, f in zip(fresh, evaluate([list(i) for i in fresh])):
-                    ind.fitness.values = (f,)
-                pop = [tb.clone(elite)] + offspring
-                n_eval = len(fresh)
-                if bar is not None:
-                    bar.update(1)
-            else:
-                n_eval = len(pop)
-            fits = np.array([i.fitness.values[0] for i in pop])
-            finite = fits[np.isfinite(fits)]
-            rows.append({"generation": gen, "best": float(fits.min()),
-                         "mean": float(finite.mean()) if finite.size else math.inf,
-                         "std": float(finite.std()) if finite.size else math.nan,
-                         "infeasible": int((~np.isfinite(fits)).sum()), "evaluations": n_eval,
-                         "seconds": time.perf_counter() - t0})
-        if bar is not None:
-            bar.close()
-    finally:
-        random.setstate(state)
-    best = tools.selBest(pop, 1)[0]
+    evaluator = Evaluator(_TuningFitness(model, location, tune_splits, Y, names, start, skip_n), decode=list,
+                          n_jobs=n_jobs, batch=_TASK)
+    algorithm = TuningGA(x0, lo, hi, population, crossover, mutation, decades)
+    res = GeneticAlgorithm(algorithm, evaluator, generations=generations, seed=seed,
+                           progress="tuning" if progress else None, hall_of_fame=0).run()
+    initial_error = evaluator.cache[tuple(x0.tolist())][0]
+    best_x, (best_f,) = res.hall_of_fame[0]
     edge = 0.01 * (hi - lo)
-    at_bound = {g: ("lower" if v <= l + e else "upper") for g, v, l, h, e in zip(names, best, lo, hi, edge)
+    at_bound = {g: ("lower" if v <= l + e else "upper") for g, v, l, h, e in zip(names, best_x, lo, hi, edge)
                 if v <= l + e or v >= h - e}
-    return TuningResult(_to_covariances(list(best), names, start), float(initial_error), float(best.fitness.values[0]),
-                        pd.DataFrame(rows), names, at_bound)
+    return TuningResult(_to_covariances(list(best_x), names, start), float(initial_error), float(best_f),
+                        res.logbook, names, at_bound)

@@ -11,8 +11,8 @@ from .ga import THESIS, PlacementResult, independent_runs, place
 from .objective import FunctionObjective, StrainErrorObjective
 from .pareto import ParetoResult, pareto
 from .plots import plot_convergence, plot_layout, plot_pareto
-from .problem import EXAMPLES, PlacementProblem, example_problem
+from .problem import PlacementProblem
 
 __all__ = ["KINDS", "STRAIN_KINDS", "Encoding", "THESIS", "PlacementResult", "independent_runs", "place",
            "FunctionObjective", "StrainErrorObjective", "ParetoResult", "pareto", "plot_convergence", "plot_layout",
-           "plot_pareto", "EXAMPLES", "PlacementProblem", "example_problem"]
+           "plot_pareto", "PlacementProblem"]

@@ -61,7 +61,7 @@ class Encoding:
                     except (AKFInputError, ValueError, KeyError):
                         continue
                 else:
-                    if dead[structure.strain_labels.index(f"{kind}{node}")]:
+                    if dead[structure.strain_labels.index(f"strain:{node}:{kind}")]:
                         continue
                 cands.append((node, int(ix[node - 1]), int(iy[node - 1]), kind))
         if not cands:

@@ -1,98 +1,42 @@
-"""The placement GA on DEAP (TH §4): elitist generational GA with tournament selection,
-set-based crossover and per-sensor mutations (or the thesis' intermediate crossover and adaptive
-mutation), a fitness cache, parallel batched evaluation, checkpoints and a logbook.
-
-Reproducibility: all randomness comes from one ``numpy.random.Generator`` seeded by ``seed`` (and
-DEAP's tournament from the ``random`` module, seeded from it and restored afterwards); fitness
-batches have a fixed composition whatever the number of workers, so one seed gives a
-bit-identical run on 1 or many workers, and a resumed run continues exactly.
+"""The placement GA (TH §4): an elitist generational GA with tournament selection, set-based
+crossover and per-sensor mutations (or the thesis' intermediate crossover and adaptive mutation),
+configured on the one GA engine of :mod:`core_akf.evolution` (fitness cache, batched parallel
+evaluation, JSON checkpoints, logbook, seeded random streams: one seed gives a bit-identical run
+on 1 or many workers, and a resumed run continues exactly).
 """
 from __future__ import annotations
 
-import copy
-import math
-import os
-import pickle
-import random
-import time
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .encoding import Encoding
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from core_akf.defaults import default
+from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, Individual, best, tournament
+from core_akf.evolution import load_checkpoint as evolution_load_checkpoint
 from core_akf.exceptions import AKFInputError
-from core_akf.outputs import atomic_path
 
 #: layouts per fitness batch (fixed: the batch composition must not depend on n_jobs)
 BATCH = 10
 #: fitness of an infeasible layout (undetectable, failing filter, NaN from a user objective)
-PENALTY = 100.0
+PENALTY = default("penalty")
 
 THESIS = dict(population=50, generations=100, elite=2, crossover=0.8, mutation=0.16, tournament=4,
               stall_generations=50, stall_tol=1e-6)
-
-
-def _creator():
-    """DEAP creator classes, made once per process; individuals never leave this process
-    (workers get plain lists of sensor strings)."""
-    from deap import base, creator
-
-    if not hasattr(creator, "PlacementFitness"):
-        creator.create("PlacementFitness", base.Fitness, weights=(-1.0,))
-        creator.create("PlacementIndividual", list, fitness=creator.PlacementFitness)
-    return creator
-
-
-def _evaluate_chunk(objective, layouts):
-    return objective.evaluate(layouts)
-
-
-class Evaluator:
-    """Cached, batched, optionally parallel evaluation of layouts (canonical tuples)."""
-
-    def __init__(self, objective, encoding, n_jobs=1, penalty=PENALTY, batch=BATCH):
-        self.objective, self.encoding = objective, encoding
-        self.n_jobs, self.penalty, self.batch = n_jobs, float(penalty), int(batch)
-        self.cache = {}
-        self.evaluations = self.hits = self.infeasible = 0
-
-    def _clean(self, v):
-        try:
-            v = float(v)
-        except (TypeError, ValueError):
-            return None
-        return v if math.isfinite(v) else None
-
-    def __call__(self, layouts):
-        from joblib import Parallel, delayed
-
-        new = list(dict.fromkeys(l for l in layouts if l not in self.cache))
-        self.hits += len(layouts) - len(new)      # cached, or repeated within this request
-        if new:
-            sensors = [self.encoding.sensors(l) for l in new]
-            chunks = [sensors[i:i + self.batch] for i in range(0, len(sensors), self.batch)]
-            if self.n_jobs == 1 or len(chunks) == 1:
-                parts = [self.objective.evaluate(c) for c in chunks]
-            else:
-                parts = Parallel(n_jobs=self.n_jobs)(delayed(_evaluate_chunk)(self.objective, c) for c in chunks)
-            values = [v for p in parts for v in p]
-            if len(values) != len(new):
-                raise AKFInputError(f"the objective returned {len(values)} values for {len(new)} layouts")
-            for l, v in zip(new, values):
-                clean = self._clean(v)
-                if clean is None:
-                    self.infeasible += 1
-                    clean = self.penalty
-                self.cache[l] = clean
-            self.evaluations += len(new)
-        return [self.cache[l] for l in layouts]
 
 
 @dataclass
 class PlacementResult:
     """Outcome of :func:`place`.
 
-    best : canonical layout;  best_error : its fitness
-    sensors : sensor strings;  layout : ``[{"node", "kind"}]`` (1-based node ids)
+    Attributes
+    ----------
+    best : tuple -- the canonical layout (candidate indices)
+    best_error : float -- its fitness
+    sensors : list of str -- its sensors;  layout : ``[{"node", "kind"}]`` (1-based node ids)
     logbook : DataFrame per generation: best, mean, std, diversity, evaluations, cache_hits,
         infeasible, seconds
     hall_of_fame : list of (sensors, fitness), best first
@@ -112,11 +56,50 @@ class PlacementResult:
     settings: dict = field(default_factory=dict)
 
 
-def place(objective, encoding, *, population=50, generations=100, elite=2, crossover=0.8, mutation=0.16,
-          tournament=4, stall_generations=50, stall_tol=1e-6, operators="set", seed=0, n_jobs=1,
-          checkpoint=None, checkpoint_every=5, resume=False, progress=False, hall_of_fame=5, penalty=PENALTY,
-          initial=None):
-    """Search a sensor layout minimising ``objective`` with a GA (TH defaults).
+class PlacementGA(Algorithm):
+    """The thesis' elitist generational GA on canonical layouts: ``elite`` best layouts kept,
+    tournament selection, set-based (or intermediate) crossover and per-sensor (or adaptive)
+    mutation."""
+
+    def __init__(self, encoding, *, population, generations, elite, crossover, mutation, tournament, operators,
+                 initial=None):
+        self.encoding, self.size, self.generations = encoding, population, generations
+        self.elite, self.cx, self.mut, self.tsize, self.operators = elite, crossover, mutation, tournament, operators
+        self.seeded = initial or []
+
+    def initial(self, rng, pyrng):
+        layouts = [self.encoding.from_sensors(l) for l in self.seeded]
+        while len(layouts) < self.size:
+            layouts.append(self.encoding.random_layout(rng))
+        return layouts[:self.size]
+
+    def next_generation(self, pop, gen, rng, pyrng, evaluate):
+        enc = self.encoding
+        elites = [i.copy() for i in best(pop, self.elite)]
+        kids = [tuple(p) for p in tournament(pop, len(pop) - self.elite, self.tsize, pyrng)]
+        for j in range(0, len(kids) - 1, 2):
+            if rng.random() < self.cx:
+                op = enc.crossover_set if self.operators == "set" else enc.crossover_intermediate
+                kids[j], kids[j + 1] = op(kids[j], kids[j + 1], rng)
+        scale = max(0.5, 0.5 * max(enc.nx, enc.ny) * (1 - gen / max(self.generations, 1)))
+        for j in range(len(kids)):
+            if rng.random() < self.mut:
+                kids[j] = enc.mutate(kids[j], rng) if self.operators == "set" else enc.mutate_adaptive(kids[j], rng, scale)
+        return elites + [Individual(k) for k in kids]
+
+    def record(self, pop):
+        f = np.array([i.fitness.values[0] for i in pop])
+        return {"best": float(f.min()), "mean": float(f.mean()), "std": float(f.std()),
+                "diversity": self.encoding.diversity([tuple(i) for i in pop])}
+
+
+def place(objective, encoding: Encoding, *, population: int = 50, generations: int = 100, elite: int = 2,
+          crossover: float = 0.8, mutation: float = 0.16, tournament: int = 4, stall_generations: int = 50,
+          stall_tol: float = 1e-6, operators: str = "set", seed: int = 0, n_jobs: int = 1,
+          checkpoint: str | None = None, checkpoint_every: int = 5, resume: bool = False, progress: bool = False,
+          hall_of_fame: int = 5, penalty: float = PENALTY, initial: list[list[str]] | None = None) -> PlacementResult:
+    """Search a sensor layout minimising ``objective`` with a GA (TH defaults), on the engine of
+    :mod:`core_akf.evolution`.
 
     Parameters
     ----------
@@ -130,142 +113,41 @@ def place(objective, encoding, *, population=50, generations=100, elite=2, cross
         "thesis" (intermediate crossover, adaptive Gaussian mutation)
     seed : int -- the whole run, whatever ``n_jobs``
     n_jobs : joblib workers for the fitness (backend from ``joblib.parallel_config``)
-    checkpoint : path -- saved every ``checkpoint_every`` generations; ``resume=True`` continues
-        from it (a killed run loses at most ``checkpoint_every`` generations)
+    checkpoint : path -- a JSON checkpoint saved every ``checkpoint_every`` generations;
+        ``resume=True`` continues from it (a killed run loses at most ``checkpoint_every``
+        generations)
     initial : optional layouts (sensor lists) seeded into the first population
 
     Returns
     -------
     :class:`PlacementResult`
     """
-    import pandas as pd
-    from deap import tools
-
     if population < 2 or generations < 0 or not 0 <= elite < population:
         raise AKFInputError("need population >= 2, generations >= 0 and 0 <= elite < population")
     if operators not in ("set", "thesis"):
         raise AKFInputError(f"operators must be 'set' or 'thesis', got {operators!r}")
     if getattr(objective, "n_objectives", 1) != 1:
         raise AKFInputError("place() is single-objective; use sensoropt.pareto() for several objectives")
-    creator = _creator()
     settings = dict(population=population, generations=generations, elite=elite, crossover=crossover,
                     mutation=mutation, tournament=tournament, stall_generations=stall_generations,
                     stall_tol=stall_tol, operators=operators, seed=seed)
-    evaluate = Evaluator(objective, encoding, n_jobs=n_jobs, penalty=penalty)
-    if checkpoint and not resume and os.path.exists(checkpoint):
-        raise AKFInputError(f"a checkpoint of an earlier run exists at {checkpoint!r}; pass resume=True (CLI: --resume) "
-                            "to continue it, or remove it / choose another output folder to start afresh")
-    state = random.getstate()
-    try:
-        if resume:
-            ck = load_checkpoint(checkpoint)
-            if ck["settings"] != settings or ck["candidates"] != encoding.candidates:
-                raise AKFInputError("the checkpoint was written by a run with other settings or candidates")
-            rng = ck["rng"]
-            random.setstate(ck["random"])
-            pop = [creator.PlacementIndividual(l) for l in ck["population"]]
-            for ind, f in zip(pop, ck["fitness"]):
-                ind.fitness.values = (f,)
-            rows, hof_store, start = ck["rows"], ck["hof"], ck["generation"] + 1
-            evaluate.cache, evaluate.evaluations = ck["cache"], ck["evaluations"]
-            evaluate.hits, evaluate.infeasible = ck["hits"], ck["infeasible"]
-            t_offset = rows[-1]["seconds"] if rows else 0.0
-        else:
-            rng = np.random.default_rng(seed)
-            random.seed(int(rng.integers(2 ** 31)))
-            layouts = [encoding.from_sensors(l) for l in (initial or [])]
-            while len(layouts) < population:
-                layouts.append(encoding.random_layout(rng))
-            pop = [creator.PlacementIndividual(l) for l in layouts[:population]]
-            rows, hof_store, start, t_offset = [], {}, 0, 0.0
-        t0 = time.perf_counter() - t_offset
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-            bar = tqdm(total=generations, initial=max(start - 1, 0), desc="placement GA", unit="gen", leave=False)
-        stopped = "generations"
-        for gen in range(start, generations + 1):
-            if gen > 0:
-                elites = [copy.deepcopy(i) for i in tools.selBest(pop, elite)]
-                parents = tools.selTournament(pop, len(pop) - elite, tournsize=tournament)
-                kids = [tuple(p) for p in parents]
-                for j in range(0, len(kids) - 1, 2):
-                    if rng.random() < crossover:
-                        op = encoding.crossover_set if operators == "set" else encoding.crossover_intermediate
-                        kids[j], kids[j + 1] = op(kids[j], kids[j + 1], rng)
-                scale = max(0.5, 0.5 * max(encoding.nx, encoding.ny) * (1 - gen / max(generations, 1)))
-                for j in range(len(kids)):
-                    if rng.random() < mutation:
-                        kids[j] = (encoding.mutate(kids[j], rng) if operators == "set"
-                                   else encoding.mutate_adaptive(kids[j], rng, scale))
-                pop = elites + [creator.PlacementIndividual(k) for k in kids]
-            todo = [ind for ind in pop if not ind.fitness.valid]
-            for ind, f in zip(todo, evaluate([tuple(i) for i in todo])):
-                ind.fitness.values = (f,)
-            fits = np.array([i.fitness.values[0] for i in pop])
-            for ind in pop:
-                hof_store.setdefault(tuple(ind), ind.fitness.values[0])
-            rows.append({"generation": gen, "best": float(fits.min()), "mean": float(fits.mean()),
-                         "std": float(fits.std()), "diversity": encoding.diversity([tuple(i) for i in pop]),
-                         "evaluations": evaluate.evaluations, "cache_hits": evaluate.hits,
-                         "infeasible": evaluate.infeasible, "seconds": time.perf_counter() - t0})
-            if bar is not None and gen > 0:
-                bar.update(1)
-            if checkpoint and (gen % checkpoint_every == 0 or gen == generations):
-                _save(checkpoint, dict(settings=settings, candidates=encoding.candidates, rng=rng,
-                                       random=random.getstate(), population=[list(i) for i in pop],
-                                       fitness=[i.fitness.values[0] for i in pop], rows=rows, hof=hof_store,
-                                       generation=gen, cache=evaluate.cache, evaluations=evaluate.evaluations,
-                                       hits=evaluate.hits, infeasible=evaluate.infeasible))
-            if gen >= stall_generations > 0:
-                old = rows[gen - stall_generations]["mean"]
-                if abs(rows[gen]["mean"] - old) <= stall_tol * max(abs(old), 1e-300):
-                    stopped = f"stall: mean fitness changed < {stall_tol:g} over {stall_generations} generations"
-                    break
-        if bar is not None:
-            bar.close()
-    finally:
-        random.setstate(state)
-    ranked = sorted(hof_store.items(), key=lambda kv: (kv[1], kv[0]))
-    best, best_f = ranked[0]
-    return PlacementResult(best, best_f, encoding.sensors(best), encoding.records(best), pd.DataFrame(rows),
-                           [(encoding.sensors(l), f) for l, f in ranked[:hall_of_fame]], evaluate.evaluations,
-                           evaluate.hits, evaluate.infeasible, stopped, seed, settings)
+    algorithm = PlacementGA(encoding, population=population, generations=generations, elite=elite,
+                            crossover=crossover, mutation=mutation, tournament=tournament, operators=operators,
+                            initial=initial)
+    evaluator = Evaluator(objective.evaluate, decode=encoding.sensors, n_jobs=n_jobs, batch=BATCH, penalty=penalty)
+    res = GeneticAlgorithm(algorithm, evaluator, generations=generations, seed=seed,
+                           stall_generations=stall_generations, stall_tol=stall_tol, checkpoint=checkpoint,
+                           checkpoint_every=checkpoint_every, resume=resume,
+                           progress="placement GA" if progress else None,
+                           settings=dict(settings, candidates=encoding.candidates), hall_of_fame=hall_of_fame).run()
+    best_layout, (best_f,) = res.hall_of_fame[0]
+    return PlacementResult(best_layout, best_f, encoding.sensors(best_layout), encoding.records(best_layout),
+                           res.logbook, [(encoding.sensors(l), f[0]) for l, f in res.hall_of_fame], res.evaluations,
+                           res.cache_hits, res.infeasible, res.stopped, seed, settings)
 
 
-#: identifies a placement checkpoint and its layout; a file with another tag or version is refused
-CHECKPOINT_FORMAT = ("akf-toolkit placement checkpoint", 1)
-
-
-def _save(path, data):
-    """Write a checkpoint atomically; the previous one is kept as ``PATH.bak``."""
-    with atomic_path(path) as tmp:          # a kill mid-write leaves the previous checkpoint
-        with open(tmp, "wb") as fh:
-            pickle.dump(dict(data, format=CHECKPOINT_FORMAT), fh, protocol=pickle.HIGHEST_PROTOCOL)
-        if os.path.exists(path):
-            os.replace(path, f"{path}.bak")
-
-
-def load_checkpoint(path):
-    """Read and check a checkpoint written by :func:`place`; a missing, truncated or foreign file
-    is an :class:`AKFInputError` that names the backup to use instead.
-
-    Checkpoints are pickles: load only files your own runs wrote."""
-    if not path or not os.path.exists(path):
-        raise AKFInputError(f"no checkpoint to resume from at {path!r}")
-    backup = f" (the previous checkpoint is kept at {path}.bak: rename it to {os.path.basename(path)} to resume from it)" \
-        if os.path.exists(f"{path}.bak") else ""
-    try:
-        with open(path, "rb") as fh:
-            ck = pickle.load(fh)
-    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError, IndexError, TypeError, ValueError) as exc:
-        raise AKFInputError(f"checkpoint {path!r} is truncated or not a placement checkpoint "
-                            f"({type(exc).__name__}: {exc}){backup}") from None
-    if not isinstance(ck, dict) or ck.get("format") != CHECKPOINT_FORMAT:
-        found = ck.get("format") if isinstance(ck, dict) else type(ck).__name__
-        raise AKFInputError(f"{path!r} is not a placement checkpoint of this version (found {found!r}, "
-                            f"expected {CHECKPOINT_FORMAT!r}){backup}")
-    return ck
+#: checkpoints are the engine's (JSON): see :func:`core_akf.evolution.load_checkpoint`
+load_checkpoint = evolution_load_checkpoint
 
 
 def independent_runs(objective, encoding, runs=4, seed=0, **ga):

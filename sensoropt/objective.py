@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from core_akf.defaults import auto_modes, default
 from core_akf.exceptions import AKFInputError
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.riccati import RiccatiError
@@ -50,8 +51,9 @@ class StrainErrorObjective:
     structure : Structure -- the true plate;  forces : force locations;  loads : (N, n_p) N
     dt : float (s);  window : float (s) -- the record used, from the start of ``loads``
     encoding : :class:`~sensoropt.encoding.Encoding` -- the candidates to prepare
-    n_modes : filter modes with static correction (None: the full model).  ``"auto"``: 80 when
-        only strain gauges are placed, 100 when accelerometers may be (they see higher modes).
+    n_modes : filter modes with static correction (None: the full model).  ``"auto"``:
+        :func:`core_akf.defaults.auto_modes` (thesis plate at 2 kHz: 80 modes when only strain
+        gauges are placed, 101 when accelerometers may be: they see higher modes).
         Measured on the thesis plate (0.1 s window): the case-2 gauges 3.077 (80 modes) against
         3.080 µε (full); the case-3 layout with its accelerometer 4.448 (100 modes) and 4.869 (80)
         against 4.506 µε (full); 41 random 3-gauge layouts rank as with the full model (Spearman
@@ -60,8 +62,10 @@ class StrainErrorObjective:
 
     n_objectives = 1
 
-    def __init__(self, structure, forces, loads, dt, encoding, *, window=0.1, stiffness_factor=1.05,
-                 relative_noise=0.02, model_error_cov=1e-16, force_increment_cov=1.0, n_modes="auto", seed=0):
+    def __init__(self, structure, forces, loads, dt, encoding, *, window=default("window"),
+                 stiffness_factor=default("placement_stiffness_factor"), relative_noise=default("relative_noise"),
+                 model_error_cov=default("model_error_cov"), force_increment_cov=default("force_increment_cov"),
+                 n_modes="auto", seed=0):
         loads = np.asarray(loads, float)
         if loads.ndim != 2:
             raise AKFInputError("loads must be (N, n_forces)")
@@ -69,13 +73,13 @@ class StrainErrorObjective:
         if not 2 <= n <= loads.shape[0]:
             raise AKFInputError(f"window {window} s must hold at least 2 steps of the {loads.shape[0] * dt:.3g} s loads")
         if n_modes == "auto":
-            n_modes = 100 if "acc" in encoding.kind else 80
+            n_modes = auto_modes(structure, dt, accelerations="acc" in encoding.kind)
         n_modes = min(int(n_modes), structure.n) if n_modes is not None else None
         self.encoding = encoding
         self.labels = encoding.sensors(range(len(encoding.candidates)))
         sim = simulate(structure, self.labels, forces, loads[:n], dt, relative_noise=relative_noise, seed=seed)
         self.Y = sim.measurements                      # (n, n_candidates)
-        self.var = np.maximum(sim.noise_std, 1e-30) ** 2
+        self.var = np.maximum(sim.noise_std, default("noise_floor")) ** 2
         self.reference = sim.strains                   # (n, n_strain)
         self.model = ModalFilterModel(structure.scaled(stiffness_factor), forces, dt, n_modes)
         self.G = self.model.observation(self.labels)   # (n_candidates, n_a)
@@ -100,7 +104,7 @@ class StrainErrorObjective:
         for k, i in enumerate(idx):
             if self.detectable(i):
                 by_size.setdefault(len(i), []).append(k)
-        for size, ks in by_size.items():
+        for ks in by_size.values():
             self._batch([idx[k] for k in ks], ks, out)
         return out
 

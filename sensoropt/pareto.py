@@ -1,28 +1,19 @@
-"""How many sensors are worth it: NSGA-II (DEAP ``selNSGA2``) over layouts of varying size,
-minimising the average strain error and the number of sensors (or their cost).
+"""How many sensors are worth it: NSGA-II over layouts of varying size, minimising the average
+strain error and the number of sensors (or their cost), configured on the GA engine of
+:mod:`core_akf.evolution` (DEAP's ``selNSGA2`` for the survival).
 """
 from __future__ import annotations
 
 import math
-import random
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, individual_class, tournament_dcd
 from core_akf.exceptions import AKFInputError
 
 from .encoding import Encoding
-from .ga import PENALTY, Evaluator
-
-
-def _creator():
-    from deap import base, creator
-
-    if not hasattr(creator, "ParetoFitness"):
-        creator.create("ParetoFitness", base.Fitness, weights=(-1.0, -1.0))
-        creator.create("ParetoIndividual", list, fitness=creator.ParetoFitness)
-    return creator
+from .ga import BATCH, PENALTY
 
 
 @dataclass
@@ -36,8 +27,87 @@ class ParetoResult:
     cache_hits: int
 
 
-def pareto(objective, structure, *, kinds=("ex", "ey", "gxy"), sizes=(1, 8), cost=None, population=60,
-           generations=40, crossover=0.8, mutation=0.3, seed=0, n_jobs=1, progress=False, penalty=PENALTY):
+class ParetoGA(Algorithm):
+    """NSGA-II on layouts of ``sizes[0]..sizes[1]`` sensors: DCD tournament, a crossover that
+    draws each child's sensors from the union of its parents', per-sensor mutation and adding or
+    removing one sensor, survival by ``selNSGA2``."""
+
+    individual = individual_class(2)
+
+    def __init__(self, encodings, lo, hi, population, crossover, mutation):
+        self.encs, self.lo, self.hi = encodings, lo, hi
+        self.size, self.cx, self.mut = population, crossover, mutation
+        self.base = encodings[lo]
+
+    def initial(self, rng, pyrng):
+        return [self.encs[self.lo + j % (self.hi - self.lo + 1)].random_layout(rng) for j in range(self.size)]
+
+    def after_initial(self, pop):
+        from deap import tools
+
+        return tools.selNSGA2(pop, len(pop))
+
+    def _vary_size(self, layout, rng):
+        """Add or remove one sensor (keeps the size within the bounds)."""
+        layout = list(layout)
+        if (rng.random() < 0.5 and len(layout) < self.hi) or len(layout) == self.lo:
+            free = np.setdiff1d(np.arange(len(self.base.candidates)), layout)
+            layout.append(int(rng.choice(free)))
+        else:
+            layout.pop(int(rng.integers(len(layout))))
+        return tuple(sorted(layout))
+
+    def next_generation(self, pop, gen, rng, pyrng, evaluate):
+        from deap import tools
+
+        kids = [tuple(p) for p in tournament_dcd(pop, len(pop), pyrng)]
+        for j in range(0, len(kids) - 1, 2):
+            if rng.random() < self.cx:
+                a, b = kids[j], kids[j + 1]
+                union = sorted(set(a) | set(b))
+                kids[j] = tuple(sorted(int(i) for i in rng.choice(union, size=len(a), replace=False)))
+                kids[j + 1] = tuple(sorted(int(i) for i in rng.choice(union, size=len(b), replace=False)))
+        for j in range(len(kids)):
+            if rng.random() < self.mut:
+                kids[j] = self.encs[len(kids[j])].mutate(kids[j], rng)
+            if rng.random() < self.mut:
+                kids[j] = self._vary_size(kids[j], rng)
+        offspring = evaluate([self.individual(k) for k in kids])
+        return tools.selNSGA2(pop + offspring, self.size)
+
+    def record(self, pop):
+        from deap import tools
+
+        front = tools.sortNondominated(pop, len(pop), first_front_only=True)[0]
+        errs = np.array([i.fitness.values[0] for i in pop])
+        return {"front_size": len({tuple(i) for i in front}), "best_error": float(errs.min()),
+                "mean_error": float(errs.mean())}
+
+
+class _ErrorAndCost:
+    """Fitness of a batch of layouts (genome keys): (strain error, cost); an error that is not a
+    finite number becomes ``penalty`` (the cost stays), as the thesis' GA penalises."""
+
+    def __init__(self, objective, encoding, cost, penalty):
+        self.objective, self.encoding, self.cost, self.penalty = objective, encoding, cost, penalty
+
+    def __call__(self, layouts):
+        errors = self.objective.evaluate([self.encoding.sensors(l) for l in layouts])
+        out = []
+        for layout, e in zip(layouts, errors):
+            try:
+                e = float(e)
+            except (TypeError, ValueError):
+                e = math.nan
+            out.append((e if math.isfinite(e) else self.penalty,
+                        float(sum(self.cost[self.encoding.kind[i]] for i in layout))))
+        return out
+
+
+def pareto(objective, structure, *, kinds: tuple[str, ...] = ("ex", "ey", "gxy"), sizes: tuple[int, int] = (1, 8),
+           cost: dict[str, float] | None = None, population: int = 60, generations: int = 40, crossover: float = 0.8,
+           mutation: float = 0.3, seed: int = 0, n_jobs: int = 1, progress: bool = False,
+           penalty: float = PENALTY) -> ParetoResult:
     """Pareto front of average strain error vs number of sensors (or cost).
 
     Parameters
@@ -48,15 +118,16 @@ def pareto(objective, structure, *, kinds=("ex", "ey", "gxy"), sizes=(1, 8), cos
     sizes : (min, max) number of sensors
     cost : dict kind -> cost per sensor (e.g. ``{"ex": 1, "ey": 1, "gxy": 1, "acc": 3}``);
         default one per sensor, i.e. the second objective is the sensor count
+    population : rounded up to a multiple of 4 (the NSGA-II tournament takes fours)
+    seed : int -- the whole run, whatever ``n_jobs``
 
     Returns
     -------
     :class:`ParetoResult`
     """
     import pandas as pd
-    from deap import tools
 
-    population = 4 * math.ceil(population / 4)   # selTournamentDCD takes multiples of four
+    population = 4 * math.ceil(population / 4)
     lo, hi = int(sizes[0]), int(sizes[1])
     if not 1 <= lo <= hi:
         raise AKFInputError(f"sizes must satisfy 1 <= min <= max, got {sizes}")
@@ -66,84 +137,23 @@ def pareto(objective, structure, *, kinds=("ex", "ey", "gxy"), sizes=(1, 8), cos
     missing = [k for k in base.kinds if k not in cost]
     if missing:
         raise AKFInputError(f"cost has no entry for kind(s) {missing}")
-    creator = _creator()
-    rng = np.random.default_rng(seed)
-    state = random.getstate()
-    random.seed(int(rng.integers(2 ** 31)))
-    evaluate = Evaluator(objective, base, n_jobs=n_jobs, penalty=penalty)
 
-    def layout_cost(l):
-        return float(sum(cost[base.kind[i]] for i in l))
-
-    def assess(inds):
-        errs = evaluate([tuple(i) for i in inds])
-        for ind, e in zip(inds, errs):
-            ind.fitness.values = (e, layout_cost(ind))
-
-    def vary_size(l):
-        """Add or remove one sensor (keeps the size within ``sizes``)."""
-        l = list(l)
-        if (rng.random() < 0.5 and len(l) < hi) or len(l) == lo:
-            free = np.setdiff1d(np.arange(len(base.candidates)), l)
-            l.append(int(rng.choice(free)))
-        else:
-            l.pop(int(rng.integers(len(l))))
-        return tuple(sorted(l))
-
-    try:
-        pop = []
-        for j in range(population):
-            k = lo + j % (hi - lo + 1)
-            pop.append(creator.ParetoIndividual(encs[k].random_layout(rng)))
-        assess(pop)
-        pop = tools.selNSGA2(pop, len(pop))
-        rows, t0 = [], time.perf_counter()
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-            bar = tqdm(total=generations, desc="NSGA-II", unit="gen", leave=False, delay=1.0)
-        for gen in range(generations + 1):
-            if gen > 0:
-                parents = tools.selTournamentDCD(pop, len(pop))
-                kids = [tuple(p) for p in parents]
-                for j in range(0, len(kids) - 1, 2):
-                    if rng.random() < crossover:
-                        a, b = kids[j], kids[j + 1]
-                        union = sorted(set(a) | set(b))
-                        kids[j] = tuple(sorted(int(i) for i in rng.choice(union, size=len(a), replace=False)))
-                        kids[j + 1] = tuple(sorted(int(i) for i in rng.choice(union, size=len(b), replace=False)))
-                for j in range(len(kids)):
-                    if rng.random() < mutation:
-                        kids[j] = encs[len(kids[j])].mutate(kids[j], rng)
-                    if rng.random() < mutation:
-                        kids[j] = vary_size(kids[j])
-                offspring = [creator.ParetoIndividual(k) for k in kids]
-                assess(offspring)
-                pop = tools.selNSGA2(pop + offspring, population)
-            front = tools.sortNondominated(pop, len(pop), first_front_only=True)[0]
-            errs = np.array([i.fitness.values[0] for i in pop])
-            rows.append({"generation": gen, "front_size": len({tuple(i) for i in front}),
-                         "best_error": float(errs.min()), "mean_error": float(errs.mean()),
-                         "evaluations": evaluate.evaluations, "cache_hits": evaluate.hits,
-                         "infeasible": evaluate.infeasible, "seconds": time.perf_counter() - t0})
-            if bar is not None and gen > 0:
-                bar.update(1)
-        if bar is not None:
-            bar.close()
-    finally:
-        random.setstate(state)
+    evaluator = Evaluator(_ErrorAndCost(objective, base, cost, penalty), decode=lambda k: k, n_jobs=n_jobs, batch=BATCH,
+                          n_objectives=2, infeasible_if=lambda v: v[0] >= penalty)
+    algorithm = ParetoGA(encs, lo, hi, population, crossover, mutation)
+    res = GeneticAlgorithm(algorithm, evaluator, generations=generations, seed=seed,
+                           progress="NSGA-II" if progress else None, hall_of_fame=0).run()
     # the non-dominated set over everything evaluated (the cache), not only the last population
     best = {}
-    for l, e in evaluate.cache.items():
-        if e >= evaluate.penalty:      # infeasible (e.g. fewer static sensors than forces)
+    for layout, (e, c) in evaluator.cache.items():
+        if e >= penalty:      # infeasible (e.g. fewer static sensors than forces)
             continue
-        c = layout_cost(l)
         if e < best.get(c, (math.inf,))[0]:
-            best[c] = (e, l)
+            best[c] = (e, layout)
     front_rows, best_so_far = [], math.inf
     for c in sorted(best):
-        e, l = best[c]
+        e, layout = best[c]
         if e < best_so_far:
             best_so_far = e
-            front_rows.append({"n_sensors": len(l), "cost": c, "error": e, "sensors": " ".join(base.sensors(l))})
-    return ParetoResult(pd.DataFrame(front_rows), pd.DataFrame(rows), evaluate.evaluations, evaluate.hits)
+            front_rows.append({"n_sensors": len(layout), "cost": c, "error": e, "sensors": " ".join(base.sensors(layout))})
+    return ParetoResult(pd.DataFrame(front_rows), res.logbook, res.evaluations, res.cache_hits)

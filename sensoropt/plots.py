@@ -1,17 +1,18 @@
-"""Figures: GA convergence, a layout drawn on the plate mesh, the Pareto front."""
+"""Figures: GA convergence, a layout drawn on the plate mesh, the Pareto front.  Each function
+returns the :class:`~matplotlib.figure.Figure` (shown inline in a notebook) and writes it to
+``path`` when one is given."""
 from __future__ import annotations
 
 import numpy as np
 
-from core_akf.figures import pyplot, save_figure
+from core_akf.figures import save_figure, subplots
 
 _MARKERS = {"ex": ("s", "tab:blue"), "ey": ("D", "tab:green"), "gxy": ("^", "tab:purple"), "acc": ("o", "tab:red")}
 
 
-def plot_convergence(logbook, path, title="placement GA"):
+def plot_convergence(logbook, path=None, title="placement GA"):
     """Best and mean fitness and the diversity per generation."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 3.6))
+    fig, ax = subplots(figsize=(7, 3.6))
     ax.plot(logbook["generation"], logbook["best"], "k-", label="best")
     ax.plot(logbook["generation"], logbook["mean"], "b--", lw=0.8, label="mean")
     ax.set_yscale("log")
@@ -23,16 +24,15 @@ def plot_convergence(logbook, path, title="placement GA"):
         ax2.set_ylabel("diversity (grid units)", color="tab:orange")
     ax.legend(loc="upper right", fontsize=7)
     ax.set_title(title, fontsize=9)
-    return save_figure(fig, path)
+    return _finish(fig, path)
 
 
-def plot_layout(encoding, layout, path, title="", forces=()):
+def plot_layout(encoding, layout, path=None, title="", forces=()):
     """The mesh (nodes as dots, clamped nodes grey), the sensors with kind markers and node ids,
     and the force locations (red crosses)."""
-    plt = pyplot()
     s = encoding.structure
     xy = s.nodes
-    fig, ax = plt.subplots(figsize=(6, 5))
+    fig, ax = subplots(figsize=(6, 5))
     ax.plot(xy[:, 0], xy[:, 1], ".", color="0.75", ms=4)
     free = set(encoding.node.tolist())
     clamped = [n for n in range(1, s.n_nodes + 1) if n not in free]
@@ -47,20 +47,20 @@ def plot_layout(encoding, layout, path, title="", forces=()):
     for i in layout:
         x, y = xy[encoding.node[i] - 1]
         ax.annotate(f"{encoding.node[i]}", (x, y), textcoords="offset points", xytext=(6, 6), fontsize=8)
-    for node, _ in forces:
+    for j, (node, direction) in enumerate(forces):
         x, y = xy[node - 1]
-        ax.plot(x, y, "x", color="red", ms=10, mew=2)
+        ax.plot(x, y, "x", color="red", ms=10, mew=2, label=f"load {j + 1}: node {node} ({direction})")
+        ax.annotate(f"F{j + 1}", (x, y), textcoords="offset points", xytext=(-14, -12), fontsize=8, color="red")
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1, 0.5))
     ax.set_title(title, fontsize=9)
-    return save_figure(fig, path)
+    return _finish(fig, path)
 
 
-def plot_pareto(front, path, title="error vs number of sensors"):
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6, 3.6))
+def plot_pareto(front, path=None, title="error vs number of sensors"):
+    fig, ax = subplots(figsize=(6, 3.6))
     x = front["cost"] if "cost" in front else front["n_sensors"]
     ax.plot(x, front["error"], "o-")
     for xi, e, n in zip(x, front["error"], front["n_sensors"]):
@@ -69,4 +69,10 @@ def plot_pareto(front, path, title="error vs number of sensors"):
     ax.set_ylabel("average strain error (µε)")
     ax.set_yscale("log")
     ax.set_title(title, fontsize=9)
-    return save_figure(fig, path)
+    return _finish(fig, path)
+
+
+def _finish(fig, path):
+    if path is not None:
+        save_figure(fig, path)
+    return fig

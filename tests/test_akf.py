@@ -216,8 +216,8 @@ def test_reduced_model_estimate_close_to_full_on_th_case3():
     """TH case-3 layout (g_xy at 2 and 100, acceleration at 12), 5 % model error, 2 % noise:
     the 80-mode reduced filter model gives the full model's average strain error within 5 %,
     with the same covariance levels (model error is specified per physical DOF)."""
-    from core_akf.examples import example_job
-    from core_akf.jobs import run_job
+    from akf.examples import example_job
+    from akf.jobs import run_job
 
     job = example_job("th-case3")
     job["simulation"]["duration"] = 0.5
@@ -276,7 +276,7 @@ def test_structured_time_varying_update_equals_dense():
     gives the same time-varying filter as the dense product."""
     from core_akf.akf import ModalBlockTransition
     from core_akf.models import th_plate
-    from core_akf.statespace import augment, modal_zoh, observation, modal_state_transform
+    from core_akf.statespace import augment, modal_state_transform, modal_zoh, observation
     s = th_plate().reduce(30)
     forces = ["121:w", "111:w"]
     sensors = ["strain:2:gxy", "strain:100:gxy", "acc:12:w"]
@@ -329,9 +329,15 @@ def test_estimate_to_frame():
     sim = simulate(s, ["strain:13", "acc:8:y"], ["8:y"], loads, 1 / 1024, relative_noise=0.02, seed=0)
     est = akf.estimate(s, ["strain:13", "acc:8:y"], ["8:y"], sim.measurements, 1 / 1024, model_error_cov=1e-16,
                        force_increment_cov=1e4, noise_cov=np.diag(sim.noise_std ** 2), steady=True)
-    df = est.to_frame()
-    assert list(df.columns[:2]) == ["time", "force:8:y"] and df.shape == (64, 2 + 34)
-    assert np.allclose(df["strain:m13"], est.strains[:, 12])
+    wide = est.to_frame(wide=True)
+    assert list(wide.columns[:2]) == ["time", "force:8:y"] and wide.shape == (64, 2 + 34)
+    assert np.allclose(wide["strain:13"], est.strains[:, 12])
+    tidy = est.to_frame()                     # one row per time step and channel
+    assert list(tidy.columns) == ["time", "quantity", "channel", "unit", "value"] and len(tidy) == 64 * 35
+    m13 = tidy.query("channel == 'strain:13'")
+    assert np.allclose(m13["value"], est.strains[:, 12]) and np.allclose(m13["time"], est.time)
+    assert set(tidy.query("quantity == 'force'")["unit"]) == {"N"}
+    assert np.allclose(tidy.pivot(index="time", columns="channel", values="value")["8:y"], est.forces[:, 0])
     assert est.detectability.detectable
 
 

@@ -13,10 +13,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from akf.cli import main
+from akf.jobs import run_job
 from core_akf import AKFInputError, UndetectableError, akf
 from core_akf.akf import estimate
-from core_akf.cli import main
-from core_akf.jobs import run_job
 from core_akf.models import s17_truss
 from core_akf.structure import Structure
 
@@ -181,7 +181,7 @@ JOB_CASES = {
     "relative_noise = '2%'": (lambda tp: _job(simulation__relative_noise="2%"), "relative_noise in \\[simulation\\]"),
     "model_error_cov negative": (lambda tp: _job(filter__model_error_cov=-1e-16), "model_error_cov in \\[filter\\]"),
     "no sensors key": (lambda tp: _job(sensors=_DELETE), "the job has no 'sensors'"),
-    "unknown model": (lambda tp: _job(structure={"model": "bridge"}), "structure.model must be one of"),
+    "unknown model": (lambda tp: _job(structure={"model": "bridge"}), "model in \\[structure\\] must be one of"),
     "noise_cov simulated on measured data": (lambda tp: dict(_measured_job(tp, _frame()), filter={"noise_cov": "simulated"}),
                                              "needs a simulated job"),
     "measurement file missing": (lambda tp: _job(simulation=_DELETE, measurements={"file": str(tp / "nope.csv")}),
@@ -292,7 +292,7 @@ def test_two_concurrent_cli_runs_never_mix_outputs(tmp_path):
     """Two processes into one --out: one writes, the other refuses (exit 2); the file parses."""
     import subprocess
     import sys
-    cmd = [sys.executable, "-m", "core_akf.cli", "estimate", "--example", "s17-case4", "--duration", "1",
+    cmd = [sys.executable, "-m", "akf", "estimate", "--example", "s17-case4", "--duration", "1",
            "--no-plot", "--out", str(tmp_path)]
     procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True) for _ in range(2)]
     codes = sorted(p.wait(timeout=300) for p in procs)
@@ -319,7 +319,7 @@ def test_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path, capsys, monkeypat
                 raise KeyboardInterrupt
         return real(frame, path, **kw)
 
-    monkeypatch.setattr("core_akf.cli.write_csv", interrupted)
+    monkeypatch.setattr("akf.commands.estimate.write_csv", interrupted)
     rc = main(["estimate", "--example", "s17-case4", "--duration", "0.05", "--no-plot", "--out", str(tmp_path)])
     assert rc == 130
     assert "interrupted" in capsys.readouterr().err
@@ -335,18 +335,19 @@ def test_place_refuses_to_overwrite_a_checkpoint_and_checks_it(tmp_path, capsys)
     capsys.readouterr()
     assert main(args) == 2
     assert "a checkpoint of an earlier run exists" in capsys.readouterr().err
-    ck = tmp_path / "checkpoint.pkl"
+    ck = tmp_path / "checkpoint.json"
     ck.write_bytes(ck.read_bytes()[:100])                  # truncated
     assert main(args + ["--resume"]) == 2
-    assert "is truncated or not a placement checkpoint" in capsys.readouterr().err
-    ck.write_bytes(b"not a pickle at all")
+    assert "is truncated or not a GA checkpoint" in capsys.readouterr().err
+    ck.write_bytes(b"not JSON at all")
     assert main(args + ["--resume"]) == 2
-    assert "truncated or not a placement checkpoint" in capsys.readouterr().err
+    assert "truncated or not a GA checkpoint" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------------------- property based
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 
 _VALUES = st.one_of(st.none(), st.booleans(), st.integers(-3, 3), st.sampled_from([0.0, -1.0, 1e-300, 1e300, 0.5, 2.0]),
                     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=5),
@@ -391,7 +392,7 @@ def test_any_array_shape_gives_a_result_or_a_clear_error(n, m, N, batch, wrong):
 def test_locate_confidence_is_honest():
     """One candidate: nothing to compare (confidence 0). Data that no candidate explains (noise):
     confidence 0, not the share of votes; a warning says why."""
-    from impactloc.examples import example_scenario
+    from akf.examples.impact import example_scenario
     from impactloc.locate import locate
     sc = example_scenario("imp-truss-case1")
     kw = dict(n_ad=sc.n_ad, ad_kinds=sc.ad_kinds, direction=sc.direction, tune=False)
@@ -405,7 +406,7 @@ def test_locate_confidence_is_honest():
 
 
 def test_tuning_at_a_search_bound_is_reported():
-    from impactloc.examples import example_scenario
+    from akf.examples.impact import example_scenario
     from impactloc.locate import locate
     sc = example_scenario("imp-truss-case1")
     res = locate(sc.structure, sc.sensors, sc.measurements, sc.dt, n_ad=sc.n_ad, ad_kinds=sc.ad_kinds,
@@ -417,7 +418,7 @@ def test_tuning_at_a_search_bound_is_reported():
 def test_estimates_say_when_they_cannot_be_trusted():
     """A forced undetectable run drifts; a record shorter than the filter's transient has not
     settled; a good run says nothing."""
-    from core_akf.examples import example_job
+    from akf.examples import example_job
     job = example_job("s17-case2")
     job["simulation"]["duration"] = 0.2
     res = run_job(job, allow_undetectable=True, steady=False)

@@ -7,12 +7,21 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from akf.cli import main
+from akf.examples.impact import example_scenario  # noqa: E402
 from core_akf import AKFInputError
 from core_akf.akf import estimate
-from core_akf.cli import main
 from core_akf.metrics import rms_error
-from impactloc import (Covariances, candidate_locations, default_covariances, example_scenario, force_summary,
-                       locate, role_splits, scan, tune_covariances)
+from impactloc import (
+    Covariances,
+    candidate_locations,
+    default_covariances,
+    force_summary,
+    locate,
+    role_splits,
+    scan,
+    tune_covariances,
+)
 from impactloc.scan import ImpactModel, location_errors
 
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
+from akf.examples import TH_CASE3
 from core_akf.akf import filter_states
-from core_akf.examples import TH_CASE3
 from core_akf.models import s17_truss, th_plate
 from core_akf.reduced import ModalFilterModel
 from core_akf.riccati import RiccatiError, RiccatiWarning, dare_residual, solve_filter_dare
@@ -76,7 +76,8 @@ def test_fallback_result_is_checked(monkeypatch):
 def test_parquet_measurements_are_read(tmp_path):
     """Parquet is a documented input format: its reader (pyarrow) is a declared dependency."""
     import pandas as pd
-    from core_akf.jobs import read_measurements
+
+    from akf.jobs import read_measurements
     rng = np.random.default_rng(0)
     df = pd.DataFrame({"time": np.arange(50) * 1e-3, "strain:13": 1e-6 * rng.normal(size=50),
                        "acc:8:y": rng.normal(size=50)})

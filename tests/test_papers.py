@@ -7,8 +7,8 @@ instability, not absolute values.
 import numpy as np
 import pytest
 
-from core_akf.examples import example_job
-from core_akf.jobs import run_job
+from akf.examples import example_job
+from akf.jobs import run_job
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,8 @@ clamped edge, and a symmetric plate whose mid-line gauges cannot see an antisymm
 import numpy as np
 import pytest
 
-from core_akf.examples import TH_FLEXIBLE_PLATE
-from core_akf.jobs import build_structure
+from akf.examples import TH_FLEXIBLE_PLATE
+from akf.jobs import build_structure
 from core_akf.models import imp_plate, s17_truss, th_plate
 from core_akf.rank import StaticGain, is_supported, zero_rows
 from core_akf.statespace import detectability, static_gain
@@ -149,7 +149,7 @@ def test_zero_rows_and_supported_are_scale_free():
     s = th_plate()
     dead = zero_rows(s.strain_operator)
     labels = np.array(s.strain_labels)
-    assert set(labels[dead]) == {f"ex{i}" for i in range(1, 12)}           # e_x along the clamped edge
+    assert set(labels[dead]) == {f"strain:{i}:ex" for i in range(1, 12)}           # e_x along the clamped edge
     assert np.array_equal(zero_rows(1e-9 * s.strain_operator), dead)
     for f in (1e-6, 1.0, 1e6):
         assert is_supported(s17_truss(200e9 * f, 7800))

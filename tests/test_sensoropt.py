@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
+from akf.cli import main
+from akf.examples import TH_CASE2, TH_CASE3, th_job
+from akf.jobs import build_loads
+from akf.placement import example_problem
 from core_akf import AKFInputError
-from core_akf.cli import main
-from core_akf.examples import TH_CASE2, TH_CASE3, th_job
-from core_akf.jobs import build_loads
 from core_akf.models import plate, th_plate
-from sensoropt import (THESIS, Encoding, FunctionObjective, PlacementProblem, StrainErrorObjective, example_problem,
-                       pareto, place)
+from sensoropt import THESIS, Encoding, FunctionObjective, PlacementProblem, StrainErrorObjective, pareto, place
 
 
 def small_problem(n_sensors=2):
@@ -107,7 +107,7 @@ class _CrashingObjective:
 def test_resume_from_checkpoint_continues_the_same_run(small, tmp_path):
     p, enc, obj = small
     kw = dict(population=20, generations=10, seed=3, stall_generations=0, checkpoint_every=3)
-    straight = place(obj, enc, checkpoint=str(tmp_path / "a.pkl"), **kw)
+    straight = place(obj, enc, checkpoint=str(tmp_path / "a.json"), **kw)
     ck = str(tmp_path / "b.pkl")
     with pytest.raises(_Crash):
         place(_CrashingObjective(obj, 9), enc, checkpoint=ck, **kw)

@@ -10,8 +10,7 @@ import pytest
 
 from core_akf import UndetectableError
 from core_akf.models import s17_truss, th_plate
-from core_akf.statespace import (augment, continuous, detectability, observation, state_space,
-                                 van_loan, zoh)
+from core_akf.statespace import continuous, detectability, observation, state_space, van_loan, zoh
 
 FORCES4 = ["4:y", "6:y", "8:y", "12:y"]
 ACC_ONLY = [f"acc:{j}:y" for j in (2, 4, 5, 6, 7, 8, 9, 12, 14, 15)] + [f"acc:{j}:x" for j in (4, 5, 8, 9)]
@@ -39,7 +38,7 @@ def test_zoh_matches_fine_rk4():
     rng = np.random.default_rng(0)
     x = np.zeros(A.shape[0])
     x_rk = x.copy()
-    for k in range(40):
+    for _ in range(40):
         u = rng.normal(0, 1e3, 2)
         x = A @ x + B @ u
         x_rk = _rk4(A_c, B_c, u, x_rk, dt, 1000)
@@ -198,8 +197,8 @@ def test_pbh_zero_force_member_is_not_information():
 def test_pbh_thin_cantilever_plate_counts_as_supported():
     """f1 / f_max ~ 1e-8 on the thesis' flexible plate (in-plane and shear modes in the MHz):
     still a supported structure, so the static test applies and two gauges are detectable."""
-    from core_akf.examples import TH_FLEXIBLE_PLATE
-    from core_akf.jobs import build_structure
+    from akf.examples import TH_FLEXIBLE_PLATE
+    from akf.jobs import build_structure
     from core_akf.statespace import is_supported
 
     s = build_structure(TH_FLEXIBLE_PLATE)

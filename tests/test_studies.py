@@ -8,8 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from core_akf.cli import main
-from core_akf.studies import run_study
+from akf.cli import main
+from akf.studies import run_study
 
 
 @pytest.fixture(scope="module")
@@ -117,8 +117,8 @@ def test_th_flexible_plate_two_gauges_suffice(th):
 def test_flexible_plate_first_frequency_matches_plate_strip_theory():
     """TH case 5 plate: f1 against the clamped-free plate strip, (1.8751^2 / 2 pi) sqrt(D / rho h) / L^2
     (the thesis states 0.14 Hz for these dimensions; see studies/README.md)."""
-    from core_akf.examples import TH_FLEXIBLE_PLATE
-    from core_akf.jobs import build_structure
+    from akf.examples import TH_FLEXIBLE_PLATE
+    from akf.jobs import build_structure
 
     p = TH_FLEXIBLE_PLATE
     D = p["E"] * p["thickness"] ** 3 / (12 * (1 - p["nu"] ** 2))

@@ -3,9 +3,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from akf.jobs import read_measurements
 from core_akf import AKFInputError, ModelError, Structure, UndetectableError
 from core_akf.akf import estimate, run
-from core_akf.jobs import read_measurements
 from core_akf.models import plate, s17_truss, th_plate
 from core_akf.sensors import Sensor, as_layout
 from core_akf.simulate import simulate

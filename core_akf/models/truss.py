@@ -123,7 +123,7 @@ def planar_truss(nodes, members, areas, E, rho, supports, damping=None, lumped=F
     ix = np.ix_(free, free)
     return Structure(M=M[ix], K=K[ix], damping=damping, nodes=nodes, dof_names=("x", "y"),
                      free_dofs=free, strain_matrix=S[:, free], strain_kind="member",
-                     members=members0, name=name,
+                     members=members0 + 1, name=name,
                      meta=dict(K_full=K, M_full=M, areas=areas, E=E, rho=rho, supports=dict(supports)))
 
 
@@ -151,7 +151,7 @@ def member_strain_exact(structure, u_free):
     d = np.zeros(u_free.shape[:-1] + (2 * structure.n_nodes,))
     d[..., structure.free_dofs] = u_free
     d = d.reshape(u_free.shape[:-1] + (structure.n_nodes, 2))
-    i, j = structure.members[:, 0], structure.members[:, 1]
+    i, j = structure.members[:, 0] - 1, structure.members[:, 1] - 1
     x = structure.nodes
     L0 = np.linalg.norm(x[j] - x[i], axis=1)
     L = np.linalg.norm(x[j] + d[..., j, :] - x[i] - d[..., i, :], axis=-1)

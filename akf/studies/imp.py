@@ -15,12 +15,12 @@ import numpy as np
 
 from core_akf.metrics import rms_error
 from core_akf.outputs import write_csv
-from core_akf.studies._common import StudyResult, output_dir
+from impactloc.locate import locate
+from impactloc.scan import candidate_locations
 
-from .cli import write_outputs
-from .examples import EXAMPLES, example_scenario
-from .locate import locate
-from .scan import candidate_locations
+from ..examples.impact import EXAMPLES, example_scenario
+from ..locating import write_outputs
+from ._common import Progress, StudyResult, output_dir
 
 SETTINGS = [("imp-truss-case1", "abs"), ("imp-truss-case1", "rel10"), ("imp-truss-case2", "abs"),
             ("imp-truss-case2", "rel10"), ("imp-plate", "abs"), ("imp-plate", "rel10")]
@@ -37,7 +37,9 @@ def run_cases(out=None, quick=False, seed=0):
 
     out = output_dir("imp_cases", out)
     rows, files, data = [], {}, {}
+    progress = Progress("imp_cases", len(SETTINGS))
     for name, noise in SETTINGS:
+        progress.step(f"{name}, {noise} noise")
         sc = example_scenario(name, noise=noise, seed=seed)
         res = _locate(sc, seed=seed, max_splits=8 if quick else None,
                       tuning={"generations": 3, "population": 8} if quick else None)
@@ -61,9 +63,20 @@ def run_cases(out=None, quick=False, seed=0):
     table = pd.DataFrame(rows)
     files["table"] = os.path.join(out, "imp_cases.csv")
     write_csv(table, files["table"])
+    summary = (table.assign(hit=table["identified"] == table["true_node"])
+               .groupby("example", sort=False)
+               .agg(settings=("hit", "size"), hits=("hit", "sum"), min_confidence=("confidence", "min"),
+                    mean_ad_error_assumed=("ad_error_assumed", "mean"), mean_ad_error_tuned=("ad_error_tuned", "mean"),
+                    mean_force_rms_error_tuned_N=("force_rms_error_tuned_N", "mean"),
+                    mean_seconds=("seconds", "mean"))
+               .reset_index())
+    files["summary"] = os.path.join(out, "imp_cases_summary.csv")
+    write_csv(summary, files["summary"])
     print("IMP: impact localisation, paper settings (AD error: mean relative RMS error at the AD sensors)")
     print(table.drop(columns=["n_locations"]).round(4).to_string(index=False))
-    return StudyResult("imp_cases", table, table, files, data)
+    print("summary per example:")
+    print(summary.round(4).to_string(index=False))
+    return StudyResult("imp_cases", table, summary, files, data)
 
 
 def run_hit_rate(out=None, quick=False, seed=0, examples=None, seeds=None):
@@ -74,12 +87,14 @@ def run_hit_rate(out=None, quick=False, seed=0, examples=None, seeds=None):
     out = output_dir("imp_hit_rate", out)
     seeds = seeds or ([seed] if quick else [seed, seed + 1])
     rows = []
+    progress = Progress("imp_hit_rate", len(examples or EXAMPLES) * len(seeds))
     for name in examples or EXAMPLES:
         structure = example_scenario(name).structure
         nodes = [n for n, _ in candidate_locations(structure, EXAMPLES[name]["direction"])]
         if quick:
             nodes = nodes[::3]
         for s in seeds:
+            progress.step(f"{name}, seed {s}: impacts at {len(nodes)} nodes")
             for node in nodes:
                 sc = example_scenario(name, impact_node=node, seed=s)
                 res = _locate(sc, tune=False, seed=s, max_splits=8 if quick else None)

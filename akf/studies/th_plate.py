@@ -36,11 +36,12 @@ import os
 
 import numpy as np
 
+from core_akf.figures import figure
+from core_akf.outputs import write_csv
+
 from ..examples import TH_CASE1, TH_CASE2, TH_CASE3, TH_CASE4, TH_FLEXIBLE_PLATE, th_job
-from ..figures import pyplot
 from ..jobs import run_job
-from ..outputs import write_csv
-from ._common import StudyResult, drift_ratio, output_dir, psd, save
+from ._common import Progress, StudyResult, drift_ratio, output_dir, psd, save
 
 NAME = "th_plate"
 DESCRIPTION = "TH plate: average strain error over all 363 components, cases 1, 2, 3a-d, 4, 5a-d"
@@ -68,7 +69,7 @@ CASES = {
 }
 
 #: strain channels the thesis plots (histories at node 70 e_x and node 1 g_xy, spectrum at node 1)
-CHANNELS = ("ex70", "gxy1")
+CHANNELS = ("strain:70:ex", "strain:1:gxy")
 
 
 def run_case(case, duration=6.0, seed=0, reduce_modes=None):
@@ -81,7 +82,7 @@ def run_case(case, duration=6.0, seed=0, reduce_modes=None):
     try:
         return run_job(job)
     except Exception as exc:  # undetectable: force the time-varying filter, as the thesis does
-        from ..exceptions import UndetectableError
+        from core_akf.exceptions import UndetectableError
 
         if not isinstance(exc, UndetectableError):
             raise
@@ -96,7 +97,9 @@ def run(out=None, quick=False, seed=0, cases=None):
     duration = 2.0 if quick else 6.0
     out = output_dir(NAME, out)
     results, rows, summary = {}, [], []
+    progress = Progress(NAME, len(cases or CASES))
     for case in cases or CASES:
+        progress.step(f"case {case}")
         res = run_case(case, duration, seed)
         results[case] = res
         est, sim = res.estimate, res.simulation
@@ -124,12 +127,11 @@ def run(out=None, quick=False, seed=0, cases=None):
 
 
 def _figures(results, table, out, files):
-    plt = pyplot()
     for case, res in results.items():
         est, sim = res.estimate, res.simulation
         labels = est.structure.strain_labels
         errs = table[table["case"] == case]["rms_error_ue"].to_numpy()
-        fig = plt.figure(figsize=(10, 6.5))
+        fig = figure(figsize=(10, 6.5))
         ax = fig.add_subplot(3, 1, 1)
         ax.bar(np.arange(1, errs.size + 1), errs, width=1.0, color="tab:blue")
         ax.set_xlabel("strain component (e_x nodes 1-121, e_y, g_xy)")
@@ -144,7 +146,7 @@ def _figures(results, table, out, files):
             ax.set_xlabel("time (s)")
             ax.set_ylabel("µε")
             ax.legend(fontsize=6)
-        i = labels.index("gxy1")
+        i = labels.index("strain:1:gxy")
         ax = fig.add_subplot(3, 2, 6)
         for sig, style, lab in ((sim.strains[:, i], "k", "reference"), (est.strains[:, i], "r", "AKF")):
             f, p = psd(sig, est.dt)

@@ -11,16 +11,17 @@ from __future__ import annotations
 
 import importlib
 
+from core_akf.exceptions import AKFInputError
+
 from ._common import StudyResult  # noqa: F401
-from ..exceptions import AKFInputError
 
 #: study name -> module path
 STUDIES = {
-    "s17_truss": "core_akf.studies.s17_truss",
-    "th_plate": "core_akf.studies.th_plate",
-    "th_placement": "sensoropt.study",
-    "imp_cases": "impactloc.study:cases",
-    "imp_hit_rate": "impactloc.study:hit_rate",
+    "s17_truss": "akf.studies.s17_truss",
+    "th_plate": "akf.studies.th_plate",
+    "th_placement": "akf.studies.th_placement",
+    "imp_cases": "akf.studies.imp:cases",
+    "imp_hit_rate": "akf.studies.imp:hit_rate",
 }
 
 

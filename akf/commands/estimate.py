@@ -1,27 +1,25 @@
-"""Command line: ``akf estimate JOB.toml`` / ``akf estimate --example s17-case4``, ``akf study NAME``."""
+"""``akf estimate``: estimate forces and strains for a job file or a built-in example."""
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
 
-from .exceptions import AKFInputError, UndetectableError
-from .jobs import load_job_file
-from .outputs import OutputFolder, write_csv
+from core_akf.exceptions import AKFInputError
+from core_akf.outputs import OutputFolder, write_csv
 
+from ..jobs import load_job
 
 #: above this many (channel x step) rows, "all" strain histories are not written to the CSV
 _MAX_STRAIN_ROWS = 2_000_000
 
 
 def _plot(result, path):
-    from .figures import pyplot, save_figure
+    from core_akf.figures import save_figure, subplots
 
-    plt = pyplot()
     est, sim = result.estimate, result.simulation
     nf = est.forces.shape[1]
-    fig, axes = plt.subplots(nf + 1, 1, figsize=(9, 2.2 * (nf + 1)), squeeze=False)
+    fig, axes = subplots(nf + 1, 1, figsize=(9, 2.2 * (nf + 1)), squeeze=False)
     for j, (node, d) in enumerate(est.force_locations):
         ax = axes[j, 0]
         if sim is not None:
@@ -42,13 +40,12 @@ def _plot(result, path):
 
 def _plot_sensors(result, path, max_channels=8):
     """Measured against one-step predicted signal at (up to ``max_channels``) sensors."""
-    from .figures import pyplot, save_figure
-    from .sensors import UNITS
+    from core_akf.figures import save_figure, subplots
+    from core_akf.sensors import UNITS
 
-    plt = pyplot()
     est = result.estimate
     k = min(len(est.sensors), max_channels)
-    fig, axes = plt.subplots(k, 1, figsize=(9, 1.8 * k + 0.6), squeeze=False, sharex=True)
+    fig, axes = subplots(k, 1, figsize=(9, 1.8 * k + 0.6), squeeze=False, sharex=True)
     pred = est.predicted
     for j in range(k):
         ax = axes[j, 0]
@@ -63,19 +60,16 @@ def _plot_sensors(result, path, max_channels=8):
 
 
 def _estimate(args):
-    from .examples import EXAMPLES, example_job
-    from .jobs import run_job
+    from ..examples import example_job, example_names
+    from ..jobs import run_job
 
     if args.list_examples:
-        for name, job in sorted(EXAMPLES.items()):
-            print(f"{name:12s} {job['description']}")
+        for name in example_names("estimate"):
+            print(f"{name:12s} {example_job(name)['description']}")
         return 0
     if (args.job is None) == (args.example is None):
         raise AKFInputError("give a job file or --example NAME (see --list-examples)")
-    job = example_job(args.example) if args.example else load_job_file(args.job)
-    meas = job.get("measurements")
-    if args.job and isinstance(meas, dict) and "file" in meas and not os.path.isabs(meas["file"]):
-        meas["file"] = os.path.join(os.path.dirname(os.path.abspath(args.job)), meas["file"])  # relative to the job file
+    job = example_job(args.example) if args.example else load_job(args.job, "estimate")
     if args.duration is not None:
         job.setdefault("simulation", {})["duration"] = args.duration
     if args.seed is not None:
@@ -147,33 +141,9 @@ def _write_estimate(args, job, result, name, out):
     return 0
 
 
-def _study(args):
-    from .studies import STUDIES, run_study, study_module
 
-    if args.list or args.name is None:
-        for name in STUDIES:
-            try:
-                desc = study_module(name).DESCRIPTION
-            except ImportError as exc:  # a study of an optional package that is not installed
-                desc = f"(unavailable: {exc})"
-            print(f"{name:12s} {desc}")
-        return 0
-    study_module(args.name)                          # an unknown name fails before a folder is made
-    out = args.out or os.path.join("akf-out", "studies", args.name)
-    with OutputFolder(out, "--out"):
-        result = run_study(args.name, out=out, quick=args.quick, seed=args.seed)
-    for key, path in result.files.items():
-        if key in ("table", "summary"):
-            print(f"  wrote {key}: {path}")
-    n_png = sum(1 for p in result.files.values() if str(p).endswith(".png"))
-    if n_png:
-        print(f"  wrote {n_png} figure(s) to {os.path.dirname(result.files['table'])}")
-    return 0
-
-
-def build_parser():
-    parser = argparse.ArgumentParser(prog="akf", description="Model-based structural monitoring with an augmented Kalman filter.")
-    sub = parser.add_subparsers(dest="command", required=True)
+def register(sub):
+    """Add ``estimate`` to the ``akf`` sub-command parser."""
     p = sub.add_parser("estimate", help="estimate forces and strains for a job (TOML) or a built-in example")
     p.add_argument("job", nargs="?", help="job file (TOML)")
     p.add_argument("--example", help="built-in example, e.g. s17-case4 (see --list-examples)")
@@ -186,42 +156,3 @@ def build_parser():
     p.add_argument("--seed", type=int, help="override the noise seed")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
     p.set_defaults(func=_estimate)
-
-    p = sub.add_parser("study", help="reproduce a paper's cases: table, CSV and figures")
-    p.add_argument("name", nargs="?", help="study name (see --list)")
-    p.add_argument("--list", action="store_true", help="list the studies")
-    p.add_argument("--quick", action="store_true", help="short records (under a minute)")
-    p.add_argument("--out", help="output folder (default akf-out/studies/NAME)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed")
-    p.set_defaults(func=_study)
-
-    # the optimiser packages of this distribution add their own sub-commands
-    from impactloc.cli import register as register_locate
-    from sensoropt.cli import register as register_place
-
-    register_place(sub)
-    register_locate(sub)
-    return parser
-
-
-def main(argv=None):
-    args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except UndetectableError as exc:
-        print(f"akf: error: {exc}", file=sys.stderr)
-        return 3
-    except AKFInputError as exc:
-        print(f"akf: error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:        # an unreadable input or an output that cannot be written
-        where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
-        print(f"akf: error: {exc.strerror or exc}{where}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("akf: interrupted; files already written are complete, the others were not written", file=sys.stderr)
-        return 130
-
-
-if __name__ == "__main__":
-    sys.exit(main())

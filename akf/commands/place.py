@@ -1,52 +1,36 @@
 """``akf place``: sensor placement from a job file or a built-in example.
 
-A place job (TOML)::
-
-    name = "my-plate"
-    dt = 0.0005
-    forces = ["121:w", "111:w"]
-    [structure]
-    model = "th_plate"
-    [place]
-    sensors = 3                        # or budget = {strain = 2, acc = 1}
-    kinds = ["ex", "ey", "gxy"]        # add "acc" to allow accelerometers
-    window = 0.1                       # s of simulated response per fitness evaluation
-    population = 50                    # GA settings (TH defaults)
-    generations = 100
-    [filter]
-    stiffness_factor = 1.05
-    [simulation]
-    duration = 6.0                     # the full record the best layout is checked on
-    relative_noise = 0.02
-    [[simulation.loads]]
-    components = [{type = "ramp", start = 1, end = 5, peak = 89}]
-    [[simulation.loads]]
-    components = [{type = "half_sine", start = 0.5, end = 5.5, peak = 44.5}]
+Every key of a place job: the job-file reference (``python -m akf.schema``); the built-in
+problems are ``akf/examples/jobs/th-*.toml``.
 """
 from __future__ import annotations
 
 import json
 import os
+import sys
 
 from core_akf.exceptions import AKFInputError
-from core_akf.jobs import load_job_file
 from core_akf.outputs import OutputFolder, write_csv
+
+from ..jobs import load_job
 
 
 def _place(args):
-    from .ga import THESIS
-    from .problem import EXAMPLES, example_problem, problem_from_job
+    from sensoropt.ga import THESIS
+
+    from ..examples import example_names, load_example
+    from ..placement import example_problem, problem_from_job
 
     if args.list_examples:
-        for name, spec in EXAMPLES.items():
-            print(f"{name:10s} {spec['description']}")
+        for name in example_names("place"):
+            print(f"{name:10s} {load_example(name)['description']}")
         return 0
     if (args.job is None) == (args.example is None):
         raise AKFInputError("give a place job file or --example NAME (see --list-examples)")
     if args.example:
         problem, ga = example_problem(args.example, args.sensors), {}
     else:
-        problem, ga = problem_from_job(load_job_file(args.job))
+        problem, ga = problem_from_job(load_job(args.job, "place"))
         if args.sensors is not None:
             if problem.budget:
                 raise AKFInputError("--sensors does not apply to a job with a budget per sensor type")
@@ -68,10 +52,16 @@ def _place(args):
 
 
 def _run_place(args, problem, settings, out):
-    from .ga import place
-    from .plots import plot_convergence, plot_layout
+    from sensoropt.ga import place
+    from sensoropt.plots import plot_convergence, plot_layout
 
-    checkpoint = args.checkpoint or os.path.join(out, "checkpoint.pkl")
+    from ..writers import saved_plot
+
+    checkpoint = args.checkpoint or os.path.join(out, "checkpoint.json")
+    notes = window_notes(problem)
+    if notes and not args.json:
+        for note in notes:
+            print(f"akf: note: {note}", file=sys.stderr)
     enc = problem.encoding()
     obj = problem.objective(enc)
     res = place(obj, enc, seed=args.seed, n_jobs=args.n_jobs, checkpoint=checkpoint, resume=args.resume,
@@ -82,9 +72,9 @@ def _run_place(args, problem, settings, out):
     files = {"logbook": os.path.join(out, "logbook.csv"), "checkpoint": checkpoint}
     write_csv(res.logbook, files["logbook"])
     if not args.no_plot:
-        files["convergence"] = plot_convergence(res.logbook, os.path.join(out, "convergence.png"),
+        files["convergence"] = saved_plot(plot_convergence, res.logbook, os.path.join(out, "convergence.png"),
                                                 f"{problem.name}: {enc.n_sensors} sensors, seed {args.seed}")
-        files["layout"] = plot_layout(enc, res.best, os.path.join(out, "layout.png"),
+        files["layout"] = saved_plot(plot_layout, enc, res.best, os.path.join(out, "layout.png"),
                                       f"best layout: window error {res.best_error:.3f} µε, full record {error:.3f} µε",
                                       forces=obj.model.forces)
     if args.json:
@@ -92,7 +82,7 @@ def _run_place(args, problem, settings, out):
                           "window_error": res.best_error, "generations": int(res.logbook["generation"].iloc[-1]),
                           "evaluations": res.evaluations, "cache_hits": res.cache_hits, "infeasible": res.infeasible,
                           "stopped": res.stopped, "seconds": float(res.logbook["seconds"].iloc[-1]),
-                          "reference_errors": refs, "files": files,
+                          "reference_errors": refs, "files": files, "notes": notes,
                           "units": {"error": "µε (average RMS strain error, full record)", "window_error": "µε",
                                     "reference_errors": "µε", "seconds": "s"}}))
         return 0
@@ -108,15 +98,29 @@ def _run_place(args, problem, settings, out):
           f"{res.cache_hits} cache hits, {res.infeasible} infeasible, {lb['seconds'].iloc[-1]:.1f} s")
     for k, v in files.items():
         print(f"  wrote {k}: {v}")
+    for note in notes:
+        print(f"  note: {note}")
     return 0
 
 
+def window_notes(problem):
+    """What a user should know about the fitness window: with accelerometers among the kinds, a
+    window shorter than 1 s finds layouts that do not carry over to the full record."""
+    kinds = set(problem.kinds)
+    if "acc" in kinds and problem.window < 1.0:
+        return [f"multi-metric placement (accelerometers allowed) on a {problem.window:g} s fitness window: the "
+                "window from rest holds only the dynamic response, where an accelerometer looks better than over "
+                "the whole record, and the layouts found do not carry over to it; use --window 1 (1 s costs little "
+                "more: the Riccati solve dominates)"]
+    return []
+
+
 def register(sub):
-    from .problem import EXAMPLES
+    from ..examples import example_names
 
     p = sub.add_parser("place", help="optimise sensor positions on a plate (GA, TH)")
     p.add_argument("job", nargs="?", help="place job file (TOML)")
-    p.add_argument("--example", choices=sorted(EXAMPLES), help="built-in problem")
+    p.add_argument("--example", choices=example_names("place"), help="built-in problem")
     p.add_argument("--list-examples", action="store_true", help="list the built-in problems")
     p.add_argument("--sensors", type=int, help="number of sensors (overrides the example/job)")
     p.add_argument("--seed", type=int, default=0, help="GA seed (the run repeats exactly)")
@@ -126,7 +130,7 @@ def register(sub):
     p.add_argument("--window", type=float, help="seconds of response per fitness evaluation (default 0.1; "
                    "1 s generalises better to the full record, at little extra cost)")
     p.add_argument("--n-jobs", type=int, default=1, help="joblib workers for the fitness")
-    p.add_argument("--checkpoint", help="checkpoint file (default OUT/checkpoint.pkl)")
+    p.add_argument("--checkpoint", help="checkpoint file (default OUT/checkpoint.json)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint")
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bar)")
     p.add_argument("--out", help="output folder (default akf-out/place/NAME-N-seedS)")

@@ -16,12 +16,13 @@ import os
 
 from core_akf.outputs import write_csv
 from core_akf.sensors import parse_force_locations
-from core_akf.studies._common import StudyResult, output_dir
+from sensoropt.ga import THESIS, independent_runs, place
+from sensoropt.pareto import pareto
+from sensoropt.plots import plot_convergence, plot_layout, plot_pareto
 
-from .ga import THESIS, independent_runs, place
-from .pareto import pareto
-from .plots import plot_convergence, plot_layout, plot_pareto
-from .problem import example_problem
+from ..placement import example_problem
+from ..writers import saved_plot
+from ._common import Progress, StudyResult, output_dir
 
 NAME = "th_placement"
 DESCRIPTION = "TH placement GA: case 5 (3 gauges, 4 runs), case 6 (3/4/5/8 gauges), multi-metric, Pareto front"
@@ -61,18 +62,21 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
     if quick:
         ga.update(population=16, generations=6)
     files, rows = {}, []
+    n_runs = (2 if quick else 4) + (2 if quick else 4) + 5 + 2
+    progress = Progress(NAME, n_runs)
 
     def record(study, label, problem, res, enc):
+        progress.step(f"{study}: {label}")
         full = problem.full_record_error(res.sensors)
         rows.append({"study": study, "label": label, "n_sensors": enc.n_sensors, "seed": res.seed,
                      "sensors": " ".join(res.sensors), "window_error_ue": res.best_error, "full_record_error_ue": full,
                      "generations": int(res.logbook["generation"].iloc[-1]), "evaluations": res.evaluations,
                      "cache_hits": res.cache_hits, "seconds": float(res.logbook["seconds"].iloc[-1])})
         key = f"{study}-{label}".replace(" ", "_")
-        files[f"{key}:layout"] = plot_layout(enc, res.best, os.path.join(out, f"{key}_layout.png"),
+        files[f"{key}:layout"] = saved_plot(plot_layout, enc, res.best, os.path.join(out, f"{key}_layout.png"),
                                              f"{study} {label}: full record {full:.3f} µε",
                                              forces=parse_force_locations(problem.structure, problem.forces))
-        files[f"{key}:convergence"] = plot_convergence(res.logbook, os.path.join(out, f"{key}_convergence.png"),
+        files[f"{key}:convergence"] = saved_plot(plot_convergence, res.logbook, os.path.join(out, f"{key}_convergence.png"),
                                                        f"{study} {label}")
         return full
 
@@ -112,6 +116,7 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
             mix = f"{budget['strain']} gauges" + (" + 1 acc" if "acc" in budget else "")
             record("multi-metric", f"{mix}, {window:g} s window", p, res, enc)
     # the thesis' operators as the baseline
+    progress.step("operators: set-based vs thesis")
     ops = compare_operators(seeds=(seed,) if quick else (seed, seed + 1, seed + 2, seed + 3), n_jobs=n_jobs,
                             **({"population": 16, "generations": 6} if quick else {}))
     write_csv(ops, os.path.join(out, "operators.csv"))
@@ -122,17 +127,43 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
                    population=16 if quick else 60, generations=4 if quick else 40, seed=seed, n_jobs=n_jobs).front
     write_csv(front, os.path.join(out, "pareto_front.csv"))
     files["pareto_front"] = os.path.join(out, "pareto_front.csv")
-    files["pareto"] = plot_pareto(front, os.path.join(out, "pareto.png"))
+    files["pareto"] = saved_plot(plot_pareto, front, os.path.join(out, "pareto.png"))
+    progress.step("Pareto front (NSGA-II)")
     table = pd.DataFrame(rows)
+    summary = _summary(table, case2)
+    files["summary"] = os.path.join(out, f"{NAME}_summary.csv")
+    write_csv(summary, files["summary"])
     files["table"] = os.path.join(out, f"{NAME}.csv")
     write_csv(table, files["table"])
     print("TH placement: average strain error (µε) of the GA layouts; full record = 6 s, window = 0.1 s fitness")
     print(table[["study", "label", "sensors", "window_error_ue", "full_record_error_ue", "generations",
                  "evaluations", "seconds"]].round(4).to_string(index=False))
+    print("summary (best layout per part, against TH case 2 and the thesis' numbers):")
+    print(summary.round(4).to_string(index=False))
     print("case 5 agreement across runs:")
     print(agreement.round(4).to_string(index=False))
     print("set-based vs thesis operators (case 5):")
     print(ops.drop(columns=["sensors"]).round(4).to_string(index=False))
     print("Pareto front (NSGA-II, window error):")
     print(front.round(4).to_string(index=False))
-    return StudyResult(NAME, table, agreement, files, {"front": front})
+    return StudyResult(NAME, table, summary, files, {"front": front, "agreement": agreement})
+
+
+def _summary(table, case2):
+    """One row per part and sensor count: the best full-record error, its gain over TH case 2 and
+    the thesis' published error and gain where it gives them."""
+    import pandas as pd
+
+    rows = []
+    runs = table[table["label"] != "TH case 2 (trial and error)"]
+    runs = runs.assign(part=runs["label"].where(runs["study"] != "case 5", "best of runs"))
+    for (study, label), g in runs.groupby(["study", "part"], sort=False):
+        best = g.loc[g["full_record_error_ue"].idxmin()]
+        n = int(best["n_sensors"])
+        published = PUBLISHED.get(n) if study in ("case 5", "case 6") else None
+        rows.append({"study": study, "label": label, "n_sensors": n, "best_sensors": best["sensors"],
+                     "full_record_error_ue": best["full_record_error_ue"],
+                     "gain_over_case2": case2 / best["full_record_error_ue"],
+                     "published_error": published,
+                     "published_gain_over_case2": PUBLISHED["case 2 (trial and error)"] / published if published else None})
+    return pd.DataFrame(rows)

@@ -28,24 +28,25 @@ A job file (TOML)::
 from __future__ import annotations
 
 import copy
-import difflib
-import math
 import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import loads as L
-from .akf import estimate
-from .diagnostics import CONSISTENCY_LIMIT, force_statistics, scale_check, sensor_diagnostics, warnings_for
-from ._validate import check_memory
-from .exceptions import AKFInputError
-from .metrics import average_strain_error, rms_error
-from .models import imp_plate, plate, s17_truss, th_plate
-from .sensors import as_layout, parse_force_locations, selection_matrices
-from .simulate import MG, MICROSTRAIN, simulate
+from core_akf import loads as L
+from core_akf.akf import estimate
+from core_akf.checks import check_memory
+from core_akf.defaults import default
+from core_akf.diagnostics import CONSISTENCY_LIMIT, force_statistics, scale_check, sensor_diagnostics, warnings_for
+from core_akf.exceptions import AKFInputError
+from core_akf.metrics import average_strain_error, rms_error
+from core_akf.models import imp_plate, plate, s17_truss, th_plate
+from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
+from core_akf.simulate import MG, MICROSTRAIN, simulate
 
-_MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate}
+from .schema import parse_job
+
+MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate}
 _LOADS = {
     "band_noise": lambda t, dt, c, seed: L.band_limited_white_noise(t.size, dt, c["rms"], c.get("f_low", 0.0), c.get("f_high"), seed),
     "white_noise": lambda t, dt, c, seed: L.white_noise(t.size, c["std"], seed),
@@ -57,7 +58,19 @@ _LOADS = {
 }
 
 
-def load_job_file(path):
+def load_job(path: str | os.PathLike, command: str) -> dict:
+    """A job file read (:func:`load_job_file`), checked against the schema for ``command``
+    (:func:`akf.schema.parse_job`, messages name the file) and with its data paths made relative
+    to the job file's folder: the one place where job-relative paths are resolved."""
+    job = load_job_file(path)
+    parse_job(job, command, source=path)
+    meas = job.get("measurements")
+    if isinstance(meas, dict) and isinstance(meas.get("file"), str) and not os.path.isabs(meas["file"]):
+        meas["file"] = os.path.join(os.path.dirname(os.path.abspath(path)), meas["file"])
+    return job
+
+
+def load_job_file(path: str | os.PathLike) -> dict:
     """A job (dict) from a TOML file, with clear errors for a missing, folder or invalid file."""
     try:
         import tomllib
@@ -78,10 +91,10 @@ def build_structure(spec):
     """A Structure from ``{"model": name, **arguments}``."""
     spec = dict(spec)
     name = spec.pop("model", None)
-    if not isinstance(name, str) or name not in _MODELS:
-        raise AKFInputError(f"structure.model must be one of {sorted(_MODELS)}, got {name!r}")
+    if not isinstance(name, str) or name not in MODELS:
+        raise AKFInputError(f"structure.model must be one of {sorted(MODELS)}, got {name!r}")
     try:
-        return _MODELS[name](**spec)
+        return MODELS[name](**spec)
     except AKFInputError:
         raise
     except (TypeError, ValueError) as exc:
@@ -241,10 +254,7 @@ class JobResult:
 
         est = self.estimate
         labels = est.structure.strain_labels
-        unknown = [c for c in (channels or []) if c not in labels]
-        if unknown:
-            raise AKFInputError(f"unknown strain channel(s) {unknown}; labels look like {labels[0]!r}, {labels[-1]!r}")
-        idx = range(len(labels)) if channels is None else [labels.index(c) for c in channels]
+        idx = range(len(labels)) if channels is None else est.structure.strain_label_index(channels)
         strains = est.strains
         ref = self.simulation.strains if self.simulation is not None else None
         frames = [pd.DataFrame({"time": est.time, "quantity": "strain", "channel": labels[i], "unit": "m/m",
@@ -279,118 +289,50 @@ METRIC_UNITS = {"rms_force": "N", "rms_strain": "m/m", "avg_strain_error": "m/m"
                            "are dimensionless"}
 
 
-class Spec:
-    """The type a job key must have: ``check(value) -> bool`` and how to say it in a message."""
+def simulate_job(job, per_step=None, structure=None):
+    """Simulate the measurements of a job with a ``[simulation]`` section: the true structure
+    (built from ``[structure]`` unless given), its sensors, the forces at ``forces`` with the
+    loads of ``[[simulation.loads]]`` and the noise of ``relative_noise`` / ``absolute_noise``.
 
-    def __init__(self, check, describe):
-        self.check, self.describe = check, describe
-
-
-def _is_number(v):
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _is_int(v):
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _is_cov(v):
-    """A scalar variance, a vector of variances or a matrix (nested lists of numbers)."""
-    if _is_number(v):
-        return v >= 0
-    return isinstance(v, list) and len(v) > 0 and all(_is_number(x) or (isinstance(x, list) and all(map(_is_number, x)))
-                                                     for x in v)
-
-
-BOOLEAN = Spec(lambda v: isinstance(v, bool), "true or false (a TOML boolean, not a string or a number)")
-POSITIVE = Spec(lambda v: _is_number(v) and v > 0, "a positive number")
-NON_NEGATIVE = Spec(lambda v: _is_number(v) and v >= 0, "a number >= 0")
-FRACTION = Spec(lambda v: _is_number(v) and 0 <= v <= 1, "a number between 0 and 1")
-SEED = Spec(lambda v: _is_int(v) and v >= 0, "an integer >= 0")
-COUNT = Spec(lambda v: _is_int(v) and v >= 1, "an integer >= 1")
-COUNT0 = Spec(lambda v: _is_int(v) and v >= 0, "an integer >= 0")
-TEXT = Spec(lambda v: isinstance(v, str) and v != "", "a non-empty string")
-TEXTS = Spec(lambda v: isinstance(v, list) and len(v) > 0 and all(isinstance(x, str) for x in v),
-             "a non-empty list of strings")
-TABLE = Spec(lambda v: isinstance(v, dict), "a table")
-TABLES = Spec(lambda v: isinstance(v, list) and all(isinstance(x, dict) for x in v), "a list of tables")
-COVARIANCE = Spec(_is_cov, "a variance >= 0, a list of variances or a matrix (list of lists)")
-NOISE_COV = Spec(lambda v: v == "simulated" or (isinstance(v, dict) and all(_is_number(x) and x > 0 for x in v.values()))
-                 or (_is_cov(v) and v != 0),
-                 "\"simulated\", a table of positive variances per sensor kind (e.g. {strain = 1e-12, acc = 1e-4}), "
-                 "or positive variances per channel")
-STRAINS = Spec(lambda v: v == "all" or (isinstance(v, list) and all(isinstance(x, str) for x in v)),
-               "\"all\" or a list of strain labels")
-ANY = Spec(lambda v: True, "anything")
-INTS = Spec(lambda v: isinstance(v, list) and len(v) > 0 and all(_is_int(x) for x in v), "a non-empty list of integers")
-MODES = Spec(lambda v: (_is_int(v) and v >= 1) or v in ("auto", "full"), "an integer >= 1, \"auto\" or \"full\"")
-POSITIVE_TABLE = Spec(lambda v: isinstance(v, dict) and len(v) > 0 and all(_is_number(x) and x > 0 for x in v.values()),
-                      "a table of positive numbers")
-
-#: the keys a job may hold per section (None: the top level), with the type of each value
-JOB_KEYS = {
-    None: {"name": TEXT, "description": Spec(lambda v: isinstance(v, str), "a string"), "dt": POSITIVE,
-           "sensors": TEXTS, "forces": TEXTS, "structure": TABLE, "filter": TABLE, "simulation": TABLE,
-           "measurements": TABLE, "output": TABLE},
-    "filter": {"stiffness_factor": POSITIVE, "reduce_modes": COUNT, "model_error_cov": COVARIANCE,
-               "force_increment_cov": COVARIANCE, "noise_cov": NOISE_COV, "steady": BOOLEAN,
-               "allow_undetectable": BOOLEAN},
-    "simulation": {"duration": POSITIVE, "relative_noise": NON_NEGATIVE, "absolute_noise": TABLE, "seed": SEED,
-                   "loads": TABLES},
-    "measurements": {"file": TEXT, "time_column": TEXT},
-    "output": {"strains": STRAINS},
-}
-
-
-def check_keys(table, allowed, where):
-    """Reject a key of ``table`` not in ``allowed``, naming the closest allowed one: a typo must
-    not silently fall back to a default.  If ``allowed`` maps keys to :class:`Spec`, every value
-    must have its type: a string where a boolean or a number belongs is refused, never coerced."""
-    for key, value in table.items():
-        if key not in allowed:
-            hint = difflib.get_close_matches(key, allowed, n=1)
-            raise AKFInputError(f"unknown key {key!r} in {where}"
-                                + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"))
-        spec = allowed.get(key) if isinstance(allowed, dict) else None
-        if spec is not None and not spec.check(value):
-            raise AKFInputError(f"{key} in {where} must be {spec.describe}; got {value!r} "
-                                f"({type(value).__name__})")
-
-
-def check_sections(job, keys, kind="job"):
-    """:func:`check_keys` on the top level (``keys[None]``) and on each section of a job."""
-    if not isinstance(job, dict):
-        raise AKFInputError(f"a {kind} is a table of settings (a dict)")
-    for section, allowed in keys.items():
-        table = job if section is None else job.get(section, {})
-        if not isinstance(table, dict):
-            raise AKFInputError(f"[{section}] must be a table")
-        check_keys(table, allowed, f"the {kind}" if section is None else f"[{section}]")
-
-
-def validate_job(job):
-    """Reject unknown keys (a typo must not silently fall back to a default), values of the wrong
-    type and missing keys."""
-    check_sections(job, JOB_KEYS)
-    for key in ("dt", "sensors", "forces", "structure"):
-        if key not in job:
-            raise AKFInputError(f"the job has no {key!r}")
-
-
-def run_job(job, allow_undetectable=None, steady=None):
-    """Run an estimation job (a dict as read from TOML, see the module docstring)."""
-    job = copy.deepcopy(job)
-    validate_job(job)
+    ``per_step``: float64 values held per time step by the caller, to refuse a record that would
+    not fit in memory before it is allocated.  Returns ``(structure, force locations,
+    Simulation)``."""
+    structure = build_structure(job["structure"]) if structure is None else structure
+    sensors = as_layout(job["sensors"])
+    forces = parse_force_locations(structure, job["forces"])
+    sp = job["simulation"]
     dt = float(job["dt"])
+    if sp.get("duration") is None:
+        raise AKFInputError("[simulation] needs a positive duration (s)")
+    n_steps = float(sp["duration"]) / dt
+    per_step = per_step or (2 * 2 * structure.n + structure.n_strain + 2 * len(sensors))
+    check_memory(n_steps, per_step, f"a {sp['duration']:g} s record at dt = {dt:g} s",
+                 "shorten [simulation] duration (CLI: --duration) or check dt")
+    n_steps = int(round(n_steps))
+    if n_steps < 2:
+        raise AKFInputError(f"[simulation] duration {sp['duration']:g} s is shorter than two steps of dt = {dt:g} s")
+    loads = build_loads(sp.get("loads", []), n_steps, dt, len(forces))
+    absolute = _absolute_noise(sp["absolute_noise"]) if "absolute_noise" in sp else None
+    sim = simulate(structure, sensors, forces, loads, dt, relative_noise=sp.get("relative_noise"),
+                   absolute_noise=absolute, seed=sp.get("seed", 0))
+    return structure, forces, sim
+
+
+def run_job(job: dict, allow_undetectable: bool | None = None, steady: bool | None = None) -> JobResult:
+    """Run an estimation job (a dict as read from TOML, see the module docstring and
+    :mod:`akf.schema`); ``steady`` and ``allow_undetectable`` override the job's ``[filter]``."""
+    job = copy.deepcopy(job)
+    spec = parse_job(job, "estimate")
+    if spec.simulation is None and spec.measurements is None:
+        raise AKFInputError("the job needs a [simulation] or a [measurements] section")
+    dt = spec.dt
     true_structure = build_structure(job["structure"])
-    filt = dict(job.get("filter", {}))
-    if steady is not None:
-        filt["steady"] = steady
-    if allow_undetectable is not None:
-        filt["allow_undetectable"] = allow_undetectable
-    model = true_structure.scaled(float(filt.get("stiffness_factor", 1.0)))
-    if filt.get("reduce_modes"):
-        model = model.reduce(int(filt["reduce_modes"]))
+    filt = spec.filter
+    steady = filt.steady if steady is None else steady     # None: core_akf.defaults, steady where it exists
+    allow_undetectable = bool(filt.allow_undetectable if allow_undetectable is None else allow_undetectable)
+    model = true_structure.scaled(default("stiffness_factor", filt.stiffness_factor))
+    if filt.reduce_modes:
+        model = model.reduce(filt.reduce_modes)
     sensors = as_layout(job["sensors"])
     selection_matrices(true_structure, sensors)      # every sensor exists on this structure
     forces = parse_force_locations(true_structure, job["forces"])
@@ -400,36 +342,24 @@ def run_job(job, allow_undetectable=None, steady=None):
     n_a = 2 * model.n + len(forces)
     per_step = 4 * n_a + 2 * 2 * true_structure.n + 3 * true_structure.n_strain + 4 * len(sensors)
     sim = None
-    if "measurements" in job:
-        meas = job["measurements"]
-        Y = read_measurements(meas["file"], sensors, dt, meas.get("time_column", "time"))
-    elif "simulation" in job:
-        sp = job["simulation"]
-        if "duration" not in sp or not float(sp["duration"]) > 0:
-            raise AKFInputError("[simulation] needs a positive duration (s)")
-        n_steps = float(sp["duration"]) / dt
-        check_memory(n_steps, per_step, f"a {sp['duration']:g} s record at dt = {dt:g} s",
-                     "shorten [simulation] duration (CLI: --duration) or check dt")
-        n_steps = int(round(n_steps))
-        if n_steps < 2:
-            raise AKFInputError(f"[simulation] duration {sp['duration']:g} s is shorter than two steps of dt = {dt:g} s")
-        loads = build_loads(sp.get("loads", []), n_steps, dt, len(forces))
-        absolute = _absolute_noise(sp["absolute_noise"]) if "absolute_noise" in sp else None
-        sim = simulate(true_structure, sensors, forces, loads, dt, relative_noise=sp.get("relative_noise"),
-                       absolute_noise=absolute, seed=sp.get("seed", 0))
-        Y = sim.measurements
+    if spec.measurements is not None:
+        meas = spec.measurements
+        if meas.file is None:
+            raise AKFInputError("[measurements] needs file = 'data.csv'")
+        Y = read_measurements(meas.file, sensors, dt, meas.time_column or "time")
     else:
-        raise AKFInputError("the job needs a [simulation] or a [measurements] section")
+        _, _, sim = simulate_job(job, per_step, true_structure)
+        Y = sim.measurements
 
-    noise_cov = filt.get("noise_cov", "simulated")
+    noise_cov = "simulated" if filt.noise_cov is None else filt.noise_cov
     if isinstance(noise_cov, str):
-        if noise_cov != "simulated" or sim is None:
+        if sim is None:
             raise AKFInputError("filter.noise_cov = 'simulated' needs a simulated job; give variances per sensor kind")
-        noise_cov = np.diag(np.maximum(sim.noise_std, 1e-30) ** 2)
-    est_kw = dict(model_error_cov=filt.get("model_error_cov", 1e-16),
-                  force_increment_cov=filt.get("force_increment_cov", 1.0))
-    est = estimate(model, sensors, forces, Y, dt, noise_cov=noise_cov, steady=bool(filt.get("steady", True)),
-                   allow_undetectable=bool(filt.get("allow_undetectable", False)), **est_kw)
+        noise_cov = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2)
+    est_kw = dict(model_error_cov=default("model_error_cov", filt.model_error_cov),
+                  force_increment_cov=default("force_increment_cov", filt.force_increment_cov))
+    est = estimate(model, sensors, forces, Y, dt, noise_cov=noise_cov, steady=steady,
+                   allow_undetectable=allow_undetectable, **est_kw)
     metrics = {"detectable": est.detectability.detectable, "n_steps": int(Y.shape[0]), "units": METRIC_UNITS}
     if sim is not None:
         rf = rms_error(est.forces, sim.loads)

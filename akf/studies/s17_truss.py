@@ -37,11 +37,12 @@ import os
 
 import numpy as np
 
+from core_akf.figures import subplots
+from core_akf.outputs import write_csv
+
 from ..examples import S17_ACC_ONLY, S17_MULTI, S17_STRAIN_ONLY, s17_job
-from ..figures import pyplot
 from ..jobs import run_job
-from ..outputs import write_csv
-from ._common import StudyResult, drift_ratio, output_dir, psd, save
+from ._common import Progress, StudyResult, drift_ratio, output_dir, psd, save
 
 NAME = "s17_truss"
 DESCRIPTION = "S17 truss: force RMS error per case and load, Fig. 19-21 configurations, force spectra"
@@ -82,7 +83,9 @@ def run(out=None, quick=False, seed=0, cases=None):
     duration = 1.0 if quick else 2.0
     out = output_dir(NAME, out)
     results, rows = {}, []
+    progress = Progress(NAME, len(cases or CASES))
     for case in cases or CASES:
+        progress.step(f"case {case}")
         res = run_case(case, duration, seed)
         results[case] = res
         est, sim = res.estimate, res.simulation
@@ -115,7 +118,6 @@ def _print(table, summary):
 
 
 def _figures(results, table, out, files):
-    plt = pyplot()
     loads = list(dict.fromkeys(table["load"]))
     # Fig. 19/21: RMS error per case and load
     for key, cases, title in (("fig19_rms", ["1b", "2b", "3", "4"], "acceleration only vs strain only vs multi-metric"),
@@ -123,7 +125,7 @@ def _figures(results, table, out, files):
         cases = [c for c in cases if c in results]
         if not cases:
             continue
-        fig, ax = plt.subplots(figsize=(7, 3.5))
+        fig, ax = subplots(figsize=(7, 3.5))
         w = 0.8 / len(cases)
         for i, c in enumerate(cases):
             vals = table[table["case"] == c].set_index("load").loc[loads, "rms_error_N"]
@@ -137,7 +139,7 @@ def _figures(results, table, out, files):
     # force histories, estimated vs applied (Figs. 8-17, 22)
     for case, res in results.items():
         est, sim = res.estimate, res.simulation
-        fig, axes = plt.subplots(len(loads), 1, figsize=(8, 1.8 * len(loads)), sharex=True)
+        fig, axes = subplots(len(loads), 1, figsize=(8, 1.8 * len(loads)), sharex=True)
         for j, ax in enumerate(np.atleast_1d(axes)):
             ax.plot(est.time, sim.loads[:, j] / 1e3, "k:", lw=1, label="applied")
             ax.plot(est.time, est.forces[:, j] / 1e3, "r-", lw=0.7, label="AKF")
@@ -149,7 +151,7 @@ def _figures(results, table, out, files):
     # Figs. 12 and 18: spectra at joints 4 and 12
     cases = [c for c in ("2a", "2b", "3", "4") if c in results]
     if cases:
-        fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+        fig, axes = subplots(1, 2, figsize=(9, 3.5))
         for ax, joint in zip(axes, ("4:y", "12:y")):
             j = loads.index(joint)
             ref = results[cases[0]].simulation

@@ -1,0 +1,476 @@
+"""The one job schema: every key of an ``akf estimate``, ``akf place`` or ``akf locate`` job file,
+declared once with its type, unit, default and the commands that use it.
+
+Validation is pydantic (v2) in strict mode: a value of the wrong type is refused, never coerced
+(``steady = "no"`` or ``seed = 0.0`` is an error), unknown keys are refused with the closest
+known key, and every error names where it is (``[filter] steady``).  Pydantic was chosen over a
+hand-written checker because it gives one declaration for three things that must agree: the
+checks, the JSON Schema that editors use to complete job files (:func:`json_schema`), and the
+reference page of the documentation (:func:`reference_markdown`).
+
+>>> job = parse_job({"dt": 0.001, "sensors": ["strain:5"], "forces": ["4:y"],
+...                  "structure": {"model": "s17_truss"},
+...                  "simulation": {"duration": 0.5}}, "estimate")
+>>> job.filter.steady, job.simulation.duration
+(True, 0.5)
+"""
+from __future__ import annotations
+
+import difflib
+import json
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from core_akf.defaults import DEFAULTS
+from core_akf.exceptions import AKFInputError
+
+#: the commands that read job files
+COMMANDS = ("estimate", "place", "locate")
+
+ALL = COMMANDS
+ESTIMATE = ("estimate",)
+PLACE = ("place",)
+LOCATE = ("locate",)
+
+
+def key(expect, description, *, used_by=ALL, unit=None, default=None, registry=None, required=False, **field_kw):
+    """A job key: ``expect`` says the type in a message ("a positive number"), ``description``
+    what it means; ``used_by`` the commands that read it; ``unit`` its SI unit; ``registry`` the
+    name of its default in :data:`core_akf.defaults.DEFAULTS` (the default is documented from
+    there and applied by the command)."""
+    extra = {"expect": expect, "used_by": list(used_by)}
+    if unit:
+        extra["unit"] = unit
+    if registry:
+        extra["default_from"] = registry
+    if required:
+        field_kw["default"] = ...
+    elif "default_factory" not in field_kw:
+        field_kw["default"] = default
+    return Field(description=description, json_schema_extra=extra, **field_kw)
+
+
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Fraction = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Count = Annotated[int, Field(ge=1)]
+Count0 = Annotated[int, Field(ge=0)]
+Text = Annotated[str, Field(min_length=1)]
+Texts = Annotated[list[Text], Field(min_length=1)]
+Covariance = NonNegative | Annotated[list[NonNegative], Field(min_length=1)] | Annotated[list[list[Finite]], Field(min_length=1)]
+Modes = Count | Literal["auto", "full"]
+
+
+class Section(BaseModel):
+    """A table of a job file: unknown keys and values of another type are refused.  A key that is
+    absent takes its default (None: the command's default); an explicit None is refused like any
+    other value of the wrong type (TOML has no null)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, validate_default=False)
+
+
+class Structure(BaseModel):
+    """``[structure]``: a built-in model and its arguments."""
+
+    model_config = ConfigDict(extra="allow", strict=True)
+    model: Literal["s17_truss", "th_plate", "imp_plate", "plate"] = key(
+        "one of 's17_truss', 'th_plate', 'imp_plate', 'plate'",
+        "the structure: the S17 truss, the thesis plate, the IMP plate, or a `plate` with its arguments "
+        "(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, damping); further keys are the model's "
+        "arguments (see the API reference of core_akf.models)")
+
+
+class Filter(Section):
+    """``[filter]``: the filter's model and covariances."""
+
+    stiffness_factor: Positive = key(
+        "a positive number", "the filter's stiffness relative to the true structure (1.05: 5 % stiffer)",
+        used_by=("estimate", "place"), registry="stiffness_factor / placement_stiffness_factor")
+    reduce_modes: Count = key("an integer >= 1", "keep this many modes (with static correction) in "
+                                        "the filter's model; default the full model", used_by=ESTIMATE)
+    model_error_cov: Covariance = key(
+        "a variance >= 0, a list of variances or a matrix (list of lists)",
+        "Q: model-error variance per step (one level, one per state, or the matrix)",
+        used_by=("estimate", "place"), unit="state units^2", registry="model_error_cov")
+    force_increment_cov: Covariance = key(
+        "a variance >= 0, a list of variances or a matrix (list of lists)",
+        "S: force-increment variance per step (random-walk force model)", used_by=("estimate", "place"),
+        unit="N^2", registry="force_increment_cov")
+    noise_cov: Literal["simulated"] | dict[Text, Positive] | Annotated[list[Positive], Field(min_length=1)] | Positive = key(
+        "\"simulated\", a table of positive variances per sensor kind (e.g. {strain = 1e-12, acc = 1e-4}), "
+        "or positive variances per channel",
+        "R: measurement-noise variance per sensor kind (SI units squared), per channel, or \"simulated\" "
+        "(the true noise of a simulated job)", used_by=ESTIMATE, unit="SI^2", default=None)
+    steady: bool = key("true or false (a TOML boolean, not a string or a number)",
+                                 "the steady-state filter (fast); false: the time-varying filter",
+                                 used_by=ESTIMATE, registry="steady")
+    allow_undetectable: bool = key("true or false (a TOML boolean, not a string or a number)",
+                                             "run even if the PBH detectability test fails (the estimate drifts)",
+                                             used_by=ESTIMATE)
+
+
+class LoadComponent(BaseModel):
+    """One component of a simulated load history."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    type: Literal["band_noise", "white_noise", "pulse", "ramp", "half_sine", "sine", "constant"] = key(
+        "a load type", "band_noise (rms, f_low, f_high, seed), white_noise (std, seed), pulse (start, duration, "
+        "peak), ramp (start, end, peak), half_sine (start, end, peak), sine (frequency, amplitude, phase), "
+        "constant (value)")
+    rms: NonNegative = key("a number >= 0", "RMS of band-limited noise", unit="N")
+    std: NonNegative = key("a number >= 0", "standard deviation of white noise", unit="N")
+    f_low: NonNegative = key("a number >= 0", "lower band edge of band_noise", unit="Hz")
+    f_high: Positive = key("a positive number", "upper band edge of band_noise", unit="Hz")
+    seed: Count0 = key("an integer >= 0", "seed of a random component")
+    start: Finite = key("a number", "start time", unit="s")
+    end: Finite = key("a number", "end time", unit="s")
+    duration: Positive = key("a positive number", "pulse duration", unit="s")
+    peak: Finite = key("a number", "peak force", unit="N")
+    frequency: NonNegative = key("a number >= 0", "sine frequency", unit="Hz")
+    amplitude: Finite = key("a number", "sine amplitude", unit="N")
+    phase: Finite = key("a number", "sine phase", unit="rad")
+    value: Finite = key("a number", "constant force", unit="N")
+
+
+class Load(BaseModel):
+    """``[[simulation.loads]]``: the load history at one force location, a sum of components."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    components: list[LoadComponent] = key("a list of load components", "the components, summed",
+                                          default_factory=list)
+
+
+class Simulation(Section):
+    """``[simulation]``: simulate the measurements (instead of ``[measurements]``)."""
+
+    duration: Positive = key("a positive number", "record length", unit="s")
+    relative_noise: NonNegative = key("a number >= 0", "sensor noise as a fraction of each channel's RMS",
+                                                registry="relative_noise")
+    absolute_noise: dict[Literal["strain", "microstrain", "acc", "acc_mg", "vel", "disp"], NonNegative] = key(
+        "a table of noise levels: strain, microstrain, acc, acc_mg, vel or disp",
+        "sensor noise standard deviation per kind, e.g. {microstrain = 1, acc_mg = 1}", used_by=("estimate", "locate"))
+    seed: Count0 = key("an integer >= 0", "noise seed")
+    loads: list[Load] = key("a list of tables", "one table per force location, in the order of `forces`")
+
+
+class Measurements(Section):
+    """``[measurements]``: measured data, a time column and one column per sensor."""
+
+    file: Text = key("a non-empty string", "CSV or Parquet file, relative to the job file",
+                               used_by=("estimate", "locate"))
+    time_column: Text = key("a non-empty string", "name of the time column (default \"time\")",
+                                      used_by=("estimate", "locate"))
+
+
+class Output(Section):
+    """``[output]``: what to write."""
+
+    strains: Literal["all"] | list[Text] = key(
+        "\"all\" or a list of strain labels", "strain histories to write (labels as sensors: \"strain:13\", "
+        "\"strain:70:ex\")", used_by=ESTIMATE)
+
+
+class Place(Section):
+    """``[place]``: what to place and the GA settings (TH defaults)."""
+
+    sensors: Count = key("an integer >= 1", "number of sensors", used_by=PLACE)
+    budget: dict[Literal["strain", "acc"], Count0] = key(
+        "a table of counts per sensor type, e.g. {strain = 2, acc = 1}", "sensors per type", used_by=PLACE)
+    kinds: Texts = key("a non-empty list of strings", "kinds that may be placed: ex, ey, gxy, acc",
+                                 used_by=PLACE)
+    window: Positive = key("a positive number", "simulated response per fitness evaluation",
+                                     used_by=PLACE, unit="s", registry="window")
+    population: Count = key("an integer >= 1", "GA population (TH: 50)", used_by=PLACE)
+    generations: Count0 = key("an integer >= 0", "GA generations (TH: 100)", used_by=PLACE)
+    elite: Count0 = key("an integer >= 0", "layouts kept unchanged per generation (TH: 2)", used_by=PLACE)
+    crossover: Fraction = key("a number between 0 and 1", "crossover probability (TH: 0.8)", used_by=PLACE)
+    mutation: Fraction = key("a number between 0 and 1", "mutation probability (TH: 0.16)", used_by=PLACE)
+    tournament: Count = key("an integer >= 1", "tournament size (TH: 4)", used_by=PLACE)
+    stall_generations: Count0 = key("an integer >= 0", "stop after this many generations without "
+                                              "progress (TH: 50)", used_by=PLACE)
+    operators: Literal["set", "thesis"] = key("\"set\" or \"thesis\"", "set-based operators or the "
+                                                        "thesis' intermediate crossover", used_by=PLACE)
+    n_modes: Modes = key("an integer >= 1, \"auto\" or \"full\"", "filter modes (with static "
+                                   "correction); \"auto\": core_akf.defaults.auto_modes", used_by=PLACE)
+
+
+class Covariances(Section):
+    """``[locate.covariances]``: assumed covariance levels before tuning."""
+
+    model_error: NonNegative = key("a number >= 0", "Q level", unit="state units^2", used_by=LOCATE, required=True)
+    force_increment: Positive = key("a positive number", "S level", unit="N^2", used_by=LOCATE, required=True)
+    noise: dict[Text, Positive] = key("a table of positive numbers", "R per sensor kind", unit="SI^2",
+                                      used_by=LOCATE, required=True)
+
+
+class Tuning(Section):
+    """``[locate.tuning]``: covariance-tuning GA settings."""
+
+    population: Count = key("an integer >= 1", "GA population", used_by=LOCATE)
+    generations: Count0 = key("an integer >= 0", "GA generations", used_by=LOCATE)
+    n_splits: Count = key("an integer >= 1", "role splits in the fitness", used_by=LOCATE)
+    decades: Positive = key("a positive number", "search range around the start, in decades",
+                                      used_by=LOCATE)
+    crossover: Fraction = key("a number between 0 and 1", "crossover probability", used_by=LOCATE)
+    mutation: Fraction = key("a number between 0 and 1", "mutation probability", used_by=LOCATE)
+
+
+class Locate(Section):
+    """``[locate]``: impact localisation settings."""
+
+    n_ad: Count = key("an integer >= 1", "AD (held-back) sensors per role split", used_by=LOCATE)
+    ad_kinds: Texts = key("a non-empty list of strings", "sensor kinds that may be AD (default "
+                                    "[\"strain\"])", used_by=LOCATE)
+    direction: Text = key("a non-empty string", "force direction at the candidates (x, y, w, ...)",
+                                    used_by=LOCATE)
+    candidates: Annotated[list[int], Field(min_length=1)] = key(
+        "a non-empty list of integers", "candidate node ids (default every free node)", used_by=LOCATE)
+    max_splits: Count = key("an integer >= 1", "cap on the role splits (a seeded sample)", used_by=LOCATE)
+    tune: bool = key("true or false (a TOML boolean, not a string or a number)",
+                               "tune the covariances with a GA (default true)", used_by=LOCATE)
+    n_modes: Modes = key("an integer >= 1, \"auto\" or \"full\"", "filter modes for the scan and the "
+                                   "tuning", used_by=LOCATE)
+    skip: NonNegative = key("a number >= 0", "seconds at the start left out of the AD error",
+                                      used_by=LOCATE, unit="s")
+    covariances: Covariances = key("a table", "assumed levels (default: from the data)", used_by=LOCATE)
+    tuning: Tuning = key("a table", "GA settings of the tuning", used_by=LOCATE)
+
+
+class Job(Section):
+    """A job file: one structure, its sensors and unknown forces, and the sections of the command."""
+
+    name: Text = key("a non-empty string", "name of the job (output folder)")
+    description: str = key("a string", "free text")
+    dt: Positive = key("a positive number", "time step; must match measured data", unit="s")
+    sensors: Texts = key("a non-empty list of strings", "sensors: \"strain:13\" (truss member), "
+                                   "\"strain:58:ex\" (plate node component ex|ey|gxy), \"acc:8:y\", \"vel:8:y\", "
+                                   "\"disp:8:y\"", used_by=("estimate", "locate"))
+    forces: Texts = key("a non-empty list of strings", "unknown force locations \"NODE:DIR\" (directions x, y for "
+                        "a truss; w for a plate); locate: where a simulated impact hits")
+    structure: Structure = key("a table", "the structure")
+    filter: Filter = key("a table", "filter settings", default_factory=Filter)
+    simulation: Simulation = key("a table", "simulated measurements (locate: to try the method on a simulated "
+                                 "impact at `forces`)")
+    measurements: Measurements = key("a table", "measured data", used_by=("estimate", "locate"))
+    output: Output = key("a table", "what to write", used_by=ESTIMATE, default_factory=Output)
+    place: Place = key("a table", "sensor placement", used_by=PLACE)
+    locate: Locate = key("a table", "impact localisation", used_by=LOCATE)
+
+
+#: what each command needs: top-level keys, and keys needed inside a section
+REQUIRED = {
+    "estimate": ["dt", "sensors", "forces", "structure"],
+    "place": ["dt", "forces", "structure", "place", "simulation"],
+    "locate": ["dt", "sensors", "structure", "locate"],
+}
+SECTION_REQUIRED = {"locate": {"locate": ["n_ad", "direction"]}}
+
+
+# ----------------------------------------------------------------------------------- messages
+def _where(path):
+    """``[filter]`` for a section path, ``the job`` for the top level."""
+    return "the job" if not path else "[" + ".".join(path) + "]"
+
+
+def _describe(value):
+    return f"{value!r} ({type(value).__name__})"
+
+
+def _message(error, kind):
+    """One located, plain message from a pydantic error."""
+    loc = [p for p in error["loc"]]
+    model, path = Job, []
+    field = None
+    i = 0
+    while i < len(loc):
+        name = loc[i]
+        fields = model.model_fields if isinstance(model, type) and issubclass(model, BaseModel) else {}
+        if not isinstance(name, str) or name not in fields:
+            break
+        field = fields[name]
+        sub = _section_model(field.annotation)
+        if sub is None or i == len(loc) - 1:
+            break
+        model, path = sub, path + [name]
+        field = None
+        i += 1
+    if error["type"] == "extra_forbidden":
+        known = list(model.model_fields) if isinstance(model, type) else []
+        bad = loc[-1]
+        hint = difflib.get_close_matches(str(bad), known, n=1)
+        return (f"unknown key {bad!r} in {_where(path)}"
+                + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(known)}"))
+    if error["type"] == "missing" and field is not None:
+        return f"{_where(path)} needs {loc[i]!r}"
+    if field is None or i >= len(loc):
+        return f"{_where(path)} of the {kind}: {error['msg'].lower()}; got {_describe(error.get('input'))}"
+    name = loc[i]
+    rest = "".join(f"[{p + 1}]" if isinstance(p, int) else f".{p}" for p in loc[i + 1:]
+                   if isinstance(p, int) or (isinstance(p, str) and not _is_type_tag(p)))
+    if rest:          # inside a list of tables (simulation.loads[1].components[2].rms)
+        return f"{name}{rest} in {_where(path)}: {error['msg'].lower()}; got {_describe(error.get('input'))}"
+    expect = (field.json_schema_extra or {}).get("expect", error["msg"].lower())
+    value = error.get("input")
+    return f"{name} in {_where(path)} must be {expect}; got {_describe(value)}"
+
+
+def _is_type_tag(p):
+    """pydantic's union-member tags in a location ('constrained-float', "literal['simulated']")."""
+    return any(c in p for c in "[]-") or p in ("float", "int", "str", "bool", "list", "dict")
+
+
+def _section_model(annotation):
+    """The section model class inside ``Model`` (None if it is not a section)."""
+    for candidate in (annotation, *getattr(annotation, "__args__", ())):
+        if isinstance(candidate, type) and issubclass(candidate, BaseModel):
+            return candidate
+    return None
+
+
+class JobError(AKFInputError):
+    """A job file that does not fit the schema; ``problems`` lists every located message."""
+
+    def __init__(self, problems, source=None):
+        self.problems = list(problems)
+        head = f"{source}: " if source else ""
+        more = "" if len(self.problems) == 1 else f" (and {len(self.problems) - 1} more: " + "; ".join(
+            self.problems[1:4]) + (" ..." if len(self.problems) > 4 else "") + ")"
+        super().__init__(head + self.problems[0] + more)
+
+
+def parse_job(data: dict, command: str, source: str | None = None) -> Job:
+    """Validate a job (a dict as read from TOML) for ``command`` ("estimate", "place", "locate").
+
+    Returns the :class:`Job`; raises :class:`JobError` naming every problem and where it is: a
+    value of the wrong type, an unknown key, a key the command needs and does not find, or a key
+    that the command would ignore."""
+    if command not in COMMANDS:
+        raise ValueError(f"command must be one of {COMMANDS}, got {command!r}")
+    kind = {"estimate": "job", "place": "place job", "locate": "locate job"}[command]
+    if not isinstance(data, dict):
+        raise JobError([f"a {kind} is a table of settings (a dict), got {type(data).__name__}"], source)
+    try:
+        job = Job.model_validate(data)
+    except ValidationError as exc:
+        problems = list(dict.fromkeys(_message(e, kind) for e in exc.errors()))
+        raise JobError(problems, source) from None
+    missing = [f"the {kind} has no {k!r}" for k in REQUIRED[command] if getattr(job, k) is None]
+    for section, keys in SECTION_REQUIRED.get(command, {}).items():
+        table = getattr(job, section)
+        missing += [f"[{section}] needs {k!r}" for k in keys if table is not None and getattr(table, k) is None]
+    if missing:
+        raise JobError(missing, source)
+    unused = _unused_keys(job, command)
+    if unused:
+        raise JobError([f"{k} is not used by akf {command}; remove it (it is read by akf "
+                        f"{' and akf '.join(c)})" for k, c in unused], source)
+    return job
+
+
+def _unused_keys(model, command, path=()):
+    """Keys set in the job that ``command`` does not read: (where, commands that read it)."""
+    out = []
+    for name in model.model_fields_set:
+        field = type(model).model_fields[name]
+        used = (field.json_schema_extra or {}).get("used_by", list(ALL))
+        label = name if not path else f"{name} in [{'.'.join(path)}]"
+        if command not in used:
+            out.append((label, used))
+            continue
+        value = getattr(model, name)
+        if isinstance(value, Section):
+            out += _unused_keys(value, command, path + (name,))
+    return out
+
+
+# --------------------------------------------------------------------------- schema and reference
+def _clean_defaults(node):
+    """Schema defaults as a user sees them: the registry's value where a key has one, none where
+    the default is "not given" (None)."""
+    if isinstance(node, dict):
+        extra = node.get("default_from")
+        if "default" in node and node["default"] is None:
+            del node["default"]
+            if extra and "/" not in extra:
+                node["default"] = DEFAULTS[extra][0]
+        for v in node.values():
+            _clean_defaults(v)
+    elif isinstance(node, list):
+        for v in node:
+            _clean_defaults(v)
+    return node
+
+
+def json_schema():
+    """The JSON Schema of a job file (draft 2020-12), for editors that complete TOML/JSON."""
+    schema = _clean_defaults(Job.model_json_schema())
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "akf job file"
+    return schema
+
+
+def json_schema_text():
+    return json.dumps(json_schema(), indent=2, sort_keys=True) + "\n"
+
+
+def _type_text(field):
+    return (field.json_schema_extra or {}).get("expect", "")
+
+
+def _default_text(field):
+    extra = field.json_schema_extra or {}
+    names = extra.get("default_from")
+    if names:
+        vals = [f"{DEFAULTS[n.strip()][0]!r}" for n in names.split("/")]
+        return " / ".join(vals)
+    if field.default is not None and not callable(field.default):
+        return repr(field.default)
+    return ""
+
+
+def reference_markdown():
+    """The job-file reference (Markdown): one table per section, generated from the schema."""
+    lines = ["# Job-file reference", "",
+             "Generated from `akf.schema` (`python -m akf.schema`); do not edit by hand. Every key is optional "
+             "for the schema; a command refuses a job that lacks a key it needs (estimate: "
+             + ", ".join(REQUIRED["estimate"]) + " and `[simulation]` or `[measurements]`; place: "
+             + ", ".join(REQUIRED["place"]) + "; locate: " + ", ".join(REQUIRED["locate"])
+             + ", `n_ad` and `direction` in `[locate]`, and `[measurements]` or `[simulation]`) or that sets a key it does not read. "
+             "A default with two values is estimate / place. Units are SI.", "",
+             "An editor completes job files from the JSON Schema `akf/job.schema.json` "
+             "(`python -m akf.schema --json`).", ""]
+    sections = [("the top level", Job, None)] + [
+        (f"[{n}]", _section_model(f.annotation), n) for n, f in Job.model_fields.items()
+        if _section_model(f.annotation) is not None]
+    sections.insert(sections.index(next(s for s in sections if s[2] == "locate")) + 1,
+                    ("[locate.covariances]", Covariances, "locate.covariances"))
+    sections.append(("[locate.tuning]", Tuning, "locate.tuning"))
+    sections.append(("[[simulation.loads]] components", LoadComponent, "loads"))
+    for title, model, _ in sections:
+        lines += [f"## {title}", "", (model.__doc__ or "").strip().splitlines()[0], "",
+                  "| key | type | default | unit | used by | meaning |", "|---|---|---|---|---|---|"]
+        for name, field in model.model_fields.items():
+            if title == "the top level" and _section_model(field.annotation) is not None:
+                continue
+            extra = field.json_schema_extra or {}
+            lines.append(f"| `{name}` | {_type_text(field)} | {_default_text(field)} | {extra.get('unit', '')} | "
+                         f"{', '.join(extra.get('used_by', ALL))} | {field.description or ''} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _main(argv=None):
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m akf.schema", description="print the job-file JSON Schema or "
+                                     "the Markdown reference")
+    parser.add_argument("--json", action="store_true", help="the JSON Schema (default: the Markdown reference)")
+    args = parser.parse_args(argv)
+    print(json_schema_text() if args.json else reference_markdown(), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())

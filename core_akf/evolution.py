@@ -1,0 +1,408 @@
+"""One genetic-algorithm engine for every optimiser of the toolkit.
+
+The engine owns what every GA here needs and nothing problem-specific: the generation loop, the
+stop after stalled generations, the logbook, the hall of fame, checkpoints in a safe format (JSON,
+no pickles) with resume, seeded random streams that never touch Python's global ``random`` state,
+cached and batched (optionally parallel) fitness evaluation, and a progress bar.  An algorithm is a
+configuration (pymoo style): how the first population is made and how one generation turns into
+the next (:class:`Algorithm`), handed to :class:`GeneticAlgorithm`.  Sensor placement
+(``sensoropt.ga``), the Pareto front (``sensoropt.pareto``) and covariance tuning
+(``impactloc.tuning``) are such configurations.
+
+Reproducibility: all randomness comes from one :class:`numpy.random.Generator` and one private
+:class:`random.Random` (for operators written for Python's random module), both seeded from
+``seed`` and saved in checkpoints.  Fitness batches have a fixed composition whatever the number
+of workers, so a seed gives a bit-identical run on 1 or many joblib workers and on any joblib
+backend (loky, threads, dask), and a resumed run continues exactly.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import random
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .exceptions import AKFInputError
+from .outputs import atomic_path
+
+#: identifies a checkpoint of this engine; a file with another tag or version is refused
+CHECKPOINT_FORMAT = ["akf-toolkit GA checkpoint", 2]
+
+
+class Individual(list):
+    """A genome (a list of genes) with its fitness: ``fitness.values`` (a tuple, lower is better
+    in every objective) once evaluated.  The fitness is a :class:`deap.base.Fitness`, so DEAP's
+    selection tools (``selNSGA2``, ``sortNondominated``) work on populations of them."""
+
+    weights = (-1.0,)
+
+    def __init__(self, genes=(), fitness=None):
+        super().__init__(genes)
+        self.fitness = _fitness_class(len(self.weights))()
+        if fitness is not None:
+            self.fitness.values = tuple(fitness)
+
+    def key(self):
+        """A hashable key of the genome (cache and hall of fame)."""
+        return tuple(self)
+
+    def copy(self):
+        return type(self)(self, self.fitness.values if self.fitness.valid else None)
+
+
+_FITNESS = {}
+
+
+def _fitness_class(n_objectives):
+    """A DEAP Fitness class minimising ``n_objectives`` objectives (made without DEAP's global
+    ``creator`` registry)."""
+    if n_objectives not in _FITNESS:
+        from deap import base
+
+        _FITNESS[n_objectives] = type(f"Minimise{n_objectives}", (base.Fitness,), {"weights": (-1.0,) * n_objectives})
+    return _FITNESS[n_objectives]
+
+
+def individual_class(n_objectives):
+    """The :class:`Individual` class for ``n_objectives`` objectives."""
+    if n_objectives == 1:
+        return Individual
+    return type(f"Individual{n_objectives}", (Individual,), {"weights": (-1.0,) * n_objectives})
+
+
+# ------------------------------------------------------------------------------- evaluation
+class Evaluator:
+    """Cached, batched, optionally parallel fitness evaluation.
+
+    ``evaluate_batch(items) -> list of fitness`` evaluates a list of decoded genomes (one joblib
+    task per batch of ``batch`` genomes); ``decode(key)`` turns a genome key into what it takes.
+    A fitness that is not a finite number (or tuple of them) is replaced by ``penalty`` and
+    counted as infeasible (and so is one for which ``infeasible_if(fitness)`` is true).  Batches
+    have a fixed composition, whatever ``n_jobs``.
+    """
+
+    def __init__(self, evaluate_batch, *, decode=None, n_jobs=1, batch=10, penalty=math.inf, n_objectives=1,
+                 infeasible_if=None):
+        self.evaluate_batch, self.decode = evaluate_batch, decode or list
+        self.infeasible_if = infeasible_if
+        self.n_jobs, self.batch, self.penalty = n_jobs, int(batch), penalty
+        self.n_objectives = int(n_objectives)
+        self.cache = {}
+        self.evaluations = self.hits = self.infeasible = 0
+
+    def _clean(self, value):
+        vals = value if isinstance(value, (tuple, list)) else (value,)
+        try:
+            vals = tuple(float(v) for v in vals)
+        except (TypeError, ValueError):
+            return None
+        if len(vals) != self.n_objectives or not all(math.isfinite(v) for v in vals):
+            return None
+        return vals
+
+    def __call__(self, keys):
+        """Fitness tuples for genome keys (cached ones are not evaluated again)."""
+        from joblib import Parallel, delayed
+
+        new = list(dict.fromkeys(k for k in keys if k not in self.cache))
+        self.hits += len(keys) - len(new)      # cached, or repeated within this request
+        if new:
+            items = [self.decode(k) for k in new]
+            chunks = [items[i:i + self.batch] for i in range(0, len(items), self.batch)]
+            if self.n_jobs == 1 or len(chunks) == 1:
+                parts = [self.evaluate_batch(c) for c in chunks]
+            else:
+                parts = Parallel(n_jobs=self.n_jobs)(delayed(self.evaluate_batch)(c) for c in chunks)
+            values = [v for p in parts for v in p]
+            if len(values) != len(new):
+                raise AKFInputError(f"the objective returned {len(values)} values for {len(new)} candidates")
+            for k, v in zip(new, values):
+                clean = self._clean(v)
+                if clean is None:
+                    self.infeasible += 1
+                    clean = (self.penalty,) * self.n_objectives
+                elif self.infeasible_if is not None and self.infeasible_if(clean):
+                    self.infeasible += 1
+                self.cache[k] = clean
+            self.evaluations += len(new)
+        return [self.cache[k] for k in keys]
+
+
+# ---------------------------------------------------------------------------------- algorithm
+class Algorithm:
+    """What makes one GA differ from another: override :meth:`initial` and :meth:`next_generation`
+    (and :meth:`record` for extra logbook columns).  ``rng`` is a numpy Generator and ``pyrng`` a
+    private :class:`random.Random`, both owned and checkpointed by the engine."""
+
+    #: the individual class (number of objectives)
+    individual = Individual
+
+    def initial(self, rng, pyrng):
+        """The first population: a list of genomes (lists of genes)."""
+        raise NotImplementedError
+
+    def after_initial(self, population):
+        """The first population once evaluated (e.g. NSGA-II ranks it); default: unchanged."""
+        return population
+
+    def next_generation(self, population, generation, rng, pyrng, evaluate):
+        """The next population from the evaluated ``population``; ``evaluate(individuals)``
+        gives fitness to individuals that lack it (call it on offspring when survival selection
+        needs their fitness; the engine evaluates whatever is left unevaluated)."""
+        raise NotImplementedError
+
+    def record(self, population):
+        """Logbook columns of a generation (the engine adds generation, evaluations, cache hits,
+        infeasible and seconds); default: best, mean and std of the first objective."""
+        f = np.array([i.fitness.values[0] for i in population])
+        finite = f[np.isfinite(f)]
+        return {"best": float(f.min()), "mean": float(finite.mean()) if finite.size else math.inf,
+                "std": float(finite.std()) if finite.size else math.nan}
+
+
+@dataclass
+class GAResult:
+    """Outcome of :meth:`GeneticAlgorithm.run`.
+
+    population : the last population (evaluated);  logbook : DataFrame, one row per generation;
+    hall_of_fame : list of (genome key, fitness tuple), best first (every genome evaluated);
+    evaluations, cache_hits, infeasible : counters;  stopped : why the run ended;  evaluator : the
+    :class:`Evaluator` (its ``cache`` holds every fitness computed)
+    """
+
+    population: list
+    logbook: object
+    hall_of_fame: list
+    evaluations: int
+    cache_hits: int
+    infeasible: int
+    stopped: str
+    evaluator: Evaluator = None
+    seed: int = 0
+    settings: dict = field(default_factory=dict)
+
+
+class GeneticAlgorithm:
+    """The generation loop.
+
+    Parameters
+    ----------
+    algorithm : :class:`Algorithm` -- the configuration (initial population, one generation)
+    evaluator : :class:`Evaluator`
+    generations : int -- generations after the initial one
+    seed : int -- the whole run, whatever the number of workers
+    stall_generations, stall_tol : stop when the logbook's ``stall_column`` changed by less than
+        ``stall_tol`` (relative) over ``stall_generations`` generations (0: never)
+    checkpoint : path of a JSON checkpoint written every ``checkpoint_every`` generations (the
+        previous one is kept as ``PATH.bak``); ``resume=True`` continues from it
+    settings : dict -- stored in the checkpoint; a resume with other settings is refused
+    progress : str or None -- the progress bar's label (None: no bar)
+    hall_of_fame : int -- how many of the best genomes the result lists
+    """
+
+    def __init__(self, algorithm, evaluator, *, generations, seed=0, stall_generations=0, stall_tol=1e-6,
+                 stall_column="mean", checkpoint=None, checkpoint_every=5, resume=False, settings=None,
+                 progress=None, hall_of_fame=5):
+        if generations < 0:
+            raise AKFInputError(f"generations must be >= 0, got {generations}")
+        self.algorithm, self.evaluator = algorithm, evaluator
+        self.generations, self.seed = int(generations), int(seed)
+        self.stall_generations, self.stall_tol, self.stall_column = int(stall_generations), stall_tol, stall_column
+        self.checkpoint, self.checkpoint_every, self.resume = checkpoint, int(checkpoint_every), resume
+        self.settings = json.loads(json.dumps(dict(settings or {}, generations=self.generations, seed=self.seed)))
+        self.progress, self.n_hall = progress, int(hall_of_fame)
+
+    # -- evaluation of individuals
+    def _evaluate(self, individuals):
+        todo = [i for i in individuals if not i.fitness.valid]
+        for ind, f in zip(todo, self.evaluator([i.key() for i in todo])):
+            ind.fitness.values = f
+            self._hof.setdefault(ind.key(), f)
+        for ind in individuals:
+            self._hof.setdefault(ind.key(), ind.fitness.values)
+        return individuals
+
+    def run(self):
+        """Run (or resume) the GA; returns a :class:`GAResult`."""
+        import pandas as pd
+
+        alg, Ind = self.algorithm, self.algorithm.individual
+        if self.checkpoint and not self.resume and os.path.exists(self.checkpoint):
+            raise AKFInputError(f"a checkpoint of an earlier run exists at {self.checkpoint!r}; pass resume=True "
+                                "(CLI: --resume) to continue it, or remove it / choose another output folder to "
+                                "start afresh")
+        if self.resume:
+            ck = load_checkpoint(self.checkpoint)
+            if ck["settings"] != self.settings:
+                raise AKFInputError("the checkpoint was written by a run with other settings or candidates")
+            rng = np.random.default_rng()
+            rng.bit_generator.state = ck["rng"]
+            pyrng = random.Random()
+            pyrng.setstate(_tuples(ck["pyrng"]))
+            pop = [Ind(g, f) for g, f in zip(ck["population"], ck["fitness"])]
+            rows, start = ck["rows"], ck["generation"] + 1
+            self._hof = {_key(k): tuple(v) for k, v in ck["hof"]}
+            ev = self.evaluator
+            ev.cache = {_key(k): tuple(v) for k, v in ck["cache"]}
+            ev.evaluations, ev.hits, ev.infeasible = ck["evaluations"], ck["hits"], ck["infeasible"]
+            t_offset = rows[-1]["seconds"] if rows else 0.0
+        else:
+            rng = np.random.default_rng(self.seed)
+            pyrng = random.Random(int(rng.integers(2 ** 31)))
+            pop = [Ind(g) for g in alg.initial(rng, pyrng)]
+            rows, start, t_offset, self._hof = [], 0, 0.0, {}
+        t0 = time.perf_counter() - t_offset
+        bar = None
+        if self.progress:
+            from tqdm.auto import tqdm
+            bar = tqdm(total=self.generations, initial=max(start - 1, 0), desc=self.progress, unit="gen", leave=False)
+        stopped = "generations"
+        try:
+            for gen in range(start, self.generations + 1):
+                if gen == 0:
+                    pop = alg.after_initial(self._evaluate(pop))
+                else:
+                    pop = alg.next_generation(pop, gen, rng, pyrng, self._evaluate)
+                    self._evaluate(pop)
+                ev = self.evaluator
+                rows.append(dict(generation=gen, **alg.record(pop), evaluations=ev.evaluations, cache_hits=ev.hits,
+                                 infeasible=ev.infeasible, seconds=time.perf_counter() - t0))
+                if bar is not None and gen > 0:
+                    bar.update(1)
+                if self.checkpoint and (gen % self.checkpoint_every == 0 or gen == self.generations):
+                    self._save(pop, rows, gen, rng, pyrng)
+                if self.stall_generations > 0 and gen >= self.stall_generations:
+                    old, new = rows[gen - self.stall_generations][self.stall_column], rows[gen][self.stall_column]
+                    if abs(new - old) <= self.stall_tol * max(abs(old), 1e-300):
+                        stopped = (f"stall: {self.stall_column} fitness changed < {self.stall_tol:g} over "
+                                   f"{self.stall_generations} generations")
+                        break
+        finally:
+            if bar is not None:
+                bar.close()
+        ranked = sorted(self._hof.items(), key=lambda kv: (kv[1], kv[0]))
+        ev = self.evaluator
+        return GAResult(pop, pd.DataFrame(rows), ranked[:self.n_hall] if self.n_hall else ranked, ev.evaluations,
+                        ev.hits, ev.infeasible, stopped, ev, self.seed, self.settings)
+
+    def hall(self):
+        """Every genome evaluated so far: ``{key: fitness}``."""
+        return dict(self._hof)
+
+    def _save(self, pop, rows, gen, rng, pyrng):
+        ev = self.evaluator
+        data = dict(format=CHECKPOINT_FORMAT, settings=self.settings, generation=gen, rng=rng.bit_generator.state,
+                    pyrng=pyrng.getstate(), population=[list(i) for i in pop],
+                    fitness=[list(i.fitness.values) for i in pop], rows=rows,
+                    hof=[[list(k), list(v)] for k, v in self._hof.items()],
+                    cache=[[list(k), list(v)] for k, v in ev.cache.items()],
+                    evaluations=ev.evaluations, hits=ev.hits, infeasible=ev.infeasible)
+        save_checkpoint(self.checkpoint, data)
+
+
+def _key(genes):
+    """A genome key from JSON (nested lists back to tuples)."""
+    return tuple(_key(g) if isinstance(g, list) else g for g in genes)
+
+
+def _tuples(x):
+    """JSON lists back to the nested tuples of ``random.Random.getstate``."""
+    return tuple(_tuples(v) for v in x) if isinstance(x, list) else x
+
+
+# ---------------------------------------------------------------------------------- checkpoints
+def save_checkpoint(path, data):
+    """Write a checkpoint (JSON) atomically; the previous one is kept as ``PATH.bak``."""
+    text = json.dumps(data, allow_nan=True)
+    with atomic_path(path) as tmp:          # a kill mid-write leaves the previous checkpoint
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        if os.path.exists(path):
+            os.replace(path, f"{path}.bak")
+
+
+def load_checkpoint(path):
+    """Read and check a checkpoint written by :class:`GeneticAlgorithm`; a missing, truncated or
+    foreign file is an :class:`AKFInputError` that names the backup to use instead.  Checkpoints
+    are JSON: loading one never runs code."""
+    if not path or not os.path.exists(path):
+        raise AKFInputError(f"no checkpoint to resume from at {path!r}")
+    backup = f" (the previous checkpoint is kept at {path}.bak: rename it to {os.path.basename(path)} to resume from it)" \
+        if os.path.exists(f"{path}.bak") else ""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            ck = json.load(fh)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise AKFInputError(f"checkpoint {path!r} is truncated or not a GA checkpoint "
+                            f"({type(exc).__name__}: {exc}){backup}") from None
+    if not isinstance(ck, dict) or ck.get("format") != CHECKPOINT_FORMAT:
+        found = ck.get("format") if isinstance(ck, dict) else type(ck).__name__
+        raise AKFInputError(f"{path!r} is not a GA checkpoint of this version (found {found!r}, "
+                            f"expected {CHECKPOINT_FORMAT!r}){backup}")
+    return ck
+
+
+# ------------------------------------------------------------------------------- operators
+def tournament(population, k, size, pyrng):
+    """``k`` winners of tournaments of ``size`` random individuals (with replacement), compared on
+    the first objective (lower is better); the same draws as DEAP's ``selTournament``."""
+    def contest():
+        aspirants = [pyrng.choice(population) for _ in range(size)]
+        return max(aspirants, key=lambda i: i.fitness.wvalues)     # the first best, as DEAP's max
+
+    return [contest() for _ in range(k)]
+
+
+def best(population, k):
+    """The ``k`` best individuals (first objective), stable for ties (DEAP's ``selBest``)."""
+    return sorted(population, key=lambda i: i.fitness.wvalues, reverse=True)[:k]
+
+
+def blend(a, b, alpha, pyrng):
+    """Blend crossover of two real genomes in place (DEAP's ``cxBlend``, with a private stream)."""
+    for i, (x1, x2) in enumerate(zip(a, b)):
+        gamma = (1.0 + 2.0 * alpha) * pyrng.random() - alpha
+        a[i] = (1.0 - gamma) * x1 + gamma * x2
+        b[i] = gamma * x1 + (1.0 - gamma) * x2
+    return a, b
+
+
+def gaussian(ind, sigma, indpb, pyrng, mu=0.0):
+    """Gaussian mutation of a real genome in place (DEAP's ``mutGaussian``, private stream)."""
+    for i in range(len(ind)):
+        if pyrng.random() < indpb:
+            ind[i] += pyrng.gauss(mu, sigma)
+    return ind
+
+
+def tournament_dcd(population, k, pyrng):
+    """NSGA-II binary tournament on dominance and crowding distance (DEAP's
+    ``selTournamentDCD``, with a private random stream); ``population`` must carry the crowding
+    distances of ``deap.tools.selNSGA2``."""
+    if len(population) % 4 != 0:
+        raise AKFInputError("the NSGA-II tournament needs a population size that is a multiple of 4")
+
+    def duel(a, b):
+        if a.fitness.dominates(b.fitness):
+            return a
+        if b.fitness.dominates(a.fitness):
+            return b
+        if a.fitness.crowding_dist < b.fitness.crowding_dist:
+            return b
+        if a.fitness.crowding_dist > b.fitness.crowding_dist:
+            return a
+        return a if pyrng.random() <= 0.5 else b
+
+    p1 = pyrng.sample(population, len(population))
+    p2 = pyrng.sample(population, len(population))
+    chosen = []
+    for i in range(0, k, 4):
+        chosen.append(duel(p1[i], p1[i + 1]))
+        chosen.append(duel(p1[i + 2], p1[i + 3]))
+        chosen.append(duel(p2[i], p2[i + 1]))
+        chosen.append(duel(p2[i + 2], p2[i + 3]))
+    return chosen

@@ -1,0 +1,90 @@
+"""The packages depend one way: ``core_akf <- sensoropt, impactloc <- akf``; no private name is
+imported across packages; sub-commands are entry points.
+
+The import graph is read from the source (every ``import`` and ``from ... import`` statement,
+also inside functions), so a lazy import inside a function counts as much as one at the top.
+"""
+import ast
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+PACKAGES = ("core_akf", "sensoropt", "impactloc", "akf")
+#: what each package may import from this distribution
+ALLOWED = {"core_akf": {"core_akf"}, "sensoropt": {"core_akf", "sensoropt"}, "impactloc": {"core_akf", "impactloc"},
+           "akf": set(PACKAGES)}
+
+
+def _imports(package):
+    """(module file, imported module, imported names) for every import statement in ``package``."""
+    for path in sorted((ROOT / package).rglob("*.py")):
+        tree = ast.parse(path.read_text(), str(path))
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    yield path, a.name, []
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:          # relative: resolve against this module's package
+                    base = parts[:len(parts) - node.level] if path.name != "__init__.py" else parts[:len(parts) - node.level + 1]
+                    module = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    module = node.module or ""
+                yield path, module, [a.name for a in node.names]
+
+
+def import_graph():
+    """{package: set of packages of this distribution it imports}."""
+    graph = {p: set() for p in PACKAGES}
+    for package in PACKAGES:
+        for _, module, _ in _imports(package):
+            top = module.split(".")[0]
+            if top in PACKAGES and top != package:
+                graph[package].add(top)
+    return graph
+
+
+def test_dependencies_point_one_way():
+    graph = import_graph()
+    for package, imported in graph.items():
+        assert imported <= ALLOWED[package], f"{package} imports {sorted(imported - ALLOWED[package])}"
+    assert graph["akf"] == {"core_akf", "sensoropt", "impactloc"}
+
+
+def test_no_private_name_is_imported_across_packages():
+    offences = []
+    for package in PACKAGES:
+        for path, module, names in _imports(package):
+            top = module.split(".")[0]
+            if top not in PACKAGES or top == package:
+                continue
+            private_module = any(p.startswith("_") for p in module.split(".")[1:])
+            private_names = [n for n in names if n.startswith("_")]
+            if private_module or private_names:
+                offences.append(f"{path.relative_to(ROOT)}: from {module} import {names}")
+    assert not offences, offences
+
+
+@pytest.mark.parametrize("package", ["core_akf", "sensoropt", "impactloc"])
+def test_libraries_import_without_the_application_layer(package):
+    code = (f"import sys, {package}, {package}.__init__; "
+            "bad = sorted({m.split('.')[0] for m in sys.modules} & {'akf', 'matplotlib'}); print(bad)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_subcommands_are_entry_points():
+    from akf.cli import COMMAND_GROUP, build_parser, command_plugins
+
+    plugins = command_plugins()
+    assert {"estimate", "place", "locate", "study", "show"} <= set(plugins), plugins
+    assert all(ep.group == COMMAND_GROUP for ep in plugins.values())
+    parser = build_parser()
+    for name in plugins:
+        assert parser.parse_args([name] + (["--list"] if name == "study" else ["--list-examples"]
+                                           if name != "show" else ["s17_truss"])).command == name
