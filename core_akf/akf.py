@@ -30,14 +30,9 @@ from .exceptions import AKFInputError
 from .riccati import RiccatiError, steady_gain
 from .sensors import as_layout, parse_force_locations
 from .statespace import (
-    augment,
     check_detectable,
-    continuous,
     diag_levels,
-    modal_state_transform,
-    modal_zoh,
     observation,
-    zoh,
 )
 
 
@@ -271,13 +266,24 @@ def lti_recursion(F, U, x_first):
     return _recursion_stepwise(F, U, x_first)
 
 
-def _steady(A, G, Q, R, Y, x):
+def steady_states(A, G, Q, R, Y, x=None):
+    """Filtered states of a batch of steady-state AKFs: ``(X (B, N, n), L (B, n, m), P (B, n, n))``.
+
+    One batched Riccati solve (:func:`core_akf.riccati.steady_gain`), then the constant-gain
+    recursion ``X_k = (I - L G) A X_{k-1} + L y_k`` (:func:`lti_recursion`) from the prior mean
+    ``x`` (B, n) (zero by default).  Shapes: A, Q (B, n, n); G (B, m, n); R (B, m, m); Y (B, N, m).
+    """
     P, L = steady_gain(A, G, Q, R)
     n = A.shape[-1]
     I_LG = np.eye(n) - L @ G
     F = I_LG @ A                                      # X_k = F X_{k-1} + L y_k
     U = Y @ np.swapaxes(L, -1, -2)                    # L y_k for all k at once
-    out = lti_recursion(F, U, np.einsum("bij,bj->bi", I_LG, x) + U[:, 0])
+    first = U[:, 0] if x is None else np.einsum("bij,bj->bi", I_LG, x) + U[:, 0]
+    return lti_recursion(F, U, first), L, P
+
+
+def _steady(A, G, Q, R, Y, x):
+    out, L, P = steady_states(A, G, Q, R, Y, x)
     innov = np.empty_like(Y)                          # y_k - G A X_{k-1}: (G A) is only m x n
     innov[:, 0] = Y[:, 0] - np.einsum("bij,bj->bi", G, x)
     innov[:, 1:] = Y[:, 1:] - out[:, :-1] @ np.swapaxes(G @ A, -1, -2)
@@ -489,11 +495,6 @@ def augmented_covariance(n_states, n_forces, model_error_cov, force_increment_co
     return Q_a
 
 
-def _discrete(structure, forces, dt):
-    A_c, B_c = continuous(structure, forces)
-    return zoh(A_c, B_c, dt)
-
-
 def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forces, measurements: ArrayLike,
                    dt: float, *, model_error_cov: Covariance, force_increment_cov: Covariance,
                    noise_cov: NoiseCovariance, steady: bool | None = None, allow_undetectable: bool = False,
@@ -532,16 +533,14 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
                                 f"({', '.join(s.label for s in l)}); use steady=False (CLI: --filter time-varying) to run the "
                                 "time-varying filter and watch it drift")
     # filter in energy-normalised modal coordinates x = T z (see modal_state_transform),
-    # discretised there mode by mode when the damping is classical
-    T, T_inv = modal_state_transform(structure)
-    AB = modal_zoh(structure, locs, dt)
-    if AB is None:
-        A, B = _discrete(structure, locs, dt)
-        AB = (T_inv @ A @ T, T_inv @ B)
-    nx, nf = AB[1].shape
+    # discretised there mode by mode when the damping is classical: the one filter-model builder
+    from .reduced import ModalFilterModel
+
+    fm = ModalFilterModel(structure, locs, dt)
+    T, T_inv, A_a = fm.T, fm.T_inv, fm.A_a
+    nx, nf = fm.n_states, len(locs)
     Ta = scipy.linalg.block_diag(T, np.eye(nf))
     Ta_inv = scipy.linalg.block_diag(T_inv, np.eye(nf))
-    A_a, _ = augment(AB[0], AB[1], np.zeros((0, nx)), np.zeros((0, nf)))
     G_a = np.stack([np.hstack([G @ T, D]) for G, D in (observation(structure, l, locs) for l in layouts)])
     per_layout = (isinstance(noise_cov, (list, tuple)) and len(noise_cov) > 0
                   and all(isinstance(c, dict) for c in noise_cov)) or (

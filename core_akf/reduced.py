@@ -12,18 +12,21 @@ and displacement enter every strain/displacement row as a feed-through on the fo
 """
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
-from .akf import lti_recursion, state_covariance
+from .akf import state_covariance, steady_states
 from .defaults import auto_modes
 from .exceptions import AKFInputError
-from .riccati import steady_gain
 from .sensors import as_layout, parse_force_locations, selection_matrices
 from .statespace import augment, continuous, force_selection, modal_state_transform, modal_zoh, observation, zoh
 
 
 class ModalFilterModel:
-    """Augmented AKF model of ``structure`` with forces at ``forces``, in modal coordinates.
+    """Augmented AKF model of ``structure`` with forces at ``forces``, in modal coordinates: the
+    one builder of the filter's transition matrix (used by :func:`core_akf.akf.estimate_batch`
+    for the full model and by the optimisers, reduced).
 
     Parameters
     ----------
@@ -50,8 +53,6 @@ class ModalFilterModel:
         self.n_modes = None if n_modes is None or int(n_modes) == structure.n else int(n_modes)
         self.structure = structure if self.n_modes is None else structure.reduce(self.n_modes)
         self.T, self.T_inv = modal_state_transform(self.structure)
-        Qu = self.T_inv @ state_covariance(self.structure, 1.0) @ self.T_inv.T
-        self.Q_unit = 0.5 * (Qu + Qu.T)
         AB = modal_zoh(self.structure, self.forces, self.dt)
         if AB is None:
             A, B = zoh(*continuous(self.structure, self.forces), self.dt)
@@ -59,6 +60,12 @@ class ModalFilterModel:
         self.A_a, _ = augment(AB[0], AB[1], np.zeros((0, AB[0].shape[0])), np.zeros((0, len(self.forces))))
         self.n_states = AB[0].shape[0]
         self._residual = None
+
+    @cached_property
+    def Q_unit(self):
+        """State covariance (2n x 2n, modal coordinates) for a unit ``model_error_cov`` level."""
+        Qu = self.T_inv @ state_covariance(self.structure, 1.0) @ self.T_inv.T
+        return 0.5 * (Qu + Qu.T)
 
     @property
     def n_a(self):
@@ -118,14 +125,10 @@ def steady_outputs(A, G, Q, R, Y, H):
     -------
     ndarray (B, N, k)
 
-    One batched Riccati solve (doubling), then ``X_k = (I - L G) A X_{k-1} + L y_k`` as one
-    batched product per step; only the requested outputs are formed.
+    The filter is :func:`core_akf.akf.steady_states` (one batched Riccati solve, then the
+    constant-gain recursion); only the requested outputs are returned.
     """
     B, N, m = Y.shape
     n = G.shape[-1]
-    A = np.broadcast_to(A, (B, n, n))
-    _, L = steady_gain(A, G, np.broadcast_to(Q, (B, n, n)), R)
-    F = (np.eye(n) - L @ G) @ A
-    U = Y @ np.swapaxes(L, -1, -2)
-    X = lti_recursion(F, U, U[:, 0])
+    X, _, _ = steady_states(np.broadcast_to(A, (B, n, n)), G, np.broadcast_to(Q, (B, n, n)), R, Y)
     return X @ np.swapaxes(H, -1, -2)
