@@ -1,5 +1,6 @@
 """The command line as a user runs it."""
 import json
+import os
 import subprocess
 import sys
 
@@ -137,3 +138,46 @@ def test_job_absolute_noise_units():
     job["simulation"]["absolute_noise"] = {"micro_strain": 1.0}
     with pytest.raises(ValueError, match="absolute_noise.micro_strain in \\[simulation\\]: input should be 'strain', 'microstrain'"):
         run_job(job)
+
+
+def test_version_and_show(tmp_path, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0 and capsys.readouterr().out.startswith("akf-toolkit ")
+    assert main(["show", "s17_truss", "--json", "--out", str(tmp_path)]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert (d["nodes"], d["members"], d["dofs"], d["strain_outputs"]) == (18, 34, 33, 34)
+    assert d["first_strain_output"] == "strain:1" and np.all(np.diff(d["frequencies_hz"]) > 0)
+    assert os.path.getsize(d["files"]["figure"]) > 10_000
+    assert main(["show", "th_plate", "--no-plot"]) == 0
+    assert "strain:1:ex ... strain:121:gxy" in capsys.readouterr().out
+
+
+def test_multimetric_placement_says_to_use_a_longer_window(tmp_path, capsys):
+    args = ["place", "--example", "th-multi", "--generations", "0", "--population", "4", "--json", "--no-plot"]
+    assert main(args + ["--out", str(tmp_path / "a")]) == 0
+    notes = json.loads(capsys.readouterr().out)["notes"]
+    assert len(notes) == 1 and "--window 1" in notes[0]
+    assert main(args + ["--window", "1", "--out", str(tmp_path / "b")]) == 0
+    assert json.loads(capsys.readouterr().out)["notes"] == []
+
+
+def test_every_study_writes_a_summary(tmp_path, monkeypatch):
+    """imp_cases (one setting here) and th_placement write their summary CSV like the others."""
+    import pandas as pd
+
+    from akf.studies import imp, run_study, th_placement
+
+    monkeypatch.setattr(imp, "SETTINGS", [("imp-truss-case1", "abs")])
+    res = run_study("imp_cases", out=str(tmp_path), quick=True)
+    summary = pd.read_csv(res.files["summary"])
+    assert list(summary["example"]) == ["imp-truss-case1"] and summary["hits"].iloc[0] == 1
+    table = pd.DataFrame([
+        {"study": "case 5", "label": "seed 0", "n_sensors": 3, "sensors": "a", "full_record_error_ue": 2.0},
+        {"study": "case 5", "label": "seed 1", "n_sensors": 3, "sensors": "b", "full_record_error_ue": 1.8},
+        {"study": "case 5", "label": "TH case 2 (trial and error)", "n_sensors": 3, "sensors": "c",
+         "full_record_error_ue": 3.6},
+        {"study": "case 6", "label": "8 gauges", "n_sensors": 8, "sensors": "d", "full_record_error_ue": 1.0}])
+    s = th_placement._summary(table, 3.6).set_index("study")
+    assert s.loc["case 5", "best_sensors"] == "b" and s.loc["case 5", "gain_over_case2"] == pytest.approx(2.0)
+    assert s.loc["case 6", "published_gain_over_case2"] == pytest.approx(0.00666 / 0.00183)
