@@ -71,7 +71,7 @@ class Section(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, validate_default=False)
 
 
-class Structure(BaseModel):
+class StructureSection(BaseModel):
     """``[structure]``: a built-in model and its arguments."""
 
     model_config = ConfigDict(extra="allow", strict=True)
@@ -196,7 +196,7 @@ class Place(Section):
                                    "correction); \"auto\": core_akf.defaults.auto_modes", used_by=PLACE)
 
 
-class Covariances(Section):
+class CovariancesSection(Section):
     """``[locate.covariances]``: assumed covariance levels before tuning."""
 
     model_error: NonNegative = key("a number >= 0", "Q level", unit="state units^2", used_by=LOCATE, required=True)
@@ -234,7 +234,7 @@ class Locate(Section):
                                    "tuning", used_by=LOCATE)
     skip: NonNegative = key("a number >= 0", "seconds at the start left out of the AD error",
                                       used_by=LOCATE, unit="s")
-    covariances: Covariances = key("a table", "assumed levels (default: from the data)", used_by=LOCATE)
+    covariances: CovariancesSection = key("a table", "assumed levels (default: from the data)", used_by=LOCATE)
     tuning: Tuning = key("a table", "GA settings of the tuning", used_by=LOCATE)
 
 
@@ -249,7 +249,7 @@ class Job(Section):
                                    "\"disp:8:y\"", used_by=("estimate", "locate"))
     forces: Texts = key("a non-empty list of strings", "unknown force locations \"NODE:DIR\" (directions x, y for "
                         "a truss; w for a plate); locate: where a simulated impact hits")
-    structure: Structure = key("a table", "the structure")
+    structure: StructureSection = key("a table", "the structure")
     filter: Filter = key("a table", "filter settings", default_factory=Filter)
     simulation: Simulation = key("a table", "simulated measurements (locate: to try the method on a simulated "
                                  "impact at `forces`)")
@@ -445,7 +445,7 @@ def reference_markdown():
         (f"[{n}]", _section_model(f.annotation), n) for n, f in Job.model_fields.items()
         if _section_model(f.annotation) is not None]
     sections.insert(sections.index(next(s for s in sections if s[2] == "locate")) + 1,
-                    ("[locate.covariances]", Covariances, "locate.covariances"))
+                    ("[locate.covariances]", CovariancesSection, "locate.covariances"))
     sections.append(("[locate.tuning]", Tuning, "locate.tuning"))
     sections.append(("[[simulation.loads]] components", LoadComponent, "loads"))
     for title, model, _ in sections:

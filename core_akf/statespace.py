@@ -348,6 +348,29 @@ class StateSpace:
         return self.A_a.shape[0]
 
 
+class SubsetDetectability:
+    """PBH detectability of many subsets of one list of candidate sensors, for one set of forces:
+    what the optimisers ask thousands of times (placement layouts, role splits).
+
+    For a supported, damped structure (:func:`static_test_suffices`) the static gain of every
+    candidate is computed once and a subset is detectable if its rows see every force
+    combination (:meth:`core_akf.rank.StaticGain.sees_every_force`); otherwise each subset gets
+    the full :func:`detectability` test.  Both are the same decision as :func:`detectability`.
+
+    ``detectable(indices) -> bool`` (0-based indices into ``sensors``).
+    """
+
+    def __init__(self, structure, sensors, forces):
+        self.structure, self.sensors = structure, list(sensors)
+        self.forces = parse_force_locations(structure, forces)
+        self.static = static_gain(structure, self.sensors, self.forces) if static_test_suffices(structure) else None
+
+    def detectable(self, indices):
+        if self.static is not None:
+            return self.static.rows(indices).sees_every_force
+        return detectability(self.structure, [self.sensors[i] for i in indices], self.forces).detectable
+
+
 def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float):
     """Build the discrete augmented :class:`StateSpace` (validates every id once)."""
     layout = as_layout(sensors)

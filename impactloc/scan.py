@@ -16,7 +16,7 @@ from core_akf.exceptions import AKFInputError
 from core_akf.metrics import rms, rms_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.sensors import as_layout, parse_force_locations
-from core_akf.statespace import detectability, static_gain, static_test_suffices
+from core_akf.statespace import SubsetDetectability
 
 from .roles import RoleSplit
 
@@ -113,7 +113,7 @@ class ImpactModel:
             self.n_modes = None
         self.kinds = np.array([s.kind for s in self.layout])
         self._systems = {}
-        self._static = {}
+        self._detectability = {}
 
     def filter_model(self, loc):
         if loc not in self._systems:
@@ -129,11 +129,9 @@ class ImpactModel:
 
     def detectable(self, loc, se):
         """PBH detectability of a force at ``loc`` from the SE sensors ``se`` (indices)."""
-        if static_test_suffices(self.full):
-            if loc not in self._static:
-                self._static[loc] = static_gain(self.full, self.layout, [loc])
-            return self._static[loc].rows(se).sees_every_force
-        return detectability(self.full, [self.layout[i] for i in se], [loc]).detectable
+        if loc not in self._detectability:
+            self._detectability[loc] = SubsetDetectability(self.full, self.layout, [loc])
+        return self._detectability[loc].detectable(se)
 
     def Q_a(self, cov, loc):
         return self.filter_model(loc)[0].Q_a(cov.model_error, cov.force_increment)

@@ -16,7 +16,7 @@ from core_akf.exceptions import AKFInputError
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.riccati import RiccatiError
 from core_akf.simulate import simulate
-from core_akf.statespace import detectability, static_gain, static_test_suffices
+from core_akf.statespace import SubsetDetectability
 
 
 class FunctionObjective:
@@ -85,16 +85,12 @@ class StrainErrorObjective:
         self.G = self.model.observation(self.labels)   # (n_candidates, n_a)
         self.H = self.model.strain_rows()
         self.Q = self.model.Q_a(model_error_cov, force_increment_cov)
-        self.static = static_gain(structure, self.labels, forces) if static_test_suffices(structure) else None
+        self._detectability = SubsetDetectability(structure, self.labels, self.model.forces)
         self.n_forces = len(self.model.forces)
 
     def detectable(self, idx):
-        """PBH test of a layout (candidate indices): for a supported, damped structure the static
-        gain of the layout must see every force combination, the same test as
-        :func:`core_akf.statespace.detectability`, which runs for any other structure."""
-        if self.static is None:
-            return detectability(self.model.full, [self.labels[i] for i in idx], self.model.forces).detectable
-        return self.static.rows(idx).sees_every_force
+        """PBH test of a layout (candidate indices), :class:`core_akf.statespace.SubsetDetectability`."""
+        return self._detectability.detectable(idx)
 
     def evaluate(self, layouts):
         """Average strain error (µε) per layout; ``inf`` for an undetectable or failing one."""
