@@ -5,7 +5,6 @@ import json
 import os
 import sys
 
-from core_akf.exceptions import AKFInputError
 from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
@@ -60,15 +59,14 @@ def _plot_sensors(result, path, max_channels=8):
 
 
 def _estimate(args):
-    from ..examples import example_job, example_names
+    from ..examples import example_job
     from ..jobs import run_job
+    from .common import check_job_or_example, print_examples
 
     if args.list_examples:
-        for name in example_names("estimate"):
-            print(f"{name:12s} {example_job(name)['description']}")
+        print_examples("estimate")
         return 0
-    if (args.job is None) == (args.example is None):
-        raise AKFInputError("give a job file or --example NAME (see --list-examples)")
+    check_job_or_example(args)
     job = example_job(args.example) if args.example else load_job(args.job, "estimate")
     if args.duration is not None:
         job.setdefault("simulation", {})["duration"] = args.duration

@@ -16,21 +16,14 @@ from ..jobs import load_job
 def _locate(args):
     from impactloc.locate import locate
 
-    from ..examples.impact import EXAMPLES, example_scenario
+    from ..examples.impact import example_scenario
     from ..locating import run_locate_job, write_outputs
+    from .common import check_job_or_example, print_examples
 
     if args.list_examples:
-        from ..examples import load_example
-
-        for name in EXAMPLES:
-            job = load_example(name)
-            print(f"{name:16s} impact at node {job['forces'][0].split(':')[0]}, {len(job['sensors'])} sensors, "
-                  f"{job['locate']['n_ad']} {'/'.join(job['locate']['ad_kinds'])} AD")
+        print_examples("locate")
         return 0
-    if (args.job is None) == (args.example is None):
-        raise AKFInputError("give a locate job file or --example NAME (see --list-examples)")
-    if args.n_jobs == 0:
-        raise AKFInputError("--n-jobs must be a positive number of workers, or negative (-1: all cores), not 0")
+    check_job_or_example(args, "locate job file")
     progress = not args.json
     scenario = None
     if args.example:

@@ -18,15 +18,13 @@ from ..jobs import load_job
 def _place(args):
     from sensoropt.ga import THESIS
 
-    from ..examples import example_names, load_example
     from ..placement import example_problem, problem_from_job
+    from .common import check_job_or_example, print_examples
 
     if args.list_examples:
-        for name in example_names("place"):
-            print(f"{name:10s} {load_example(name)['description']}")
+        print_examples("place")
         return 0
-    if (args.job is None) == (args.example is None):
-        raise AKFInputError("give a place job file or --example NAME (see --list-examples)")
+    check_job_or_example(args, "place job file")
     if args.example:
         problem, ga = example_problem(args.example, args.sensors), {}
     else:
@@ -37,8 +35,6 @@ def _place(args):
             problem.n_sensors = args.sensors
     if args.window is not None:
         problem.window = args.window
-    if args.n_jobs == 0:
-        raise AKFInputError("--n-jobs must be a positive number of workers, or negative (-1: all cores), not 0")
     settings = dict(THESIS)
     settings.update(ga)
     for key in ("generations", "population"):

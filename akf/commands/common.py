@@ -1,0 +1,23 @@
+"""Pieces every sub-command shares: listing its built-in examples, and one job file or one
+example, not both."""
+from __future__ import annotations
+
+from core_akf.exceptions import AKFInputError
+
+
+def print_examples(command):
+    """Print the built-in examples of ``command`` with their descriptions."""
+    from ..examples import example_names, load_example
+
+    names = example_names(command)
+    width = max(map(len, names)) + 2
+    for name in names:
+        print(f"{name:{width}s}{load_example(name)['description']}")
+
+
+def check_job_or_example(args, kind="job file"):
+    """Exactly one of ``args.job`` and ``args.example``; ``--n-jobs`` (if any) not 0."""
+    if (args.job is None) == (args.example is None):
+        raise AKFInputError(f"give a {kind} or --example NAME (see --list-examples)")
+    if getattr(args, "n_jobs", 1) == 0:
+        raise AKFInputError("--n-jobs must be a positive number of workers, or negative (-1: all cores), not 0")
