@@ -23,6 +23,7 @@ import copy
 import functools
 import os
 
+from core_akf.defaults import default
 from core_akf.exceptions import AKFInputError
 
 from ..jobs import load_job_file
@@ -78,6 +79,9 @@ def example_job(name):
 
 
 # ------------------------------------------------------------------------ variations for studies
+#: the papers' "no noise" cases keep a negligible noise (0.01 % of each channel's RMS) so that R
+#: stays positive definite
+_NEGLIGIBLE_NOISE = 1e-4
 S17_FORCES = ["4:y", "6:y", "8:y", "12:y"]
 S17_ACC_ONLY = [f"acc:{j}:y" for j in (2, 4, 5, 6, 7, 8, 9, 12, 14, 15)] + [f"acc:{j}:x" for j in (4, 5, 8, 9)]
 S17_STRAIN_ONLY = [f"strain:{m}" for m in (4, 5, 9, 12, 13, 16, 21, 24, 26)]
@@ -89,8 +93,8 @@ def s17_job(name, description, sensors, slow=True, model_error=True, noise=True)
     loads of ``s17-case1`` when not ``slow``), 5 % model error and 2 % noise unless switched off."""
     job = load_example("s17-case4" if slow else "s17-case1")
     job.update(name=name, description=description, sensors=list(sensors))
-    job["filter"].update(stiffness_factor=1.05 if model_error else 1.0, steady=True)
-    job["simulation"]["relative_noise"] = 0.02 if noise else 1e-4
+    job["filter"].update(stiffness_factor=default("placement_stiffness_factor") if model_error else 1.0, steady=True)
+    job["simulation"]["relative_noise"] = default("relative_noise") if noise else _NEGLIGIBLE_NOISE
     return job
 
 
@@ -108,9 +112,10 @@ def th_job(name, description, sensors, model_error=True, noise=True, structure=N
     job.update(name=name, description=description, sensors=list(sensors))
     if structure is not None:
         job["structure"] = dict(structure)
-    job["filter"].update(stiffness_factor=1.05 if model_error else 1.0, model_error_cov=model_error_cov,
+    job["filter"].update(stiffness_factor=default("placement_stiffness_factor") if model_error else 1.0,
+                         model_error_cov=model_error_cov,
                          force_increment_cov=force_increment_cov)
-    job["simulation"]["relative_noise"] = 0.02 if noise else 1e-4
+    job["simulation"]["relative_noise"] = default("relative_noise") if noise else _NEGLIGIBLE_NOISE
     for load in job["simulation"]["loads"]:
         for c in load["components"]:
             for k in ("peak", "rms"):

@@ -1,7 +1,7 @@
 """S17 truss study: force estimation with acceleration-only, strain-only and multi-metric
 sensors (Khodabandeloo et al. 2017, cases 1-4 and the four configurations of Fig. 20).
 
-Cases (loads vertical at joints 4, 6, 8, 12; see :mod:`core_akf.examples` for the amplitudes):
+Cases (loads vertical at joints 4, 6, 8, 12; see :mod:`akf.examples` for the amplitudes):
 
 ======  ======================================================  =========================
 case    sensors                                                 loads / errors
@@ -68,7 +68,7 @@ CASES = {
 
 
 def run_case(case, duration=2.0, seed=0):
-    """Run one S17 case; returns the :class:`~core_akf.jobs.JobResult`."""
+    """Run one S17 case; returns the :class:`~akf.jobs.JobResult`."""
     description, sensors, slow, errors = CASES[case]
     job = s17_job(f"s17-{case}", description, sensors, slow=slow, model_error=errors, noise=errors)
     job["simulation"].update(duration=duration, seed=seed)

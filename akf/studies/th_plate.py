@@ -22,7 +22,7 @@ Choices the thesis leaves open (also in ``studies/README.md``):
   captions swap them); 5c = one strain + one acceleration we take as g_xy at 2 + acceleration
   at 12, 5d = two strains as g_xy at 2 and 100;
 * load amplitudes of the band-limited noise and the covariance levels are ours (see
-  :func:`core_akf.examples.th_job`); Q = 1e-16 per DOF and S = 1 N^2 for the stiff plate
+  :func:`akf.examples.th_job`); Q = 1e-16 per DOF and S = 1 N^2 for the stiff plate
   (the best of a grid for cases 2 and 3d), scaled with the 1000x smaller loads on the flexible
   plate.
 
@@ -73,7 +73,7 @@ CHANNELS = ("strain:70:ex", "strain:1:gxy")
 
 
 def run_case(case, duration=6.0, seed=0, reduce_modes=None):
-    """Run one thesis case; returns the :class:`~core_akf.jobs.JobResult`."""
+    """Run one thesis case; returns the :class:`~akf.jobs.JobResult`."""
     description, sensors, model_error, noise, options = CASES[case]
     job = th_job(f"th-{case}", description, sensors, model_error=model_error, noise=noise, **options)
     job["simulation"].update(duration=duration, seed=seed)
