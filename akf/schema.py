@@ -34,7 +34,8 @@ PLACE = ("place",)
 LOCATE = ("locate",)
 
 
-def key(expect, description, *, used_by=ALL, unit=None, default=None, registry=None, required=False, **field_kw):
+def key(expect, description, *, used_by=ALL, unit=None, default=None, registry=None, required=False, default_text=None,
+        **field_kw):
     """A job key: ``expect`` says the type in a message ("a positive number"), ``description``
     what it means; ``used_by`` the commands that read it; ``unit`` its SI unit; ``registry`` the
     name of its default in :data:`core_akf.defaults.DEFAULTS` (the default is documented from
@@ -44,6 +45,8 @@ def key(expect, description, *, used_by=ALL, unit=None, default=None, registry=N
         extra["unit"] = unit
     if registry:
         extra["default_from"] = registry
+    if default_text:
+        extra["default_text"] = default_text
     if required:
         field_kw["default"] = ...
     elif "default_factory" not in field_kw:
@@ -102,7 +105,7 @@ class Filter(Section):
         "\"simulated\", a table of positive variances per sensor kind (e.g. {strain = 1e-12, acc = 1e-4}), "
         "or positive variances per channel",
         "R: measurement-noise variance per sensor kind (SI units squared), per channel, or \"simulated\" "
-        "(the true noise of a simulated job)", used_by=ESTIMATE, unit="SI^2", default=None)
+        "(the true noise of a simulated job)", used_by=ESTIMATE, unit="SI^2", default_text='"simulated"')
     steady: bool = key("true or false (a TOML boolean, not a string or a number)",
                                  "the steady-state filter (fast); false: the time-varying filter",
                                  used_by=ESTIMATE, registry="steady")
@@ -245,7 +248,7 @@ class Job(Section):
     description: str = key("a string", "free text")
     dt: Positive = key("a positive number", "time step; must match measured data", unit="s")
     sensors: Texts = key("a non-empty list of strings", "sensors: \"strain:13\" (truss member), "
-                                   "\"strain:58:ex\" (plate node component ex|ey|gxy), \"acc:8:y\", \"vel:8:y\", "
+                                   "\"strain:58:ex\" (plate node and component ex, ey or gxy), \"acc:8:y\", \"vel:8:y\", "
                                    "\"disp:8:y\"", used_by=("estimate", "locate"))
     forces: Texts = key("a non-empty list of strings", "unknown force locations \"NODE:DIR\" (directions x, y for "
                         "a truss; w for a plate); locate: where a simulated impact hits")
@@ -419,15 +422,37 @@ def _type_text(field):
     return (field.json_schema_extra or {}).get("expect", "")
 
 
-def _default_text(field):
+#: defaults that the runners apply (documented here; the values live with the code that uses them:
+#: the thesis' GA settings in sensoropt.ga.THESIS, the tuning GA's in impactloc.tuning)
+_DOC_DEFAULTS = {
+    ("Measurements", "time_column"): '"time"', ("Output", "strains"): '"all"', ("Simulation", "seed"): "0",
+    ("Place", "kinds"): '["ex", "ey", "gxy"]', ("Place", "operators"): '"set"', ("Place", "n_modes"): '"auto"',
+    ("Place", "population"): "50", ("Place", "generations"): "100", ("Place", "elite"): "2",
+    ("Place", "crossover"): "0.8", ("Place", "mutation"): "0.16", ("Place", "tournament"): "4",
+    ("Place", "stall_generations"): "50", ("Locate", "ad_kinds"): '["strain"]', ("Locate", "tune"): "true",
+    ("Locate", "n_modes"): '"auto"', ("Locate", "skip"): "0.0", ("Tuning", "population"): "12",
+    ("Tuning", "generations"): "8", ("Tuning", "n_splits"): "8", ("Tuning", "decades"): "3.0",
+    ("Tuning", "crossover"): "0.7", ("Tuning", "mutation"): "0.3", ("Filter", "allow_undetectable"): "false",
+}
+
+
+def _default_text(field, model=None, name=None):
+    if model is not None and (model.__name__, name) in _DOC_DEFAULTS:
+        return _DOC_DEFAULTS[(model.__name__, name)]
     extra = field.json_schema_extra or {}
     names = extra.get("default_from")
     if names:
-        vals = [f"{DEFAULTS[n.strip()][0]!r}" for n in names.split("/")]
-        return " / ".join(vals)
-    if field.default is not None and not callable(field.default):
-        return repr(field.default)
+        return " / ".join(_toml_value(DEFAULTS[n.strip()][0]) for n in names.split("/"))
+    if extra.get("default_text"):
+        return extra["default_text"]
     return ""
+
+
+def _toml_value(value):
+    """A default as it is written in a TOML file."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value)
 
 
 def reference_markdown():
@@ -455,7 +480,7 @@ def reference_markdown():
             if title == "the top level" and _section_model(field.annotation) is not None:
                 continue
             extra = field.json_schema_extra or {}
-            lines.append(f"| `{name}` | {_type_text(field)} | {_default_text(field)} | {extra.get('unit', '')} | "
+            lines.append(f"| `{name}` | {_type_text(field)} | {_default_text(field, model, name)} | {extra.get('unit', '')} | "
                          f"{', '.join(extra.get('used_by', ALL))} | {field.description or ''} |")
         lines.append("")
     return "\n".join(lines)

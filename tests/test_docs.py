@@ -90,3 +90,17 @@ def test_docs_pages_do_not_point_outside_the_repository():
         text = page.read_text()
         assert "DESIGN" not in text and "../shared" not in text, page
     assert os.path.exists(ROOT / "docs" / "conf.py")
+
+
+def test_documented_defaults_are_the_ones_the_code_applies():
+    import inspect
+
+    from akf.schema import _DOC_DEFAULTS
+    from impactloc.tuning import tune_covariances
+    from sensoropt.ga import THESIS
+
+    for key in ("population", "generations", "elite", "crossover", "mutation", "tournament", "stall_generations"):
+        assert float(_DOC_DEFAULTS[("Place", key)]) == THESIS[key], key
+    tuning = inspect.signature(tune_covariances).parameters
+    for key in ("population", "generations", "n_splits", "decades", "crossover", "mutation"):
+        assert float(_DOC_DEFAULTS[("Tuning", key)]) == tuning[key].default, key
