@@ -88,3 +88,25 @@ def test_subcommands_are_entry_points():
     for name in plugins:
         assert parser.parse_args([name] + (["--list"] if name == "study" else ["--list-examples"]
                                            if name != "show" else ["s17_truss"])).command == name
+
+
+def register_hello(sub):
+    """A third-party sub-command, as another package would register it."""
+    p = sub.add_parser("hello", help="say hello")
+    p.add_argument("--name", default="world")
+    p.set_defaults(func=lambda args: print(f"hello {args.name}") or 0)
+
+
+def test_a_third_party_package_adds_a_subcommand(monkeypatch, capsys):
+    from importlib.metadata import EntryPoint
+
+    import akf.cli as cli
+
+    installed = cli.command_plugins()
+    plugins = dict(installed, hello=EntryPoint("hello", "test_layers:register_hello", cli.COMMAND_GROUP),
+                   broken=EntryPoint("broken", "no_such_package.cli:register", cli.COMMAND_GROUP))
+    monkeypatch.setattr(cli, "command_plugins", lambda: plugins)
+    assert cli.main(["hello", "--name", "bridge"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == "hello bridge\n"
+    assert "sub-command 'broken'" in captured.err and "could not be loaded" in captured.err   # akf still works
