@@ -1,7 +1,13 @@
 """Every built-in example (a job file in akf/examples/jobs) is valid for its command and pinned
-to its result: the published relation it reproduces and our number for it (a regression pin at
-1e-9 relative; the numbers and their differences from the papers are discussed in
-studies/README.md)."""
+to its result: the published relation it reproduces and our number for it (the numbers and their
+differences from the papers are discussed in studies/README.md).
+
+The pins hold to :func:`pin_rtol`: a strain is computed to about eps * kappa relative, with
+kappa = (omega_max / omega_min)^2 the condition of the stiffness in modal form (S17 truss 4.7e3,
+thesis plate 2.9e8), and an average strain error is a difference of strains some 20 times smaller
+than the strains, hence 100 eps kappa (truss 1e-10, plate 6.5e-6).  Measured spread over the
+default, Haswell, Zen, Sandybridge and Prescott OpenBLAS kernels: 1.3e-12 (truss), 1.5e-6 (plate).
+"""
 import numpy as np
 import pytest
 
@@ -13,6 +19,12 @@ from akf.schema import parse_job
 ESTIMATE_PINS = {"s17-case3": 0.855449194414839, "s17-case4": 0.9494734494049967,
                  "th-case2": 3.5969818812816796, "th-case3": 6.502470786404743}
 S17_CASE4_FORCE_ERRORS = {"4:y": 47.96, "6:y": 105.35, "8:y": 210.27, "12:y": 161.41}    # N
+
+
+def pin_rtol(structure):
+    """Relative tolerance of a pinned average strain error on ``structure`` (see the module doc)."""
+    f = structure.frequencies()
+    return 100 * np.finfo(float).eps * (f[-1] / f[0]) ** 2
 
 
 @pytest.mark.parametrize("name", sorted(COMMAND_OF))
@@ -36,7 +48,8 @@ def test_examples_are_listed_per_command():
 def test_estimate_examples_are_pinned(name):
     res = run_job(load_example(name))
     assert res.metrics["detectable"]
-    assert res.metrics["avg_strain_error_microstrain"] == pytest.approx(ESTIMATE_PINS[name], rel=1e-9)
+    assert res.metrics["avg_strain_error_microstrain"] == pytest.approx(ESTIMATE_PINS[name],
+                                                                        rel=pin_rtol(res.estimate.structure))
     if name == "s17-case4":
         assert {k: round(v, 2) for k, v in res.metrics["rms_force"].items()} == S17_CASE4_FORCE_ERRORS
 
@@ -64,13 +77,13 @@ def test_placement_examples_reproduce_the_thesis_gain():
     best8 = example_problem("th-case6", 8).full_record_error(
         "strain:6:ey strain:6:gxy strain:24:gxy strain:36:ey strain:54:ex strain:73:gxy strain:79:gxy "
         "strain:87:gxy".split())
-    assert (case2, best3, best8) == pytest.approx((3.597588656845015, 1.8776701086864456, 1.0247476521926375),
-                                                  rel=1e-9)
+    rtol = pin_rtol(p5.structure)
+    assert (case2, best3, best8) == pytest.approx((3.597588656845015, 1.8776701086864456, 1.0247476521926375), rel=rtol)
     assert case2 / best3 > 0.9 * 0.00666 / 0.00360 and case2 / best8 > 0.9 * 0.00666 / 0.00183
     multi = example_problem("th-multi")
     assert multi.budget == {"strain": 2, "acc": 1}
     assert multi.full_record_error(["strain:62:ey", "strain:93:gxy", "acc:112:w"]) == pytest.approx(
-        2.191177786614433, rel=1e-9)
+        2.191177786614433, rel=rtol)
 
 
 @pytest.mark.parametrize("name, node", [("imp-truss-case1", 14), ("imp-truss-case2", 14), ("imp-plate", 21)])
