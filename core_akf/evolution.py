@@ -213,7 +213,8 @@ class GeneticAlgorithm:
         self.generations, self.seed = int(generations), int(seed)
         self.stall_generations, self.stall_tol, self.stall_column = int(stall_generations), stall_tol, stall_column
         self.checkpoint, self.checkpoint_every, self.resume = checkpoint, int(checkpoint_every), resume
-        self.settings = json.loads(json.dumps(dict(settings or {}, generations=self.generations, seed=self.seed)))
+        self.settings = json.loads(json.dumps(dict(settings or {}, generations=self.generations, seed=self.seed),
+                                              default=_plain))
         self.progress, self.n_hall = progress, int(hall_of_fame)
 
     # -- evaluation of individuals
@@ -304,6 +305,13 @@ class GeneticAlgorithm:
         save_checkpoint(self.checkpoint, data)
 
 
+def _plain(value):
+    """JSON for numpy scalars and arrays in settings and genomes (``np.int64(3)`` -> 3)."""
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
 def _key(genes):
     """A genome key from JSON (nested lists back to tuples)."""
     return tuple(_key(g) if isinstance(g, list) else g for g in genes)
@@ -317,7 +325,7 @@ def _tuples(x):
 # ---------------------------------------------------------------------------------- checkpoints
 def save_checkpoint(path, data):
     """Write a checkpoint (JSON) atomically; the previous one is kept as ``PATH.bak``."""
-    text = json.dumps(data, allow_nan=True)
+    text = json.dumps(data, allow_nan=True, default=_plain)
     with atomic_path(path) as tmp:          # a kill mid-write leaves the previous checkpoint
         with open(tmp, "w", encoding="utf-8") as fh:
             fh.write(text)
