@@ -11,34 +11,19 @@ from core_akf.exceptions import AKFInputError
 from core_akf.outputs import OutputFolder
 
 from ..jobs import load_job
+from ..parallel import add_scheduler_option, scheduler, workers
 
 
 def _locate(args):
-    from impactloc.locate import locate
-
-    from ..examples.impact import example_scenario
-    from ..locating import run_locate_job, write_outputs
+    from ..locating import write_outputs
     from .common import check_job_or_example, print_examples
 
     if args.list_examples:
         print_examples("locate")
         return 0
     check_job_or_example(args, "locate job file")
-    progress = not args.json
-    scenario = None
-    if args.example:
-        scenario = example_scenario(args.example, impact_node=args.impact_node, noise=args.noise, seed=args.seed)
-        result = locate(scenario.structure, scenario.sensors, scenario.measurements, scenario.dt, n_ad=scenario.n_ad,
-                        ad_kinds=scenario.ad_kinds, direction=scenario.direction, tune=not args.no_tune,
-                        n_jobs=args.n_jobs, seed=args.seed, progress=progress)
-        name = f"{args.example}-node{scenario.impact[0]}-{args.noise}"
-    else:
-        if args.impact_node is not None:
-            raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")
-        job = load_job(args.job, "locate")
-        result = run_locate_job(job, n_jobs=args.n_jobs,
-                                   seed=args.seed, progress=progress, tune=False if args.no_tune else None)
-        name = job.get("name", os.path.splitext(os.path.basename(args.job))[0])
+    with scheduler(args.scheduler):
+        result, scenario, name = _run_locate(args, progress=not args.json)
     out = args.out or os.path.join("akf-out", "locate", name)
     with OutputFolder(out, "--out"):
         files = write_outputs(result, out, scenario, plot=not args.no_plot)
@@ -73,6 +58,27 @@ def _locate(args):
     return 0
 
 
+def _run_locate(args, progress):
+    """The identification: ``(LocateResult, scenario or None, output name)``."""
+    from impactloc.locate import locate
+
+    from ..examples.impact import example_scenario
+    from ..locating import run_locate_job
+
+    if args.example:
+        scenario = example_scenario(args.example, impact_node=args.impact_node, noise=args.noise, seed=args.seed)
+        result = locate(scenario.structure, scenario.sensors, scenario.measurements, scenario.dt, n_ad=scenario.n_ad,
+                        ad_kinds=scenario.ad_kinds, direction=scenario.direction, tune=not args.no_tune,
+                        n_jobs=workers(args), seed=args.seed, progress=progress)
+        return result, scenario, f"{args.example}-node{scenario.impact[0]}-{args.noise}"
+    if args.impact_node is not None:
+        raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")
+    job = load_job(args.job, "locate")
+    result = run_locate_job(job, n_jobs=workers(args), seed=args.seed, progress=progress,
+                            tune=False if args.no_tune else None)
+    return result, None, job.get("name", os.path.splitext(os.path.basename(args.job))[0])
+
+
 def register(sub):
     """Add ``locate`` to the ``akf`` sub-command parser."""
     from ..examples.impact import EXAMPLES, NOISE
@@ -84,7 +90,8 @@ def register(sub):
     p.add_argument("--impact-node", type=int, help="example: where the simulated impact hits (default the paper's)")
     p.add_argument("--noise", choices=NOISE, default="abs", help="example noise: abs (1 µε, 1 mg) or rel10 (10 %%)")
     p.add_argument("--seed", type=int, default=0, help="noise, role-split sample and GA seed")
-    p.add_argument("--n-jobs", type=int, default=1, help="joblib workers (-1: all cores)")
+    p.add_argument("--n-jobs", type=int, help="joblib workers (-1: all cores; default 1, every worker with --scheduler)")
+    add_scheduler_option(p)
     p.add_argument("--no-tune", action="store_true", help="skip the covariance GA")
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bars)")
     p.add_argument("--out", help="output folder (default akf-out/locate/NAME)")

@@ -13,6 +13,7 @@ from core_akf.exceptions import AKFInputError
 from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
+from ..parallel import add_scheduler_option
 
 
 def _place(args):
@@ -51,6 +52,7 @@ def _run_place(args, problem, settings, out):
     from sensoropt.ga import place
     from sensoropt.plots import plot_convergence, plot_layout
 
+    from ..parallel import scheduler, workers
     from ..writers import saved_plot
 
     checkpoint = args.checkpoint or os.path.join(out, "checkpoint.json")
@@ -60,8 +62,9 @@ def _run_place(args, problem, settings, out):
             print(f"akf: note: {note}", file=sys.stderr)
     enc = problem.encoding()
     obj = problem.objective(enc)
-    res = place(obj, enc, seed=args.seed, n_jobs=args.n_jobs, checkpoint=checkpoint, resume=args.resume,
-                progress=not args.json, **settings)
+    with scheduler(args.scheduler):
+        res = place(obj, enc, seed=args.seed, n_jobs=workers(args), checkpoint=checkpoint, resume=args.resume,
+                    progress=not args.json, **settings)
     error = problem.full_record_error(res.sensors)
     refs = {name: problem.full_record_error(s) for name, s in problem.reference_layouts.items()
             if len(s) == enc.n_sensors and not problem.budget}
@@ -125,7 +128,9 @@ def register(sub):
     p.add_argument("--operators", choices=["set", "thesis"], help="set-based (default) or the thesis' operators")
     p.add_argument("--window", type=float, help="seconds of response per fitness evaluation (default 0.1; "
                    "1 s generalises better to the full record, at little extra cost)")
-    p.add_argument("--n-jobs", type=int, default=1, help="joblib workers for the fitness")
+    p.add_argument("--n-jobs", type=int, help="joblib workers for the fitness (default 1; every worker with "
+                   "--scheduler)")
+    add_scheduler_option(p)
     p.add_argument("--checkpoint", help="checkpoint file (default OUT/checkpoint.json)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint")
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bar)")

@@ -5,6 +5,8 @@ import os
 
 from core_akf.outputs import OutputFolder
 
+from ..parallel import add_scheduler_option, scheduler
+
 
 def _study(args):
     from ..studies import STUDIES, run_study, study_module
@@ -19,8 +21,9 @@ def _study(args):
         return 0
     study_module(args.name)                          # an unknown name fails before a folder is made
     out = args.out or os.path.join("akf-out", "studies", args.name)
-    with OutputFolder(out, "--out"):
-        result = run_study(args.name, out=out, quick=args.quick, seed=args.seed)
+    with OutputFolder(out, "--out"), scheduler(args.scheduler):
+        n_jobs = args.n_jobs if args.n_jobs is not None else (-1 if args.scheduler else None)
+        result = run_study(args.name, out=out, quick=args.quick, seed=args.seed, n_jobs=n_jobs)
     for key, path in result.files.items():
         if key in ("table", "summary"):
             print(f"  wrote {key}: {path}")
@@ -38,4 +41,7 @@ def register(sub):
     p.add_argument("--quick", action="store_true", help="short records (under a minute)")
     p.add_argument("--out", help="output folder (default akf-out/studies/NAME)")
     p.add_argument("--seed", type=int, default=0, help="noise seed")
+    p.add_argument("--n-jobs", type=int, help="joblib workers of the placement and impact studies (default: the "
+                   "study's; every worker with --scheduler)")
+    add_scheduler_option(p)
     p.set_defaults(func=_study)

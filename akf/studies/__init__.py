@@ -34,7 +34,14 @@ def study_module(name):
     return getattr(module, attr) if attr else module
 
 
-def run_study(name, out=None, quick=False, seed=0):
+def run_study(name, out=None, quick=False, seed=0, n_jobs=None):
     """Run study ``name``; ``quick`` uses short records (under a minute), ``out`` the output
-    folder (default ``akf-out/studies/NAME``)."""
-    return study_module(name).run(out=out, quick=quick, seed=seed)
+    folder (default ``akf-out/studies/NAME``), ``n_jobs`` the joblib workers of a study that
+    spreads work (None: the study's default)."""
+    import inspect
+
+    study = study_module(name)
+    kw = {}
+    if n_jobs is not None and "n_jobs" in inspect.signature(study.run).parameters:
+        kw["n_jobs"] = n_jobs
+    return study.run(out=out, quick=quick, seed=seed, **kw)

@@ -31,7 +31,7 @@ def _locate(sc, **kw):
                   direction=sc.direction, **kw)
 
 
-def run_cases(out=None, quick=False, seed=0):
+def run_cases(out=None, quick=False, seed=0, n_jobs=1):
     """The paper's six settings, whole identification; writes ``imp_cases.csv`` and figures."""
     import pandas as pd
 
@@ -41,7 +41,7 @@ def run_cases(out=None, quick=False, seed=0):
     for name, noise in SETTINGS:
         progress.step(f"{name}, {noise} noise")
         sc = example_scenario(name, noise=noise, seed=seed)
-        res = _locate(sc, seed=seed, max_splits=8 if quick else None,
+        res = _locate(sc, seed=seed, n_jobs=n_jobs, max_splits=8 if quick else None,
                       tuning={"generations": 3, "population": 8} if quick else None)
         data[(name, noise)] = res
         f0, f1 = res.initial, res.reconstruction
@@ -79,7 +79,7 @@ def run_cases(out=None, quick=False, seed=0):
     return StudyResult("imp_cases", table, summary, files, data)
 
 
-def run_hit_rate(out=None, quick=False, seed=0, examples=None, seeds=None):
+def run_hit_rate(out=None, quick=False, seed=0, examples=None, seeds=None, n_jobs=1):
     """Impacts at every candidate node of each example (every third with ``quick``), two noise
     seeds (one with ``quick``); writes ``imp_hit_rate.csv``."""
     import pandas as pd
@@ -97,7 +97,7 @@ def run_hit_rate(out=None, quick=False, seed=0, examples=None, seeds=None):
             progress.step(f"{name}, seed {s}: impacts at {len(nodes)} nodes")
             for node in nodes:
                 sc = example_scenario(name, impact_node=node, seed=s)
-                res = _locate(sc, tune=False, seed=s, max_splits=8 if quick else None)
+                res = _locate(sc, tune=False, seed=s, n_jobs=n_jobs, max_splits=8 if quick else None)
                 second = res.scan.summary.iloc[1]
                 rows.append({"example": name, "seed": s, "true_node": node, "identified": res.identified[0],
                              "hit": res.identified[0] == node, "confidence": res.scan.confidence,
@@ -123,8 +123,8 @@ class _Study:
     def __init__(self, name, description, fn):
         self.NAME, self.DESCRIPTION, self._fn = name, description, fn
 
-    def run(self, out=None, quick=False, seed=0):
-        return self._fn(out=out, quick=quick, seed=seed)
+    def run(self, out=None, quick=False, seed=0, n_jobs=1):
+        return self._fn(out=out, quick=quick, seed=seed, n_jobs=n_jobs)
 
 
 cases = _Study("imp_cases", "IMP impact localisation: truss cases 1-2 (abs / 10 % noise) and plate, scan + tuning",

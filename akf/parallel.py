@@ -1,0 +1,79 @@
+"""Where the parallel work runs: this machine's processes (joblib's loky, the default) or a dask
+cluster.
+
+Every optimiser spreads its work with joblib (``n_jobs``), so a dask cluster takes the work by
+making joblib's backend ``"dask"``.  Results do not depend on the backend: the GA engine draws its
+random numbers from its own seeded streams and evaluates fixed-size batches, and the location scan
+has no randomness, so a seed gives the same placement logbook, location ranking and tuned
+covariances on loky, on threads and on a dask cluster (``tests/test_dask.py``).
+
+>>> with scheduler("local:2"):                       # doctest: +SKIP
+...     res = place(objective, encoding, seed=0, n_jobs=-1)
+"""
+from __future__ import annotations
+
+import contextlib
+
+from core_akf.exceptions import AKFInputError
+
+#: how to get dask
+INSTALL_HINT = 'the dask scheduler needs dask.distributed: python -m pip install "akf-toolkit[dask]"'
+
+
+@contextlib.contextmanager
+def scheduler(spec=None):
+    """Run the joblib work inside the ``with`` block on ``spec``:
+
+    * ``None``: joblib's default (loky processes on this machine);
+    * ``"local:N"``: a new :class:`dask.distributed.LocalCluster` of N single-threaded worker
+      processes, closed at the end;
+    * ``"tcp://HOST:PORT"`` (or any scheduler address): an existing dask cluster;
+    * a :class:`dask.distributed.Client`: that client's cluster.
+
+    Yields the dask ``Client`` (or None).  Inside, call the optimisers with ``n_jobs=-1`` (every
+    worker); ``n_jobs=1`` runs in this process and sends nothing to the cluster.
+    """
+    if spec is None:
+        yield None
+        return
+    try:
+        from distributed import Client, LocalCluster
+        from joblib import parallel_config
+    except ImportError:
+        raise AKFInputError(INSTALL_HINT) from None
+    with contextlib.ExitStack() as stack:
+        if isinstance(spec, Client):
+            client = spec
+        elif isinstance(spec, str) and spec.startswith("local:"):
+            try:
+                n = int(spec.split(":", 1)[1])
+            except ValueError:
+                n = 0
+            if n < 1:
+                raise AKFInputError(f"--scheduler local:N needs a number of workers N >= 1, got {spec!r}")
+            cluster = stack.enter_context(LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                      dashboard_address=None))
+            client = stack.enter_context(Client(cluster))
+        elif isinstance(spec, str) and spec:
+            try:
+                client = stack.enter_context(Client(spec, timeout="10s"))
+            except (OSError, TimeoutError) as exc:
+                raise AKFInputError(f"cannot reach the dask scheduler at {spec!r}: {exc}") from None
+        else:
+            raise AKFInputError(f"a scheduler is 'local:N', a dask scheduler address or a dask Client; got {spec!r}")
+        stack.enter_context(parallel_config(backend="dask"))
+        yield client
+
+
+def add_scheduler_option(parser):
+    """``--scheduler`` for a sub-command that spreads work with joblib."""
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run the parallel work on a dask cluster: local:N (a new local cluster of N workers) "
+                             "or a scheduler address such as tcp://host:8786; --n-jobs then defaults to every worker")
+
+
+def workers(args):
+    """``--n-jobs`` with its default: 1 on this machine, every worker (-1) on a dask scheduler."""
+    if args.n_jobs is not None:
+        return args.n_jobs
+    return -1 if getattr(args, "scheduler", None) else 1
