@@ -52,7 +52,7 @@ def scheduler(spec=None):
             if n < 1:
                 raise AKFInputError(f"--scheduler local:N needs a number of workers N >= 1, got {spec!r}")
             cluster = stack.enter_context(LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                                      dashboard_address=None))
+                                                      dashboard_address=":0"))   # any free port
             client = stack.enter_context(Client(cluster))
         elif isinstance(spec, str) and spec:
             try:

@@ -15,6 +15,14 @@ def print_examples(command):
         print(f"{name:{width}s}{load_example(name)['description']}")
 
 
+def print_written(files, notes=()):
+    """The files a command wrote, then its notes (text output)."""
+    for k, v in files.items():
+        print(f"  wrote {k}: {v}")
+    for note in notes:
+        print(f"  note: {note}")
+
+
 def check_job_or_example(args, kind="job file"):
     """Exactly one of ``args.job`` and ``args.example``; ``--n-jobs`` (if any) not 0."""
     if (args.job is None) == (args.example is None):

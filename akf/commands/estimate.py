@@ -8,6 +8,7 @@ import sys
 from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
+from .common import print_written
 
 #: above this many (channel x step) rows, "all" strain histories are not written to the CSV
 _MAX_STRAIN_ROWS = 2_000_000
@@ -132,10 +133,7 @@ def _write_estimate(args, job, result, name, out):
               f"  {d['whiteness']:6.2f}")
     for w in m["warnings"]:
         print(f"  WARNING: {w}")
-    for k, v in files.items():
-        print(f"  wrote {k}: {v}")
-    for note in notes:
-        print(f"  note: {note}")
+    print_written(files, notes)
     return 0
 
 

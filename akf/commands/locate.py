@@ -16,7 +16,7 @@ from ..parallel import add_scheduler_option, scheduler, workers
 
 def _locate(args):
     from ..locating import write_outputs
-    from .common import check_job_or_example, print_examples
+    from .common import check_job_or_example, print_examples, print_written
 
     if args.list_examples:
         print_examples("locate")
@@ -53,8 +53,7 @@ def _locate(args):
     for w in result.warnings:
         print(f"  WARNING: {w}")
     print("  time: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.seconds.items()))
-    for k, v in files.items():
-        print(f"  wrote {k}: {v}")
+    print_written(files)
     return 0
 
 

@@ -14,6 +14,7 @@ from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
 from ..parallel import add_scheduler_option
+from .common import print_written
 
 
 def _place(args):
@@ -95,10 +96,7 @@ def _run_place(args, problem, settings, out):
     lb = res.logbook
     print(f"  {int(lb['generation'].iloc[-1])} generations ({res.stopped}), {res.evaluations} evaluations, "
           f"{res.cache_hits} cache hits, {res.infeasible} infeasible, {lb['seconds'].iloc[-1]:.1f} s")
-    for k, v in files.items():
-        print(f"  wrote {k}: {v}")
-    for note in notes:
-        print(f"  note: {note}")
+    print_written(files, notes)
     return 0
 
 
