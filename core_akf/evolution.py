@@ -290,10 +290,6 @@ class GeneticAlgorithm:
         return GAResult(pop, pd.DataFrame(rows), ranked[:self.n_hall] if self.n_hall else ranked, ev.evaluations,
                         ev.hits, ev.infeasible, stopped, ev, self.seed, self.settings)
 
-    def hall(self):
-        """Every genome evaluated so far: ``{key: fitness}``."""
-        return dict(self._hof)
-
     def _save(self, pop, rows, gen, rng, pyrng):
         ev = self.evaluator
         data = dict(format=CHECKPOINT_FORMAT, settings=self.settings, generation=gen, rng=rng.bit_generator.state,

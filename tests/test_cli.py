@@ -172,6 +172,8 @@ def test_every_study_writes_a_summary(tmp_path, monkeypatch):
     res = run_study("imp_cases", out=str(tmp_path), quick=True)
     summary = pd.read_csv(res.files["summary"])
     assert list(summary["example"]) == ["imp-truss-case1"] and summary["hits"].iloc[0] == 1
+    hits = imp.run_hit_rate(out=str(tmp_path / "hits"), quick=True, examples=["imp-truss-case1"])
+    assert len(hits.table) >= 4 and hits.summary["hit_rate"].iloc[0] >= 0.75
     table = pd.DataFrame([
         {"study": "case 5", "label": "seed 0", "n_sensors": 3, "sensors": "a", "full_record_error_ue": 2.0},
         {"study": "case 5", "label": "seed 1", "n_sensors": 3, "sensors": "b", "full_record_error_ue": 1.8},

@@ -58,13 +58,6 @@ def impact_job(name, impact_node=None, noise="abs", seed=0):
     return job
 
 
-def example_structure(name):
-    """The structure of impact example ``name``."""
-    from ..jobs import build_structure
-
-    return build_structure(load_example(name, "locate")["structure"])
-
-
 def example_scenario(name, impact_node=None, noise="abs", seed=0):
     """Simulate the built-in impact example ``name`` (see :func:`impact_job`)."""
     from ..jobs import simulate_job

@@ -18,6 +18,7 @@ from core_akf.outputs import write_csv
 from impactloc.locate import locate
 from impactloc.scan import candidate_locations
 
+from ..examples import load_example
 from ..examples.impact import EXAMPLES, example_scenario
 from ..locating import write_outputs
 from ._common import Progress, StudyResult, output_dir
@@ -90,7 +91,7 @@ def run_hit_rate(out=None, quick=False, seed=0, examples=None, seeds=None, n_job
     progress = Progress("imp_hit_rate", len(examples or EXAMPLES) * len(seeds))
     for name in examples or EXAMPLES:
         structure = example_scenario(name).structure
-        nodes = [n for n, _ in candidate_locations(structure, EXAMPLES[name]["direction"])]
+        nodes = [n for n, _ in candidate_locations(structure, load_example(name, "locate")["locate"]["direction"])]
         if quick:
             nodes = nodes[::3]
         for s in seeds:
