@@ -33,36 +33,48 @@ def scheduler(spec=None):
     Yields the dask ``Client`` (or None).  Inside, call the optimisers with ``n_jobs=-1`` (every
     worker); ``n_jobs=1`` runs in this process and sends nothing to the cluster.
     """
+    n_local = check_scheduler(spec)
     if spec is None:
         yield None
         return
-    try:
-        from distributed import Client, LocalCluster
-        from joblib import parallel_config
-    except ImportError:
-        raise AKFInputError(INSTALL_HINT) from None
+    from distributed import Client, LocalCluster
+    from joblib import parallel_config
+
     with contextlib.ExitStack() as stack:
         if isinstance(spec, Client):
             client = spec
-        elif isinstance(spec, str) and spec.startswith("local:"):
-            try:
-                n = int(spec.split(":", 1)[1])
-            except ValueError:
-                n = 0
-            if n < 1:
-                raise AKFInputError(f"--scheduler local:N needs a number of workers N >= 1, got {spec!r}")
-            cluster = stack.enter_context(LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+        elif n_local:
+            cluster = stack.enter_context(LocalCluster(n_workers=n_local, threads_per_worker=1, processes=True,
                                                       dashboard_address=":0"))   # any free port
             client = stack.enter_context(Client(cluster))
-        elif isinstance(spec, str) and spec:
+        else:
             try:
                 client = stack.enter_context(Client(spec, timeout="10s"))
             except (OSError, TimeoutError) as exc:
                 raise AKFInputError(f"cannot reach the dask scheduler at {spec!r}: {exc}") from None
-        else:
-            raise AKFInputError(f"a scheduler is 'local:N', a dask scheduler address or a dask Client; got {spec!r}")
         stack.enter_context(parallel_config(backend="dask"))
         yield client
+
+
+def check_scheduler(spec):
+    """Check a scheduler before any work starts: dask.distributed is installed and ``spec`` is
+    None, ``"local:N"`` (N >= 1), an address or a ``Client``.  Returns N for ``"local:N"``, else 0."""
+    if spec is None:
+        return 0
+    try:
+        from distributed import Client
+    except ImportError:
+        raise AKFInputError(INSTALL_HINT) from None
+    if isinstance(spec, Client):
+        return 0
+    if not isinstance(spec, str) or not spec:
+        raise AKFInputError(f"a scheduler is 'local:N', a dask scheduler address or a dask Client; got {spec!r}")
+    if spec.startswith("local:"):
+        n = spec.split(":", 1)[1]
+        if not n.isdigit() or int(n) < 1:
+            raise AKFInputError(f"--scheduler local:N needs a number of workers N >= 1, got {spec!r}")
+        return int(n)
+    return 0
 
 
 def add_scheduler_option(parser):

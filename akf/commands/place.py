@@ -13,7 +13,7 @@ from core_akf.exceptions import AKFInputError
 from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
-from ..parallel import add_scheduler_option
+from ..parallel import add_scheduler_option, check_scheduler
 from .common import print_written
 
 
@@ -27,6 +27,7 @@ def _place(args):
         print_examples("place")
         return 0
     check_job_or_example(args, "place job file")
+    check_scheduler(args.scheduler)          # before the problem is built
     if args.example:
         problem, ga = example_problem(args.example, args.sensors), {}
     else:
