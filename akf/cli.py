@@ -3,7 +3,8 @@
 ``set_defaults(func=...)``); this distribution registers ``estimate``, ``place``, ``locate``,
 ``study`` and ``show`` in its ``pyproject.toml``, and another installed package can add its own.
 
-Exit codes: 0 done, 2 bad input, 3 undetectable sensor set, 130 interrupted.
+Exit codes: 0 done, 2 bad input, 3 undetectable sensor set, 4 the dask cluster lost the work,
+130 interrupted.
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from importlib.metadata import entry_points
 from core_akf.exceptions import AKFInputError, UndetectableError
 
 from . import __version__
+from .parallel import ClusterError
 
 #: the entry-point group sub-commands register in
 COMMAND_GROUP = "akf.commands"
@@ -56,6 +58,9 @@ def main(argv=None):
     except AKFInputError as exc:
         print(f"akf: error: {exc}", file=sys.stderr)
         return 2
+    except ClusterError as exc:
+        print(f"akf: error: {exc}", file=sys.stderr)
+        return 4
     except BrokenPipeError:       # `akf ... | head`: the reader has gone; not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0

@@ -21,7 +21,7 @@ INSTALL_HINT = 'the dask scheduler needs dask.distributed: python -m pip install
 
 
 @contextlib.contextmanager
-def scheduler(spec=None):
+def scheduler(spec=None, resume=None):
     """Run the joblib work inside the ``with`` block on ``spec``:
 
     * ``None``: joblib's default (loky processes on this machine);
@@ -32,6 +32,11 @@ def scheduler(spec=None):
 
     Yields the dask ``Client`` (or None).  Inside, call the optimisers with ``n_jobs=-1`` (every
     worker); ``n_jobs=1`` runs in this process and sends nothing to the cluster.
+
+    A worker that dies is replaced (a local cluster restarts it) and its tasks run again on the
+    others, with the same result.  If the cluster cannot finish -- a task kills its worker more
+    often than the scheduler allows, or the cluster goes away -- :class:`ClusterError` says so,
+    followed by ``resume`` (how to continue, e.g. from the GA checkpoint) when given.
     """
     n_local = check_scheduler(spec)
     if spec is None:
@@ -53,7 +58,32 @@ def scheduler(spec=None):
             except (OSError, TimeoutError) as exc:
                 raise AKFInputError(f"cannot reach the dask scheduler at {spec!r}: {exc}") from None
         stack.enter_context(parallel_config(backend="dask"))
-        yield client
+        try:
+            yield client
+        except Exception as exc:
+            lost = _lost_work(exc)
+            if lost is None:
+                raise
+            raise ClusterError(f"the dask cluster lost the work: {lost}" + (f"; {resume}" if resume else "")) from exc
+
+
+class ClusterError(RuntimeError):
+    """The dask cluster could not finish the work: a task ended its worker process more often than
+    the scheduler allows (``distributed.scheduler.allowed-failures``, 3 by default), or the
+    cluster went away.  A single lost worker is not an error: its tasks run again on the others."""
+
+
+def _lost_work(exc):
+    """A plain-language reason if ``exc`` means that the cluster lost the work, else None."""
+    from distributed import KilledWorker
+    from distributed.comm.core import CommClosedError
+
+    if isinstance(exc, KilledWorker):
+        return (f"task {exc.task!r} ended its worker process again and again (out of memory or a crash in "
+                f"native code?) and the scheduler gave up on it")
+    if isinstance(exc, (CommClosedError, TimeoutError)) or type(exc).__name__ in ("CancelledError", "FutureCancelledError"):
+        return f"the connection to the scheduler or its workers broke ({type(exc).__name__}: {exc})"
+    return None
 
 
 def check_scheduler(spec):

@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from .structure import Structure
 from .checks import as_finite_array, check_covariance
 from .exceptions import AKFInputError
+from .recursion import lti_response
 from .riccati import RiccatiError, steady_gain
 from .sensors import as_layout, parse_force_locations
 from .statespace import (
@@ -164,8 +165,8 @@ def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
             change = np.linalg.norm(P - P_check, axis=(-2, -1)) / np.linalg.norm(P, axis=(-2, -1))
             if np.all(change < switch_tol):
                 I_LG = np.eye(n) - L @ G
-                U = Y[:, k:] @ np.swapaxes(L, -1, -2)
-                out[:, k:] = lti_recursion(I_LG @ A, U, np.einsum("bij,bj->bi", I_LG, x) + U[:, 0])
+                first = np.einsum("bij,bj->bi", I_LG, x) + np.einsum("bij,bj->bi", L, Y[:, k])
+                out[:, k:] = lti_response(I_LG @ A, L, Y[:, k:], first)
                 innov[:, k] = e
                 innov[:, k + 1:] = Y[:, k + 1:] - out[:, k:-1] @ np.swapaxes(G @ A, -1, -2)
                 return out, innov, L, P
@@ -187,99 +188,50 @@ def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
 _CHECK_EVERY = 32
 
 
-def _recursion_stepwise(F, U, x_first):
-    """``x_k = F x_{k-1} + U_k`` one step at a time (one small matrix product per step)."""
-    B, N, n = U.shape
-    out = np.empty((B, N, n))
-    out[:, 0] = x_first
-    Ft = np.ascontiguousarray(np.swapaxes(F, -1, -2))
-    if B == 1:
-        f, u, o, x = Ft[0], U[0], out[0], out[0, 0]
-        for k in range(1, N):
-            x = x @ f + u[k]
-            o[k] = x
-        return out
-    x = out[:, 0][:, None, :]
-    for k in range(1, N):
-        x = np.matmul(x, Ft) + U[:, k, None, :]
-        out[:, k] = x[:, 0]
-    return out
-
-
-def _recursion_chunked(F, U, x_first):
-    """The same recursion with the record cut into ~sqrt(N) chunks run as one batch: each
-    chunk's zero-state response, then the chunk-boundary states in sequence, then their free
-    response added back -- about 3 sqrt(N) large matrix products instead of N small ones
-    (three times the arithmetic, worth it when one step is too small to keep BLAS busy)."""
-    B, N, n = U.shape
-    out = np.empty((B, N, n))
-    out[:, 0] = x_first
-    steps = N - 1
-    K = max(1, int(np.sqrt(steps)))            # chunk length
-    C = -(-steps // K)                          # number of chunks
-    V = np.zeros((B, C * K, n))
-    V[:, :steps] = U[:, 1:]
-    V = V.reshape(B, C, K, n)
-    Ft = np.ascontiguousarray(np.swapaxes(F, -1, -2))
-    Z = np.empty((B, C, K, n))
-    z = np.zeros((B, C, n))
-    for j in range(K):                          # zero-state response inside every chunk at once
-        z = z @ Ft + V[:, :, j]
-        Z[:, :, j] = z
-    FKt = np.swapaxes(np.linalg.matrix_power(F, K), -1, -2)
-    S = np.empty((B, C, n))                     # state just before each chunk
-    s = np.asarray(x_first, float)
-    for c in range(C):
-        S[:, c] = s
-        s = np.einsum("bi,bij->bj", s, FKt) + Z[:, c, K - 1]
-    T = S
-    for j in range(K):                          # free response of the boundary states
-        T = T @ Ft
-        Z[:, :, j] += T
-    out[:, 1:] = Z.reshape(B, C * K, n)[:, :steps]
-    return out
-
-
-#: state size from which a single filter's fixed-gain recursion runs chunked (measured on
-#: this 2-core machine: stepwise wins at 70 states, chunked at 330 and 662)
-_CHUNKED_FROM = 150
-
-
-def lti_recursion(F, U, x_first):
-    """All states of ``x_k = F x_{k-1} + U_k`` (k >= 1) with ``x_0 = x_first``, for a stack of systems.
-
-    Parameters
-    ----------
-    F : ndarray (B, n, n);  U : ndarray (B, N, n);  x_first : ndarray (B, n)
-
-    Returns
-    -------
-    ndarray (B, N, n)
-
-    A batch, or a small system, runs step by step (one batched product per step); a single
-    large system runs chunked (see :func:`_recursion_chunked`).  Both equal the plain
-    recursion to rounding.
-    """
-    B, N, n = U.shape
-    if N > 1 and B == 1 and n >= _CHUNKED_FROM:
-        return _recursion_chunked(F, U, x_first)
-    return _recursion_stepwise(F, U, x_first)
-
-
 def steady_states(A, G, Q, R, Y, x=None):
     """Filtered states of a batch of steady-state AKFs: ``(X (B, N, n), L (B, n, m), P (B, n, n))``.
 
     One batched Riccati solve (:func:`core_akf.riccati.steady_gain`), then the constant-gain
-    recursion ``X_k = (I - L G) A X_{k-1} + L y_k`` (:func:`lti_recursion`) from the prior mean
-    ``x`` (B, n) (zero by default).  Shapes: A, Q (B, n, n); G (B, m, n); R (B, m, m); Y (B, N, m).
+    recursion ``X_k = (I - L G) A X_{k-1} + L y_k`` (:func:`core_akf.recursion.lti_response`)
+    from the prior mean ``x`` (B, n) (zero by default).  Shapes: A, Q (B, n, n); G (B, m, n);
+    R (B, m, m); Y (B, N, m).
     """
+    P, L, F, first = _steady_filter(A, G, Q, R, Y, x)
+    return lti_response(F, L, Y, first), L, P
+
+
+def _steady_filter(A, G, Q, R, Y, x=None):
+    """Gain and fixed-gain recursion of a batch of steady-state AKFs: ``(P, L, F, X_0)`` with
+    ``X_k = F X_{k-1} + L y_k`` and the first filtered state ``X_0``."""
     P, L = steady_gain(A, G, Q, R)
     n = A.shape[-1]
     I_LG = np.eye(n) - L @ G
-    F = I_LG @ A                                      # X_k = F X_{k-1} + L y_k
-    U = Y @ np.swapaxes(L, -1, -2)                    # L y_k for all k at once
-    first = U[:, 0] if x is None else np.einsum("bij,bj->bi", I_LG, x) + U[:, 0]
-    return lti_recursion(F, U, first), L, P
+    first = np.einsum("bij,bj->bi", L, Y[:, 0])
+    if x is not None:
+        first += np.einsum("bij,bj->bi", I_LG, x)
+    return P, L, I_LG @ A, first
+
+
+def steady_outputs(A, G, Q, R, Y, H):
+    """Outputs ``H X_k`` of a stack of steady-state AKFs (filtered states, prior mean zero).
+
+    Parameters
+    ----------
+    A : (B, n, n) or (n, n);  G : (B, m, n);  Q : (B, n, n) or (n, n);  R : (B, m, m)
+    Y : (B, N, m) measurements;  H : (B, k, n) or (k, n) output rows
+
+    Returns
+    -------
+    ndarray (B, N, k)
+
+    One batched Riccati solve, then the lifted recursion straight to the outputs
+    (:func:`core_akf.recursion.lti_response`): with few output rows the n states per step are
+    never formed.
+    """
+    B, N, m = Y.shape
+    n = G.shape[-1]
+    P, L, F, first = _steady_filter(np.broadcast_to(A, (B, n, n)), G, np.broadcast_to(Q, (B, n, n)), R, Y)
+    return lti_response(F, L, Y, first, H)
 
 
 def _steady(A, G, Q, R, Y, x):

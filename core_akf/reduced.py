@@ -16,7 +16,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .akf import state_covariance, steady_states
+from .akf import state_covariance, steady_outputs  # noqa: F401  (steady_outputs: re-exported here)
 from .defaults import auto_modes
 from .exceptions import AKFInputError
 from .sensors import as_layout, parse_force_locations, selection_matrices
@@ -111,24 +111,3 @@ class ModalFilterModel:
         S = np.broadcast_to(np.asarray(force_increment_cov, float), (len(self.forces),))
         Q[self.n_states:, self.n_states:] = np.diag(S)
         return Q
-
-
-def steady_outputs(A, G, Q, R, Y, H):
-    """Outputs ``H X_k`` of a stack of steady-state AKFs (filtered states, prior mean zero).
-
-    Parameters
-    ----------
-    A : (B, n, n) or (n, n);  G : (B, m, n);  Q : (B, n, n) or (n, n);  R : (B, m, m)
-    Y : (B, N, m) measurements;  H : (B, k, n) or (k, n) output rows
-
-    Returns
-    -------
-    ndarray (B, N, k)
-
-    The filter is :func:`core_akf.akf.steady_states` (one batched Riccati solve, then the
-    constant-gain recursion); only the requested outputs are returned.
-    """
-    B, N, m = Y.shape
-    n = G.shape[-1]
-    X, _, _ = steady_states(np.broadcast_to(A, (B, n, n)), G, np.broadcast_to(Q, (B, n, n)), R, Y)
-    return X @ np.swapaxes(H, -1, -2)

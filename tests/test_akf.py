@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from core_akf import akf
+from core_akf import akf, recursion
 from core_akf.models import s17_truss
 from core_akf.riccati import dare_residual, solve_filter_dare, steady_gain
 from core_akf.simulate import simulate
@@ -171,25 +171,32 @@ def test_perfect_model_no_noise_recovers_force_and_strains():
     assert np.sqrt(np.mean((other - truth) ** 2)) < 0.05 * np.sqrt(np.mean(truth ** 2))
 
 
-def test_lti_recursion_equals_step_loop():
-    rng = np.random.default_rng(2)
-    B, N, n = 3, 1000, 5
+@pytest.mark.parametrize("n_out", [None, 2, 7])
+@pytest.mark.parametrize("N", [1, 2, 40, 1000, 4099])
+def test_lifted_recursion_equals_step_loop(N, n_out):
+    """The lifted recursion (chunks, Markov parameters, boundary states) against the plain loop,
+    for states and for a few output rows, batched, over record lengths around the chunk sizes."""
+    rng = np.random.default_rng(N)
+    B, n, m = 3, 6, 2
     F = rng.normal(size=(B, n, n))
     F *= 0.97 / np.max(np.abs(np.linalg.eigvals(F)), axis=1)[:, None, None]
-    U = rng.normal(size=(B, N, n))
+    L = rng.normal(size=(B, n, m))
+    Y = rng.normal(size=(B, N, m))
     x0 = rng.normal(size=(B, n))
     ref = np.empty((B, N, n))
     x = x0
     ref[:, 0] = x
     for k in range(1, N):
-        x = np.einsum("bij,bj->bi", F, x) + U[:, k]
+        x = np.einsum("bij,bj->bi", F, x) + np.einsum("bij,bj->bi", L, Y[:, k])
         ref[:, k] = x
+    H = None if n_out is None else rng.normal(size=(n_out, n))
+    want = ref if H is None else ref @ H.T
     # spectral radius 0.97: rounding grows at most like 1 / (1 - 0.97) = 33 eps per step -> ~1e-14
-    assert np.allclose(akf.lti_recursion(F, U, x0), ref, rtol=1e-11, atol=1e-11)
-    for path in (akf._recursion_stepwise, akf._recursion_chunked):
+    assert np.allclose(recursion.lti_response(F, L, Y, x0, H), want, rtol=1e-11, atol=1e-11)
+    assert np.allclose(recursion.lti_response(F[:1], L[:1], Y[:1], x0[:1], H), want[:1], rtol=1e-11, atol=1e-11)
+    U = Y @ np.swapaxes(L, -1, -2)
+    for path in (recursion.recursion_stepwise, recursion.recursion_chunked):
         assert np.allclose(path(F, U, x0), ref, rtol=1e-11, atol=1e-11)
-        assert np.allclose(path(F[:1], U[:1], x0[:1]), ref[:1], rtol=1e-11, atol=1e-11)
-        assert np.allclose(path(F[:1], U[:1, :2], x0[:1]), ref[:1, :2], rtol=1e-11, atol=1e-11)
 
 
 def test_time_varying_gain_switch_is_exact_on_s17():

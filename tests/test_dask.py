@@ -68,3 +68,63 @@ def test_cli_scheduler_local_cluster(tmp_path, capsys):
     assert (there["sensors"], there["error"], there["evaluations"]) == (here["sensors"], here["error"], here["evaluations"])
     assert main(args + ["--scheduler", "local:0", "--out", str(tmp_path / "bad")]) == 2
     assert "local:N needs a number of workers N >= 1" in capsys.readouterr().err
+
+
+def _distance_to_node_121(sensors):
+    """A cheap placement objective (distance of the sensors' nodes from node 121)."""
+    return float(sum(abs(int(s.split(":")[1]) - 121) for s in sensors))
+
+
+class _EndsItsWorker:
+    """Objective whose first evaluation on a cluster worker ends that worker's process, as an
+    out-of-memory kill would (``times`` evaluations in all, counted in files under ``folder``)."""
+
+    n_objectives = 1
+
+    def __init__(self, folder, times=1):
+        self.folder, self.times = str(folder), times
+
+    def evaluate(self, layouts):
+        import os
+
+        try:
+            distributed.get_worker()
+        except ValueError:          # in this process: never
+            return [_distance_to_node_121(s) for s in layouts]
+        done = len(os.listdir(self.folder))
+        if done < self.times:
+            open(os.path.join(self.folder, f"killed-{done}"), "w").close()
+            os._exit(1)
+        return [_distance_to_node_121(s) for s in layouts]
+
+
+def _toy_placement(objective, n_jobs):
+    from core_akf.models import th_plate
+    from sensoropt import Encoding
+
+    enc = Encoding(th_plate(), kinds=("ex",), n_sensors=2)
+    return place(objective, enc, population=12, generations=4, seed=1, n_jobs=n_jobs)
+
+
+def test_a_worker_that_dies_mid_run_changes_nothing(tmp_path):
+    """One worker process ends in the middle of the GA: the cluster restarts it, its task runs
+    again, and the placement is the one of a run without the loss."""
+    from sensoropt import FunctionObjective
+
+    here = _toy_placement(FunctionObjective(_distance_to_node_121), n_jobs=1)
+    with scheduler("local:2"):
+        there = _toy_placement(_EndsItsWorker(tmp_path), n_jobs=-1)
+    assert len(list(tmp_path.iterdir())) == 1               # a worker did die
+    assert there.sensors == here.sensors and there.best_error == here.best_error
+    assert there.logbook.drop(columns="seconds").equals(here.logbook.drop(columns="seconds"))
+
+
+def test_a_task_that_keeps_killing_workers_stops_with_a_clear_message(tmp_path):
+    import dask
+
+    from akf.parallel import ClusterError
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        with pytest.raises(ClusterError, match="ended its worker process again and again.*--resume"):
+            with scheduler("local:2", resume="run again with --resume"):
+                _toy_placement(_EndsItsWorker(tmp_path, times=100), n_jobs=-1)

@@ -22,7 +22,8 @@ def _locate(args):
         print_examples("locate")
         return 0
     check_job_or_example(args, "locate job file")
-    with scheduler(args.scheduler):
+    with scheduler(args.scheduler, resume="run the same command again: the scan has no randomness and the seed "
+                                          "repeats the tuning"):
         result, scenario, name = _run_locate(args, progress=not args.json)
     out = args.out or os.path.join("akf-out", "locate", name)
     with OutputFolder(out, "--out"):

@@ -64,7 +64,9 @@ def _run_place(args, problem, settings, out):
             print(f"akf: note: {note}", file=sys.stderr)
     enc = problem.encoding()
     obj = problem.objective(enc)
-    with scheduler(args.scheduler):
+    resume = (f"the GA checkpoint {checkpoint} holds the generations done so far (saved every 5): run the same "
+              "command with --resume to continue from it")
+    with scheduler(args.scheduler, resume=resume):
         res = place(obj, enc, seed=args.seed, n_jobs=workers(args), checkpoint=checkpoint, resume=args.resume,
                     progress=not args.json, **settings)
     error = problem.full_record_error(res.sensors)

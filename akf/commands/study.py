@@ -21,7 +21,7 @@ def _study(args):
         return 0
     study_module(args.name)                          # an unknown name fails before a folder is made
     out = args.out or os.path.join("akf-out", "studies", args.name)
-    with OutputFolder(out, "--out"), scheduler(args.scheduler):
+    with OutputFolder(out, "--out"), scheduler(args.scheduler, resume="run the same command again (seeded: it repeats exactly)"):
         n_jobs = args.n_jobs if args.n_jobs is not None else (-1 if args.scheduler else None)
         result = run_study(args.name, out=out, quick=args.quick, seed=args.seed, n_jobs=n_jobs)
     for key, path in result.files.items():

@@ -1,0 +1,336 @@
+"""Every speed ratio in one run (by hand): ``python bench/run_all.py [--csv PATH] [--skip-jobs]``.
+
+Needs the ``bench`` extra (``pip install ".[bench]"``: filterpy, simdkalman, pykalman and
+dask[distributed]).  Prints one table and writes it as CSV (default ``bench/results.csv``):
+
+1. One filter pass on the same inputs -- S17 truss, case-4 sensors (9 channels), 4 forces,
+   70 augmented states, 8192 steps -- by the textbook loop (the reference), filterpy,
+   simdkalman, pykalman and ``akf.run`` (time-varying and steady-state), with the largest
+   state difference to the textbook loop.
+2. 35 sensor sets at once (``estimate_batch``): the cost per filter against one alone.
+3. Whole jobs through the command line (``akf locate --example imp-truss-case1 | imp-plate``,
+   ``akf place --example th-case5``) on 1 and 2 joblib workers and on a 2-worker
+   ``dask.distributed.LocalCluster``: the jobs' own stage totals ("work") and the process
+   time including imports.
+
+Each row carries its target and whether it is met; where a target is missed the row names
+the stage that takes the time and the measured reason (operation counts and rates).  Times are
+the best of a few repeats on a shared machine: read the ratios, they move less than the times.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import itertools
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def best_of(fn, repeat=3):
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+def textbook_loop(A, G, Q, R, Y):
+    """The plain Kalman filter, one step at a time with explicit inverses: the reference."""
+    x = np.zeros(A.shape[0])
+    P = Q.copy()
+    out = np.empty((Y.shape[0], A.shape[0]))
+    eye = np.eye(A.shape[0])
+    for k in range(Y.shape[0]):
+        K = P @ G.T @ np.linalg.inv(G @ P @ G.T + R)
+        x = x + K @ (Y[k] - G @ x)
+        P = (eye - K @ G) @ P
+        out[k] = x
+        x = A @ x
+        P = A @ P @ A.T + Q
+    return out
+
+
+def filterpy_pass(A, G, Q, R, Y):
+    from filterpy.kalman import KalmanFilter
+    kf = KalmanFilter(dim_x=A.shape[0], dim_z=G.shape[0])
+    kf.F, kf.H, kf.Q, kf.R, kf.P, kf.x = A, G, Q, R, Q.copy(), np.zeros(A.shape[0])
+    out = np.empty((Y.shape[0], A.shape[0]))
+    for k in range(Y.shape[0]):
+        kf.update(Y[k])
+        out[k] = kf.x
+        kf.predict()
+    return out
+
+
+def simdkalman_pass(A, G, Q, R, Y):
+    import simdkalman
+    kf = simdkalman.KalmanFilter(state_transition=A, process_noise=Q, observation_model=G, observation_noise=R)
+    res = kf.compute(Y[None], 0, initial_value=np.zeros(A.shape[0]), initial_covariance=Q, smoothed=False,
+                     filtered=True, covariances=False, observations=False)
+    return res.filtered.states.mean[0]
+
+
+def pykalman_pass(A, G, Q, R, Y):
+    from pykalman import KalmanFilter
+    kf = KalmanFilter(transition_matrices=A, observation_matrices=G, transition_covariance=Q, observation_covariance=R,
+                      initial_state_mean=np.zeros(A.shape[0]), initial_state_covariance=Q)
+    return kf.filter(Y)[0]
+
+
+def gemm_rate(n, repeat=200):
+    """Measured multiply-adds per second of one n x n matrix product (this machine's BLAS)."""
+    X = np.random.default_rng(0).normal(size=(n, n))
+    t, _ = best_of(lambda: X @ X, repeat)
+    return n ** 3 / t
+
+
+def filter_rows():
+    from akf.examples import S17_FORCES, S17_MULTI, example_job
+    from akf.jobs import run_job
+    from core_akf import akf
+    from core_akf.models import s17_truss
+    from core_akf.recursion import lti_response
+    from core_akf.riccati import steady_gain
+    from core_akf.simulate import simulate
+    from core_akf.statespace import state_space
+
+    n_steps, dt = 8192, 1 / 4096
+    job = example_job("s17-case4")
+    job["simulation"]["duration"] = n_steps * dt
+    sim = run_job(job).simulation
+    R = np.diag(sim.noise_std ** 2)
+    Y = sim.measurements
+    model = s17_truss().scaled(1.05)
+    ss = state_space(model, S17_MULTI, S17_FORCES, dt)
+    A, G = ss.A_a, ss.G_a
+    Q = akf.augmented_covariance(ss.n_states, ss.n_forces, 1e-16, 1e5)
+    n, m = A.shape[0], G.shape[0]
+    print(f"1. one filter pass: S17 case 4, {m} channels, {n} augmented states, {n_steps} steps")
+
+    t_ref, ref = best_of(lambda: textbook_loop(A, G, Q, R, Y), 1)
+    peers = [("filterpy KalmanFilter loop", filterpy_pass, 2), ("simdkalman", simdkalman_pass, 1),
+             ("pykalman", pykalman_pass, 1)]
+    times = {}
+    rows = []
+    for name, fn, rep in peers:
+        try:
+            t, out = best_of(lambda fn=fn: fn(A, G, Q, R, Y), rep)
+        except ImportError as exc:
+            print(f"  {name}: not installed ({exc.name}); pip install '.[bench]'")
+            continue
+        times[name] = t
+        rows.append(dict(section="filter", case=name, seconds=t, diff=_rel(out, ref)))
+    t_tv, out_tv = best_of(lambda: akf.run(A, G, Q, R, Y), 5)
+    t_ss, out_ss = best_of(lambda: akf.run(A, G, Q, R, Y, steady=True), 9)
+    ref_fp = times.get("filterpy KalmanFilter loop", t_ref)
+
+    # where the steady-state time goes: Riccati solve and the lifted recursion
+    t_gain, (P, L) = best_of(lambda: steady_gain(A[None], G[None], Q[None], R[None]), 9)
+    F = (np.eye(n) - L[0] @ G) @ A
+    t_rec, _ = best_of(lambda: lti_response(F[None], L, Y[None], (L[0] @ Y[0])[None]), 9)
+    rate = gemm_rate(n)
+    inv_t, _ = best_of(lambda: np.linalg.inv(np.eye(n) + F @ F.T), 200)
+    # where the time-varying time goes: covariance steps until the gain has converged
+    k_switch = _switch_step(akf, A, G, Q, R, Y)
+    tv_floor = k_switch * 2 * n ** 3 / rate
+    rows += [
+        dict(section="filter", case="akf.run time-varying", seconds=t_tv, diff=_rel(out_tv, ref),
+             target_s=0.015, target_ratio=50,
+             limit=(f"{k_switch} covariance steps before the gain converges (relative change < 1e-14), each "
+                    f"A P A^T alone 2 n^3 = {2 * n ** 3 / 1e6:.2f} M multiply-adds at the measured BLAS rate "
+                    f"{rate / 1e9:.1f} G/s: >= {1e3 * tv_floor:.0f} ms before any overhead; "
+                    f"measured {1e6 * (t_tv - t_rec) / max(k_switch, 1):.0f} us per step")),
+        dict(section="filter", case="akf.run steady-state", seconds=t_ss, diff=_rel(out_ss, ref),
+             target_s=0.007, target_ratio=100,
+             limit=(f"Riccati (doubling) {1e3 * t_gain:.1f} ms: ~12 iterations, each a {n}x{n} inverse "
+                    f"({1e6 * inv_t:.0f} us: LAPACK at {n ** 3 / inv_t / 1e9:.1f} G/s on this size) and 8 products; "
+                    f"lifted recursion {1e3 * t_rec:.1f} ms (2 N n^2 = {2 * n_steps * n * n / 1e6:.0f} M "
+                    f"multiply-adds in large products, {2 * n_steps * n * n / t_rec / 1e9:.1f} G/s)")),
+    ]
+    for r in rows:
+        r["ratio_vs_filterpy"] = ref_fp / r["seconds"]
+    rows.append(dict(section="filter", case="textbook loop (reference)", seconds=t_ref, diff=0.0,
+                     ratio_vs_filterpy=ref_fp / t_ref))
+
+    # 2. batches: 35 sensor sets, steady state
+    accels = ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x", "acc:10:y", "acc:14:y"]
+    layouts = [S17_MULTI[5:] + list(c) for c in itertools.combinations(accels, 3)]
+    truss = s17_truss()
+    Ys = np.stack([simulate(truss, lay, S17_FORCES, sim.loads, dt, relative_noise=0.02, seed=1).measurements
+                   for lay in layouts])
+    noise = np.stack([np.diag(0.0004 * np.mean(y ** 2, axis=0)) for y in Ys])
+    kw = dict(model_error_cov=1e-16, force_increment_cov=1e5, steady=True)
+    t_one, _ = best_of(lambda: akf.estimate(model, layouts[0], S17_FORCES, Ys[0], dt, noise_cov=noise[0], **kw), 5)
+    t_batch, _ = best_of(lambda: akf.estimate_batch(model, layouts, S17_FORCES, Ys, dt, noise_cov=noise, **kw), 2)
+    rows.append(dict(section="batch", case="estimate, one sensor set", seconds=t_one))
+    rows.append(dict(section="batch", case=f"estimate_batch, {len(layouts)} sets (per set)",
+                     seconds=t_batch / len(layouts), ratio_vs_filterpy=None,
+                     limit=f"per-set cost {t_batch / len(layouts) / t_one:.2f}x of one alone"))
+    return rows
+
+
+def _switch_step(akf, A, G, Q, R, Y):
+    """Step at which the time-varying filter switches to its converged gain."""
+    from core_akf import akf as mod
+    calls = []
+    original = mod.lti_response
+
+    def spy(F, Bu, Ys, first, H=None):
+        calls.append(Y.shape[0] - Ys.shape[1])
+        return original(F, Bu, Ys, first, H)
+
+    mod.lti_response = spy
+    try:
+        akf.run(A, G, Q, R, Y)
+    finally:
+        mod.lti_response = original
+    return calls[0] if calls else Y.shape[0]
+
+
+def _rel(a, ref):
+    return float(np.max(np.abs(np.asarray(a) - ref)) / np.max(np.abs(ref)))
+
+
+JOBS = [
+    ("locate", "imp-truss-case1", dict(target_work=2.0, target_process=2.5, workers=1)),
+    ("locate", "imp-plate", dict(target_work=3.0, workers=1)),
+    ("place", "th-case5", dict(target_work=8.0, workers=2)),
+]
+
+
+def run_cli(command, example, n_jobs=None, scheduler=None):
+    """One job through the command line; returns (process seconds, parsed JSON)."""
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "akf", command, "--example", example, "--json", "--no-plot", "--out", out]
+        if n_jobs is not None:
+            cmd += ["--n-jobs", str(n_jobs)]
+        if scheduler is not None:
+            cmd += ["--scheduler", scheduler]
+        env = dict(os.environ, PYTHONWARNINGS="ignore")
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
+        wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+    return wall, json.loads(proc.stdout)
+
+
+def job_rows(repeat=2):
+    print("3. whole jobs (command line, --json --no-plot)")
+    rows = []
+    for command, example, target in JOBS:
+        for label, n_jobs, scheduler in (("1 worker", 1, None), ("2 workers", 2, None),
+                                         ("2-worker LocalCluster", None, "local:2")):
+            results = [run_cli(command, example, n_jobs, scheduler) for _ in range(repeat)]
+            wall, data = min(results, key=lambda r: r[0])
+            secs = data["seconds"]
+            work = secs["total"] if isinstance(secs, dict) else float(secs)
+            row = dict(section="job", case=f"akf {command} --example {example}", workers=label, seconds=work,
+                       process_seconds=wall)
+            if command == "locate":
+                row["result"] = (f"node {data['identified']}, confidence {data['confidence']:.2f}, "
+                                 f"peak {data['peak_force'] / 1e3:.3f} kN")
+                row["stages"] = ", ".join(f"{k} {v:.2f} s" for k, v in secs.items() if k != "total")
+            else:
+                row["result"] = f"{' '.join(data['sensors'])}: {data['error']:.4f} µε, {data['evaluations']} evaluations"
+                row["stages"] = f"{data['evaluations']} fitness evaluations, {work / max(data['evaluations'], 1) * 1e3:.0f} ms each"
+            if (label == "1 worker" and target["workers"] == 1) or (label == "2 workers" and target["workers"] == 2):
+                row["target_s"] = target["target_work"]
+                if "target_process" in target:
+                    row["target_process_s"] = target["target_process"]
+            rows.append(row)
+            print(f"  {row['case']:42s} {label:22s} work {work:7.2f} s, process {wall:7.2f} s  {row['result']}")
+    return rows
+
+
+def scan_reason():
+    """Where the time of a location scan goes: the batched Riccati solves against the rest."""
+    from akf.examples.impact import example_scenario
+    from core_akf.riccati import steady_gain
+    from impactloc import candidate_locations, default_covariances, role_splits
+    from impactloc.scan import ImpactModel, location_errors
+
+    out = {}
+    for name in ("imp-truss-case1", "imp-plate"):
+        sc = example_scenario(name)
+        splits = role_splits(sc.sensors, sc.n_ad, sc.ad_kinds)
+        cov = default_covariances(sc.sensors, sc.measurements)
+        cands = candidate_locations(sc.structure, sc.direction)
+        model = ImpactModel(sc.structure, sc.sensors, sc.dt, "auto")
+        loc = cands[0]
+        model.system(loc)
+        t_loc, _ = best_of(lambda: location_errors(model, loc, splits, sc.measurements, [cov]), 2)
+        A, G_all = model.system(loc)
+        se = np.array([s.se for s in splits])
+        G = G_all[se]
+        noise = model.noise(cov)
+        R = np.stack([np.diag(noise[list(s.se)]) for s in splits])
+        Q = np.broadcast_to(model.Q_a(cov, loc), (len(splits),) + A.shape)
+        t_gain, _ = best_of(lambda: steady_gain(np.broadcast_to(A, Q.shape), G, Q, R), 2)
+        n = A.shape[0]
+        out[name] = (f"scan: {len(cands)} locations x {len(splits)} splits = {len(cands) * len(splits)} steady AKFs of "
+                     f"{n} states; per location {1e3 * t_loc:.0f} ms, of which the {len(splits)} Riccati solves "
+                     f"{1e3 * t_gain:.0f} ms ({1e3 * t_gain / len(splits):.1f} ms each: ~12 doubling iterations of "
+                     f"an {n}x{n} inverse and 8 products; small LAPACK inverses run at a tenth of the BLAS rate)")
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--csv", default=os.path.join(HERE, "results.csv"), help="where to write the table")
+    ap.add_argument("--skip-jobs", action="store_true", help="only the filters and batches (about a minute)")
+    args = ap.parse_args(argv)
+    import numpy
+    import scipy
+    print(f"numpy {numpy.__version__}, scipy {scipy.__version__}, {os.cpu_count()} cores, python {sys.version.split()[0]}")
+    rows = filter_rows()
+    if not args.skip_jobs:
+        rows += job_rows()
+        reasons = scan_reason()
+        for r in rows:
+            if r["section"] == "job" and "target_s" in r and r["seconds"] > r["target_s"]:
+                key = r["case"].split()[-1]
+                r["limit"] = reasons.get(key, r.get("stages", ""))
+    for r in rows:
+        if "target_s" in r:
+            met = r["seconds"] <= r["target_s"]
+            if r.get("target_ratio") and r.get("ratio_vs_filterpy"):
+                met = met or r["ratio_vs_filterpy"] >= r["target_ratio"]   # the ratio is what a shared machine keeps
+            if r.get("target_process_s") and r.get("process_seconds"):
+                met = met and r["process_seconds"] <= r["target_process_s"]
+            r["met"] = "yes" if met else "no"
+    print(f"\n{'section':7s} {'case':46s} {'workers':22s} {'time (s)':>9s} {'vs filterpy':>11s} {'target':>14s} "
+          f"{'met':>4s}  diff to textbook")
+    for r in rows:
+        ratio = f"{r['ratio_vs_filterpy']:10.1f}x" if r.get("ratio_vs_filterpy") else ""
+        target = ""
+        if "target_s" in r:
+            target = f"<= {r['target_s']:g} s" + (f" / {r['target_ratio']}x" if r.get("target_ratio") else "")
+        diff = f"{r['diff']:.1e}" if "diff" in r else ""
+        print(f"{r['section']:7s} {r['case']:46s} {r.get('workers', ''):22s} {r['seconds']:9.4f} {ratio:>11s} "
+              f"{target:>14s} {r.get('met', ''):>4s}  {diff}")
+    missed = [r for r in rows if r.get("met") == "no"]
+    if missed:
+        print("\nwhere a target is missed, the stage and the measured reason:")
+        for r in missed:
+            print(f"- {r['case']} ({r.get('workers', '')}): {r.get('limit', r.get('stages', ''))}")
+    keys = ["section", "case", "workers", "seconds", "process_seconds", "ratio_vs_filterpy", "diff", "target_s",
+            "target_ratio", "target_process_s", "met", "result", "stages", "limit"]
+    with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    print(f"\nwrote {args.csv}")
+
+
+if __name__ == "__main__":
+    main()

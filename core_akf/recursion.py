@@ -1,0 +1,172 @@
+"""Fast responses of linear time-invariant recursions: the inner loop of every steady-state AKF.
+
+The steady-state filter is ``x_k = F x_{k-1} + L y_k`` with a constant ``F`` (n x n) and a
+constant gain ``L`` (n x m, m << n).  Run step by step, one step is one small matrix-vector
+product and the time goes into Python and BLAS call overhead, not arithmetic.  The *lifted*
+form here cuts the record into chunks of ``K`` steps and works on all chunks at once:
+
+1. Markov parameters ``F^d L`` (d < K): K small products;
+2. the zero-state response of every chunk, from a block-Toeplitz matrix of those parameters:
+   one large product over all chunks;
+3. the states at the chunk boundaries, ``s_{c+1} = F^K s_c + e_c``: a recursion of N/K steps
+   (itself run lifted when long);
+4. the free response ``F^(j+1) s_c`` added back: one large product.
+
+Outputs ``H x_k`` of a few rows (the AD sensors of a location scan) come straight from the
+output Markov parameters ``H F^d L``, without ever forming the n states per step, at
+``O(N (K m k + n m + n k))`` instead of ``O(N n^2)`` operations.  Everything is batched over a
+leading axis of independent systems.  Results equal the plain recursion to rounding; the plain
+recursion stays as :func:`recursion_stepwise`, the reference in the tests.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: below this many steps the plain recursion is used (the lifted set-up does not pay off)
+_LIFT_FROM = 64
+#: boundary recursions shorter than this run step by step
+_BOUNDARY_STEPWISE = 48
+
+
+def recursion_stepwise(F, U, x_first):
+    """Reference: all states of ``x_k = F x_{k-1} + U_k`` (k >= 1), ``x_0 = x_first``, one
+    step at a time.  F (B, n, n), U (B, N, n), x_first (B, n) -> (B, N, n)."""
+    B, N, n = U.shape
+    out = np.empty((B, N, n))
+    out[:, 0] = x_first
+    Ft = np.ascontiguousarray(np.swapaxes(F, -1, -2))
+    if B == 1:
+        f, u, o, x = Ft[0], U[0], out[0], out[0, 0]
+        for k in range(1, N):
+            x = x @ f + u[k]
+            o[k] = x
+        return out
+    x = out[:, 0][:, None, :]
+    for k in range(1, N):
+        x = np.matmul(x, Ft) + U[:, k, None, :]
+        out[:, k] = x[:, 0]
+    return out
+
+
+def recursion_chunked(F, U, x_first):
+    """The same recursion with the record cut into ~sqrt(N) chunks run as one batch: each
+    chunk's zero-state response, then the chunk-boundary states in sequence, then their free
+    response added back -- about 3 sqrt(N) matrix products instead of N (twice the
+    arithmetic; used for the boundary recursion of :func:`lti_response`, whose input has full
+    rank)."""
+    B, N, n = U.shape
+    out = np.empty((B, N, n))
+    out[:, 0] = x_first
+    steps = N - 1
+    if steps < 1:
+        return out
+    K = max(1, int(np.sqrt(steps)))            # chunk length
+    C = -(-steps // K)                          # number of chunks
+    V = np.zeros((B, C * K, n))
+    V[:, :steps] = U[:, 1:]
+    V = V.reshape(B, C, K, n)
+    Ft = np.ascontiguousarray(np.swapaxes(F, -1, -2))
+    Z = np.empty((B, C, K, n))
+    z = np.zeros((B, C, n))
+    for j in range(K):                          # zero-state response inside every chunk at once
+        z = z @ Ft + V[:, :, j]
+        Z[:, :, j] = z
+    FKt = np.swapaxes(np.linalg.matrix_power(F, K), -1, -2)
+    S = np.empty((B, C, n))                     # state just before each chunk
+    s = np.asarray(x_first, float)
+    for c in range(C):
+        S[:, c] = s
+        s = np.einsum("bi,bij->bj", s, FKt) + Z[:, c, K - 1]
+    T = S
+    for j in range(K):                          # free response of the boundary states
+        T = T @ Ft
+        Z[:, :, j] += T
+    out[:, 1:] = Z.reshape(B, C * K, n)[:, :steps]
+    return out
+
+
+def _chunk_length(n, m, k, N):
+    """Chunk length K: the Toeplitz product costs ~K m k per step, the free response n k and
+    the boundary recursion ~n^2 / K; K ~ sqrt(n^2 / (m k)) balances them, kept between 4 and
+    sqrt(N) so that neither loop gets long."""
+    K = int(np.sqrt(n * n / max(m * k, 1)))
+    return int(min(max(K, 4), max(4, int(np.sqrt(N))), 64))
+
+
+def _powers_times(F, E, K):
+    """``[F^0 E, F^1 E, ..., F^(K-1) E]`` stacked on axis 1: (B, K, n, m)."""
+    B, n, m = E.shape
+    out = np.empty((B, K, n, m))
+    out[:, 0] = E
+    for d in range(1, K):
+        np.matmul(F, out[:, d - 1], out=out[:, d])
+    return out
+
+
+def _left_powers(H, F, K):
+    """``[H F^1, ..., H F^K]`` stacked on axis 1: (B, K, k, n)."""
+    B, k, n = H.shape
+    out = np.empty((B, K, k, n))
+    prev = H
+    for d in range(K):
+        prev = np.matmul(prev, F, out=out[:, d])
+    return out
+
+
+def lti_response(F, Bu, Y, x_first, H=None):
+    """Outputs of ``x_k = F x_{k-1} + Bu y_k`` (k >= 1), ``x_0 = x_first``.
+
+    Parameters
+    ----------
+    F : ndarray (B, n, n) -- transition, spectral radius < 1 for a long record
+    Bu : ndarray (B, n, m) -- input matrix (the Kalman gain)
+    Y : ndarray (B, N, m) -- inputs (measurements); ``y_0`` is not used (it is in ``x_first``)
+    x_first : ndarray (B, n) -- the state at step 0
+    H : ndarray (B, k, n) or (k, n), optional -- output rows; None returns the states
+
+    Returns
+    -------
+    ndarray (B, N, k) -- ``H x_k``, or (B, N, n) the states ``x_k`` without ``H``
+    """
+    F = np.asarray(F, float)
+    Bu = np.asarray(Bu, float)
+    Y = np.asarray(Y, float)
+    B, N, m = Y.shape
+    n = F.shape[-1]
+    if H is not None:
+        H = np.broadcast_to(np.asarray(H, float), (B,) + np.shape(H)[-2:])
+        if H.shape[1] >= n:       # as many outputs as states: the states, then one projection
+            return lti_response(F, Bu, Y, x_first) @ np.swapaxes(H, -1, -2)
+    k = n if H is None else H.shape[1]
+    steps = N - 1
+    if steps < _LIFT_FROM:
+        X = recursion_stepwise(F, Y @ np.swapaxes(Bu, -1, -2), x_first)
+        return X if H is None else X @ np.swapaxes(H, -1, -2)
+    K = _chunk_length(n, m, k, steps)
+    C = -(-steps // K)
+    Yc = np.zeros((B, C * K, m))
+    Yc[:, :steps] = Y[:, 1:]
+    Yc = Yc.reshape(B, C, K * m)                            # chunk c, step j, channel i -> [c, j*m + i]
+    E = _powers_times(F, Bu, K)                             # (B, K, n, m): F^d Bu
+    # chunk-end zero-state states: e_c = sum_j F^(K-1-j) Bu y_(cK+j+1)
+    E_rev = np.ascontiguousarray(np.swapaxes(E[:, ::-1], 1, 2)).reshape(B, n, K * m)
+    ends = Yc @ np.swapaxes(E_rev, -1, -2)                  # (B, C, n)
+    # boundary states s_c = x_(cK): s_0 = x_first, s_(c+1) = F^K s_c + e_c
+    FK = np.linalg.matrix_power(F, K)
+    U = np.zeros((B, C, n))
+    U[:, 1:] = ends[:, :-1]
+    S = recursion_stepwise(FK, U, x_first) if C < _BOUNDARY_STEPWISE else recursion_chunked(FK, U, x_first)
+    # zero-state response inside each chunk, output j of chunk c = sum_(i<=j) M_(j-i) y_i
+    M = E if H is None else H[:, None] @ E                  # (B, K, k, m) Markov parameters
+    lag = np.subtract.outer(np.arange(K), np.arange(K))    # j - i
+    T = M[:, np.maximum(lag, 0)]                            # (B, K, K, k, m): block (j, i) = M_(j-i)
+    T[:, lag < 0] = 0.0
+    T = np.ascontiguousarray(T.transpose(0, 1, 3, 2, 4)).reshape(B, K * k, K * m)
+    out_c = Yc @ np.swapaxes(T, -1, -2)                     # (B, C, K*k)
+    # free response of the boundary states: [H F^1 ... H F^K] s_c
+    Phi = _left_powers(np.broadcast_to(np.eye(n), (B, n, n)) if H is None else H, F, K).reshape(B, K * k, n)
+    out_c += S @ np.swapaxes(Phi, -1, -2)
+    out = np.empty((B, N, k))
+    out[:, 0] = x_first if H is None else np.einsum("bkn,bn->bk", H, x_first)
+    out[:, 1:] = out_c.reshape(B, C * K, k)[:, :steps]
+    return out
