@@ -57,7 +57,7 @@ def scheduler(spec=None, resume=None):
                 client = stack.enter_context(Client(spec, timeout="10s"))
             except (OSError, TimeoutError) as exc:
                 raise AKFInputError(f"cannot reach the dask scheduler at {spec!r}: {exc}") from None
-        stack.enter_context(parallel_config(backend="dask"))
+        stack.enter_context(parallel_config(backend=_dask_backend()))
         try:
             yield client
         except Exception as exc:
@@ -65,6 +65,41 @@ def scheduler(spec=None, resume=None):
             if lost is None:
                 raise
             raise ClusterError(f"the dask cluster lost the work: {lost}" + (f"; {resume}" if resume else "")) from exc
+
+
+def _dask_backend():
+    """Name of the joblib backend for a dask cluster: joblib's own ``"dask"``, made to report a
+    task that the scheduler gave up on.  joblib 1.6 sets that task's error on a future nobody
+    waits for and never calls the task's callback, so ``Parallel`` waits for ever after a
+    ``KilledWorker``; the subclass here passes the error to the callback, which raises it in the
+    caller."""
+    from joblib import register_parallel_backend
+    from joblib._dask import DaskDistributedBackend
+
+    if not all(hasattr(DaskDistributedBackend, a) for a in ("_collect", "submit", "retrieve_result_callback")):
+        return "dask"     # another joblib: its own behaviour
+
+    class ReportingDaskBackend(DaskDistributedBackend):
+        async def _collect(self):
+            import asyncio
+
+            while self._continue:
+                async for future, result in self.waiting_futures:
+                    done = self._results.pop(future)
+                    callback = self._callbacks.pop(future)
+                    if future.status == "error":
+                        exc = result[1]
+                        done.set_exception(exc)
+                        if callback is not None:
+                            callback(exc)       # retrieve_result_callback raises it: Parallel stops
+                    else:
+                        done.set_result(result)
+                        if callback is not None:
+                            callback(result)
+                await asyncio.sleep(0.01)
+
+    register_parallel_backend("akf-dask", ReportingDaskBackend)
+    return "akf-dask"
 
 
 class ClusterError(RuntimeError):
@@ -81,7 +116,7 @@ def _lost_work(exc):
     if isinstance(exc, KilledWorker):
         return (f"task {exc.task!r} ended its worker process again and again (out of memory or a crash in "
                 f"native code?) and the scheduler gave up on it")
-    if isinstance(exc, (CommClosedError, TimeoutError)) or type(exc).__name__ in ("CancelledError", "FutureCancelledError"):
+    if isinstance(exc, CommClosedError) or type(exc).__name__ in ("CancelledError", "FutureCancelledError"):
         return f"the connection to the scheduler or its workers broke ({type(exc).__name__}: {exc})"
     return None
 

@@ -8,7 +8,9 @@ is solved by the structure-preserving doubling algorithm (SDA; Chu, Fan & Lin 20
 the dual control problem ``(A^T, G^T)``.  Each doubling step costs one LU solve and a few
 matrix products and squares the convergence factor, so ~10-25 steps reach machine
 precision even for lightly damped structures.  The algorithm runs on a stack of
-problems at once (leading batch axis).  A solution whose residual is above rounding level is
+problems at once (leading batch axis); each problem stops iterating when it has converged, so
+its solution does not depend on what else shares the stack, and a large stack is split over
+threads (:func:`solver_threads`) with the same result.  A solution whose residual is above rounding level is
 polished by Newton (Hewer) steps; one that still fails, or did not converge, is re-solved
 with :func:`scipy.linalg.solve_discrete_are` and a :class:`RiccatiWarning`, and that
 solution's residual is checked too: a :class:`RiccatiError` names the problems without an
@@ -16,7 +18,9 @@ accurate solution.
 """
 from __future__ import annotations
 
+import os
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.linalg
@@ -106,7 +110,57 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
     G = np.broadcast_to(G, batch + (m, n)).reshape(nb, m, n)
     Q = np.broadcast_to(Q, batch + (n, n)).reshape(nb, n, n)
     R = np.broadcast_to(R, batch + (m, m)).reshape(nb, m, m)
+    threads = min(solver_threads(), nb) if nb * n ** 3 >= _THREAD_WORK else 1
+    if threads <= 1:
+        P = _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps)
+    else:
+        # the problems are independent and each is iterated on its own (see _solve_stack), so
+        # splitting the stack over threads (numpy's LAPACK and BLAS calls release the GIL) gives
+        # the same bits as one call
+        parts = np.array_split(np.arange(nb), threads)
+        jobs = [_pool(threads).submit(_solve_stack, A[i], G[i], Q[i], R[i], tol, max_iter, check, newton_steps)
+                for i in parts]
+        P = np.empty((nb, n, n))
+        failed = []
+        for i, job in zip(parts, jobs):
+            try:
+                P[i] = job.result()
+            except RiccatiError as exc:
+                failed.append((i, exc))
+        if failed:
+            problems = [int(i[j]) for i, exc in failed for j in exc.problems]
+            raise RiccatiError(str(failed[0][1]).replace(str(list(failed[0][1].problems)), str(problems)), problems)
+    return P.reshape(batch + (n, n))
 
+
+#: below this much work (problems x n^3) the stack is solved in the calling thread
+_THREAD_WORK = 2_000_000
+_POOLS = {}
+
+
+def solver_threads():
+    """Threads for a stack of Riccati problems: ``AKF_NUM_THREADS`` if set, else the BLAS thread
+    limit a parallel runner gave this process (``OPENBLAS_NUM_THREADS`` / ``OMP_NUM_THREADS``:
+    joblib's loky workers and dask workers set them), else the cores this process may use."""
+    for var in ("AKF_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+        value = os.environ.get(var, "").strip()
+        if value.isdigit() and int(value) >= 1:
+            return int(value)
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:      # not on Linux
+        return os.cpu_count() or 1
+
+
+def _pool(threads):
+    if threads not in _POOLS:
+        _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="akf-riccati")
+    return _POOLS[threads]
+
+
+def _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps):
+    """:func:`solve_filter_dare` on a flat stack (nb, n, n)."""
+    nb, n = A.shape[0], A.shape[-1]
     t = _scale(A, G, Q)                          # x = diag(t) z
     As = A * t[..., None, :] / t[..., :, None]   # T^-1 A T
     Gs = G * t[..., None, :]                     # G T
@@ -119,28 +173,33 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
     Hk = Qs.copy()
     eye = np.eye(n)
     converged = np.zeros(nb, dtype=bool)
-    for _ in range(max_iter):
+    active = np.arange(nb)      # problems still iterating: a converged one is left as it is, so each
+    for _ in range(max_iter):   # result is the same whatever else shares its batch
+        A_k, G_k, H_k = Ak[active], Gk[active], Hk[active]
         try:
             # the explicit inverse and two products: 1.5x faster than a solve with 2n right-hand
             # sides for these sizes (OpenBLAS's small triangular solves are slow), as accurate
             # (W = I + G H has eigenvalues >= 1), and checked by the DARE residual below
-            Wi = np.linalg.inv(eye + Gk @ Hk)
+            Wi = np.linalg.inv(eye + G_k @ H_k)
         except np.linalg.LinAlgError:
             break
-        WiA = Wi @ Ak
-        WiGAt = Wi @ (Gk @ np.swapaxes(Ak, -1, -2))
-        H_new = Hk + np.swapaxes(Ak, -1, -2) @ Hk @ WiA
-        G_new = Gk + Ak @ WiGAt
-        Ak = Ak @ WiA
+        A_kt = np.swapaxes(A_k, -1, -2)
+        WiA = Wi @ A_k
+        H_new = H_k + A_kt @ H_k @ WiA
+        G_new = G_k + A_k @ (Wi @ (G_k @ A_kt))
+        Ak[active] = A_k @ WiA
         H_new = 0.5 * (H_new + np.swapaxes(H_new, -1, -2))
-        Gk = 0.5 * (G_new + np.swapaxes(G_new, -1, -2))
-        diff = np.linalg.norm(H_new - Hk, axis=(-2, -1))
-        size = np.linalg.norm(H_new, axis=(-2, -1))
-        Hk = H_new
-        if not np.all(np.isfinite(Hk)):
+        Gk[active] = 0.5 * (G_new + np.swapaxes(G_new, -1, -2))
+        with np.errstate(over="ignore", invalid="ignore"):     # a diverging problem: caught just below
+            diff = np.linalg.norm(H_new - H_k, axis=(-2, -1))
+            size = np.linalg.norm(H_new, axis=(-2, -1))
+        Hk[active] = H_new
+        if not np.all(np.isfinite(H_new)):
             break
-        converged = diff <= tol * np.maximum(size, np.finfo(float).tiny)
-        if np.all(converged):
+        done = diff <= tol * np.maximum(size, np.finfo(float).tiny)
+        converged[active[done]] = True
+        active = active[~done]
+        if not active.size:
             break
     P = Hk * t[..., :, None] * t[..., None, :]
     if check:
@@ -186,7 +245,7 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
                     f"below {_RESIDUAL_OK:g}); the sensor set is probably undetectable or nearly so, or the covariance "
                     "levels are far from the data's scale (check model_error_cov, force_increment_cov and "
                     "noise_cov) -- run the time-varying filter (steady=False) to see the drift", problems=failed)
-    return P.reshape(batch + (n, n))
+    return P
 
 
 #: relative DARE residual accepted (after polishing) without falling back to scipy, and accepted
@@ -203,11 +262,18 @@ def stein_doubling(F, E, tol=1e-14, max_iter=60):
     subtracted, so nothing cancels.  Stacks of problems along leading axes."""
     X = np.array(E, dtype=float)
     Fj = np.array(F, dtype=float)
+    if X.ndim == 2:
+        return stein_doubling(Fj[None], X[None], tol, max_iter)[0]
+    Fj = np.broadcast_to(Fj, X.shape).copy()
+    active = np.arange(X.shape[0])      # a converged problem is left as it is (batch-independent)
     for _ in range(max_iter):
-        inc = Fj @ X @ np.swapaxes(Fj, -1, -2)
-        X = X + inc
-        Fj = Fj @ Fj
-        if np.all(np.linalg.norm(inc, axis=(-2, -1)) <= tol * np.linalg.norm(X, axis=(-2, -1))):
+        F_a = Fj[active]
+        inc = F_a @ X[active] @ np.swapaxes(F_a, -1, -2)
+        X[active] += inc
+        Fj[active] = F_a @ F_a
+        done = np.linalg.norm(inc, axis=(-2, -1)) <= tol * np.linalg.norm(X[active], axis=(-2, -1))
+        active = active[~done]
+        if not active.size:
             break
     return 0.5 * (X + np.swapaxes(X, -1, -2))
 
