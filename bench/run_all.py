@@ -59,6 +59,20 @@ def textbook_loop(A, G, Q, R, Y):
     return out
 
 
+def textbook_steady_loop(A, G, Q, R, Y):
+    """The plain steady-state filter: the gain from scipy's DARE solver, one step at a time."""
+    import scipy.linalg
+    P = scipy.linalg.solve_discrete_are(A.T, G.T, Q, R)
+    K = P @ G.T @ np.linalg.inv(G @ P @ G.T + R)
+    x = np.zeros(A.shape[0])
+    out = np.empty((Y.shape[0], A.shape[0]))
+    for k in range(Y.shape[0]):
+        x = x + K @ (Y[k] - G @ x)
+        out[k] = x
+        x = A @ x
+    return out
+
+
 def filterpy_pass(A, G, Q, R, Y):
     from filterpy.kalman import KalmanFilter
     kf = KalmanFilter(dim_x=A.shape[0], dim_z=G.shape[0])
@@ -84,6 +98,12 @@ def pykalman_pass(A, G, Q, R, Y):
     kf = KalmanFilter(transition_matrices=A, observation_matrices=G, transition_covariance=Q, observation_covariance=R,
                       initial_state_mean=np.zeros(A.shape[0]), initial_state_covariance=Q)
     return kf.filter(Y)[0]
+
+
+#: what a peer's difference to the textbook filter comes from
+PEER_NOTES = {"pykalman": "inverts the innovation covariance with scipy.linalg.pinv, whose cut-off (9 eps x the "
+                          "largest singular value, 3.6e-12 here) drops the strain channels (innovation variances "
+                          "~1e-13 against ~1e3 for the accelerations): a different filter on this mixed-unit problem"}
 
 
 def gemm_rate(n, repeat=200):
@@ -117,6 +137,7 @@ def filter_rows():
     print(f"1. one filter pass: S17 case 4, {m} channels, {n} augmented states, {n_steps} steps")
 
     t_ref, ref = best_of(lambda: textbook_loop(A, G, Q, R, Y), 1)
+    ref_steady = textbook_steady_loop(A, G, Q, R, Y)
     peers = [("filterpy KalmanFilter loop", filterpy_pass, 2), ("simdkalman", simdkalman_pass, 1),
              ("pykalman", pykalman_pass, 1)]
     times = {}
@@ -128,7 +149,8 @@ def filter_rows():
             print(f"  {name}: not installed ({exc.name}); pip install '.[bench]'")
             continue
         times[name] = t
-        rows.append(dict(section="filter", case=name, seconds=t, diff=_rel(out, ref)))
+        rows.append(dict(section="filter", case=name, seconds=t, diff=_rel(out, ref),
+                         limit=PEER_NOTES.get(name, "")))
     t_tv, out_tv = best_of(lambda: akf.run(A, G, Q, R, Y), 5)
     t_ss, out_ss = best_of(lambda: akf.run(A, G, Q, R, Y, steady=True), 9)
     ref_fp = times.get("filterpy KalmanFilter loop", t_ref)
@@ -149,7 +171,7 @@ def filter_rows():
                     f"A P A^T alone 2 n^3 = {2 * n ** 3 / 1e6:.2f} M multiply-adds at the measured BLAS rate "
                     f"{rate / 1e9:.1f} G/s: >= {1e3 * tv_floor:.0f} ms before any overhead; "
                     f"measured {1e6 * (t_tv - t_rec) / max(k_switch, 1):.0f} us per step")),
-        dict(section="filter", case="akf.run steady-state", seconds=t_ss, diff=_rel(out_ss, ref),
+        dict(section="filter", case="akf.run steady-state", seconds=t_ss, diff=_rel(out_ss, ref_steady),
              target_s=0.007, target_ratio=100,
              limit=(f"Riccati (doubling) {1e3 * t_gain:.1f} ms: ~12 iterations, each a {n}x{n} inverse "
                     f"({1e6 * inv_t:.0f} us: LAPACK at {n ** 3 / inv_t / 1e9:.1f} G/s on this size) and 8 products; "
@@ -303,7 +325,7 @@ def main(argv=None):
                 met = met and r["process_seconds"] <= r["target_process_s"]
             r["met"] = "yes" if met else "no"
     print(f"\n{'section':7s} {'case':46s} {'workers':22s} {'time (s)':>9s} {'vs filterpy':>11s} {'target':>14s} "
-          f"{'met':>4s}  diff to textbook")
+          f"{'met':>4s}  diff to textbook (steady: to the textbook steady-state loop)")
     for r in rows:
         ratio = f"{r['ratio_vs_filterpy']:10.1f}x" if r.get("ratio_vs_filterpy") else ""
         target = ""

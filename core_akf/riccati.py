@@ -110,32 +110,45 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
     G = np.broadcast_to(G, batch + (m, n)).reshape(nb, m, n)
     Q = np.broadcast_to(Q, batch + (n, n)).reshape(nb, n, n)
     R = np.broadcast_to(R, batch + (m, m)).reshape(nb, m, m)
-    threads = min(solver_threads(), nb) if nb * n ** 3 >= _THREAD_WORK else 1
-    if threads <= 1:
-        P = _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps)
-    else:
-        # the problems are independent and each is iterated on its own (see _solve_stack), so
-        # splitting the stack over threads (numpy's LAPACK and BLAS calls release the GIL) gives
-        # the same bits as one call
-        parts = np.array_split(np.arange(nb), threads)
-        jobs = [_pool(threads).submit(_solve_stack, A[i], G[i], Q[i], R[i], tol, max_iter, check, newton_steps)
-                for i in parts]
-        P = np.empty((nb, n, n))
-        failed = []
-        for i, job in zip(parts, jobs):
-            try:
-                P[i] = job.result()
-            except RiccatiError as exc:
-                failed.append((i, exc))
-        if failed:
-            problems = [int(i[j]) for i, exc in failed for j in exc.problems]
-            raise RiccatiError(str(failed[0][1]).replace(str(list(failed[0][1].problems)), str(problems)), problems)
+    if n > _OWN_THREADS_UP_TO:          # large problems: BLAS's threads share the work
+        return _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps).reshape(batch + (n, n))
+    # small problems: BLAS on one thread (its threads cost more than they bring at these sizes,
+    # measured 1.6x on 70 states) and the stack split over our own threads.  The problems are
+    # independent and each is iterated on its own (see _solve_stack), so every split gives the
+    # same bits -- the same as in a joblib or dask worker, whose BLAS runs on one thread too.
+    threads = min(solver_threads(), nb)
+    parts = np.array_split(np.arange(nb), threads)
+    P = np.empty((nb, n, n))
+    failed = []
+    with _blas_controller().limit(limits=1, user_api="blas"):
+        if threads == 1:
+            P[:] = _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps)
+        else:
+            jobs = [_pool(threads).submit(_solve_stack, A[i], G[i], Q[i], R[i], tol, max_iter, check, newton_steps)
+                    for i in parts]
+            for i, job in zip(parts, jobs):
+                try:
+                    P[i] = job.result()
+                except RiccatiError as exc:
+                    failed.append((i, exc))
+    if failed:
+        problems = [int(i[j]) for i, exc in failed for j in exc.problems]
+        raise RiccatiError(str(failed[0][1]).replace(str(list(failed[0][1].problems)), str(problems)), problems)
     return P.reshape(batch + (n, n))
 
 
-#: below this much work (problems x n^3) the stack is solved in the calling thread
-_THREAD_WORK = 2_000_000
+#: up to this many states a stack runs with single-threaded BLAS, split over our own threads
+_OWN_THREADS_UP_TO = 256
 _POOLS = {}
+_CONTROLLER = []
+
+
+def _blas_controller():
+    """threadpoolctl's view of the BLAS libraries loaded (numpy's and scipy's), made once."""
+    if not _CONTROLLER:
+        from threadpoolctl import ThreadpoolController
+        _CONTROLLER.append(ThreadpoolController())
+    return _CONTROLLER[0]
 
 
 def solver_threads():
