@@ -5,10 +5,10 @@ against a plain per-step Python loop (textbook Kalman filter with explicit inver
 the Riccati solution by doubling against scipy.linalg.solve_discrete_are.
 """
 import itertools
-import time
 
 import numpy as np
 import scipy.linalg
+from run_all import best_of, textbook_loop  # bench/ is on the path when run as a script
 
 from akf.examples import S17_FORCES, S17_MULTI, example_job
 from akf.jobs import run_job
@@ -21,30 +21,6 @@ from core_akf.statespace import state_space
 N_STEPS = 8192
 DT = 1 / 4096
 KW = dict(model_error_cov=1e-16, force_increment_cov=1e5)
-
-
-def best_of(fn, repeat=3):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
-
-
-def textbook_loop(A, G, Q, R, Y):
-    x = np.zeros(A.shape[0])
-    P = Q.copy()
-    out = np.empty((Y.shape[0], A.shape[0]))
-    I = np.eye(A.shape[0])
-    for k in range(Y.shape[0]):
-        K = P @ G.T @ np.linalg.inv(G @ P @ G.T + R)
-        x = x + K @ (Y[k] - G @ x)
-        P = (I - K @ G) @ P
-        out[k] = x
-        x = A @ x
-        P = A @ P @ A.T + Q
-    return out
 
 
 def main():
