@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .threads import split_stack
+
 #: below this many steps the plain recursion is used (the lifted set-up does not pay off)
 _LIFT_FROM = 64
 #: boundary recursions shorter than this run step by step
@@ -116,6 +118,9 @@ def _left_powers(H, F, K):
 def lti_response(F, Bu, Y, x_first, H=None):
     """Outputs of ``x_k = F x_{k-1} + Bu y_k`` (k >= 1), ``x_0 = x_first``.
 
+    The systems of a stack are independent: they run with single-threaded BLAS, split over
+    threads (:mod:`core_akf.threads`), and each gives the same bits whatever else is in the stack.
+
     Parameters
     ----------
     F : ndarray (B, n, n) -- transition, spectral radius < 1 for a long record
@@ -131,12 +136,23 @@ def lti_response(F, Bu, Y, x_first, H=None):
     F = np.asarray(F, float)
     Bu = np.asarray(Bu, float)
     Y = np.asarray(Y, float)
-    B, N, m = Y.shape
-    n = F.shape[-1]
+    x_first = np.asarray(x_first, float)
+    B = Y.shape[0]
     if H is not None:
         H = np.broadcast_to(np.asarray(H, float), (B,) + np.shape(H)[-2:])
-        if H.shape[1] >= n:       # as many outputs as states: the states, then one projection
-            return lti_response(F, Bu, Y, x_first) @ np.swapaxes(H, -1, -2)
+    outcomes = split_stack(lambda i: _lti_response(F[i], Bu[i], Y[i], x_first[i], None if H is None else H[i]), B)
+    for _, _, exc in outcomes:
+        if exc is not None:
+            raise exc
+    return outcomes[0][1] if len(outcomes) == 1 else np.concatenate([part for _, part, _ in outcomes])
+
+
+def _lti_response(F, Bu, Y, x_first, H=None):
+    """:func:`lti_response` on one part of a stack, in the calling thread."""
+    B, N, m = Y.shape
+    n = F.shape[-1]
+    if H is not None and H.shape[1] >= n:   # as many outputs as states: the states, then one projection
+        return _lti_response(F, Bu, Y, x_first) @ np.swapaxes(H, -1, -2)
     k = n if H is None else H.shape[1]
     steps = N - 1
     if steps < _LIFT_FROM:

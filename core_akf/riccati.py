@@ -10,7 +10,7 @@ matrix products and squares the convergence factor, so ~10-25 steps reach machin
 precision even for lightly damped structures.  The algorithm runs on a stack of
 problems at once (leading batch axis); each problem stops iterating when it has converged, so
 its solution does not depend on what else shares the stack, and a large stack is split over
-threads (:func:`solver_threads`) with the same result.  A solution whose residual is above rounding level is
+threads (:mod:`core_akf.threads`) with the same result.  A solution whose residual is above rounding level is
 polished by Newton (Hewer) steps; one that still fails, or did not converge, is re-solved
 with :func:`scipy.linalg.solve_discrete_are` and a :class:`RiccatiWarning`, and that
 solution's residual is checked too: a :class:`RiccatiError` names the problems without an
@@ -18,14 +18,13 @@ accurate solution.
 """
 from __future__ import annotations
 
-import os
 import warnings
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.linalg
 
 from .exceptions import AKFInputError
+from .threads import split_stack
 
 
 class RiccatiError(AKFInputError):
@@ -112,63 +111,28 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
     R = np.broadcast_to(R, batch + (m, m)).reshape(nb, m, m)
     if n > _OWN_THREADS_UP_TO:          # large problems: BLAS's threads share the work
         return _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps).reshape(batch + (n, n))
-    # small problems: BLAS on one thread (its threads cost more than they bring at these sizes,
-    # measured 1.6x on 70 states) and the stack split over our own threads.  The problems are
-    # independent and each is iterated on its own (see _solve_stack), so every split gives the
-    # same bits -- the same as in a joblib or dask worker, whose BLAS runs on one thread too.
-    threads = min(solver_threads(), nb)
-    parts = np.array_split(np.arange(nb), threads)
+    # small problems: BLAS on one thread, the stack split over threads (core_akf.threads).  The
+    # problems are independent and each is iterated on its own (see _solve_stack), so every
+    # split gives the same bits -- also in a joblib or dask worker
+    outcomes = split_stack(lambda i: _solve_stack(A[i], G[i], Q[i], R[i], tol, max_iter, check, newton_steps), nb)
     P = np.empty((nb, n, n))
     failed = []
-    with _blas_controller().limit(limits=1, user_api="blas"):
-        if threads == 1:
-            P[:] = _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps)
+    for i, part, exc in outcomes:
+        if isinstance(exc, RiccatiError):
+            failed.append((i, exc))
+        elif exc is not None:
+            raise exc
         else:
-            jobs = [_pool(threads).submit(_solve_stack, A[i], G[i], Q[i], R[i], tol, max_iter, check, newton_steps)
-                    for i in parts]
-            for i, job in zip(parts, jobs):
-                try:
-                    P[i] = job.result()
-                except RiccatiError as exc:
-                    failed.append((i, exc))
+            P[i] = part
     if failed:
-        problems = [int(i[j]) for i, exc in failed for j in exc.problems]
+        problems = [i.start + j for i, exc in failed for j in exc.problems]
         raise RiccatiError(str(failed[0][1]).replace(str(list(failed[0][1].problems)), str(problems)), problems)
     return P.reshape(batch + (n, n))
 
 
-#: up to this many states a stack runs with single-threaded BLAS, split over our own threads
+#: up to this many states a stack runs with single-threaded BLAS, split over threads of its own
+#: (measured on 70 states: 1.6x faster than multi-threaded BLAS; at 162 states the same)
 _OWN_THREADS_UP_TO = 256
-_POOLS = {}
-_CONTROLLER = []
-
-
-def _blas_controller():
-    """threadpoolctl's view of the BLAS libraries loaded (numpy's and scipy's), made once."""
-    if not _CONTROLLER:
-        from threadpoolctl import ThreadpoolController
-        _CONTROLLER.append(ThreadpoolController())
-    return _CONTROLLER[0]
-
-
-def solver_threads():
-    """Threads for a stack of Riccati problems: ``AKF_NUM_THREADS`` if set, else the BLAS thread
-    limit a parallel runner gave this process (``OPENBLAS_NUM_THREADS`` / ``OMP_NUM_THREADS``:
-    joblib's loky workers and dask workers set them), else the cores this process may use."""
-    for var in ("AKF_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
-        value = os.environ.get(var, "").strip()
-        if value.isdigit() and int(value) >= 1:
-            return int(value)
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:      # not on Linux
-        return os.cpu_count() or 1
-
-
-def _pool(threads):
-    if threads not in _POOLS:
-        _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="akf-riccati")
-    return _POOLS[threads]
 
 
 def _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps):
