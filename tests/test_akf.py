@@ -199,6 +199,22 @@ def test_lifted_recursion_equals_step_loop(N, n_out):
         assert np.allclose(path(F, U, x0), ref, rtol=1e-11, atol=1e-11)
 
 
+def test_lifted_recursion_gives_the_same_bits_on_any_number_of_threads(monkeypatch):
+    rng = np.random.default_rng(7)
+    B, N, n, m = 5, 700, 9, 2
+    F = rng.normal(size=(B, n, n))
+    F *= 0.95 / np.max(np.abs(np.linalg.eigvals(F)), axis=1)[:, None, None]
+    L, Y, x0, H = rng.normal(size=(B, n, m)), rng.normal(size=(B, N, m)), rng.normal(size=(B, n)), rng.normal(size=(3, n))
+    results = []
+    for threads in ("1", "2", "4"):
+        monkeypatch.setenv("AKF_NUM_THREADS", threads)
+        results.append((recursion.lti_response(F, L, Y, x0), recursion.lti_response(F, L, Y, x0, H)))
+    alone = [recursion.lti_response(F[b:b + 1], L[b:b + 1], Y[b:b + 1], x0[b:b + 1], H)[0] for b in range(B)]
+    for states, outputs in results[1:]:
+        assert np.array_equal(states, results[0][0]) and np.array_equal(outputs, results[0][1])
+    assert np.array_equal(np.stack(alone), results[0][1])
+
+
 def test_time_varying_gain_switch_is_exact_on_s17():
     """The switch to the converged gain changes nothing measurable (S17 case 4, 8192 steps)."""
     ss = state_space(s17_truss().scaled(1.05), ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x",
