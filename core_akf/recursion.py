@@ -9,7 +9,7 @@ form here cuts the record into chunks of ``K`` steps and works on all chunks at 
 2. the zero-state response of every chunk, from a block-Toeplitz matrix of those parameters:
    one large product over all chunks;
 3. the states at the chunk boundaries, ``s_{c+1} = F^K s_c + e_c``: a recursion of N/K steps
-   (itself run lifted when long);
+   (run chunked, :func:`recursion_chunked`, when long);
 4. the free response ``F^(j+1) s_c`` added back: one large product.
 
 Outputs ``H x_k`` of a few rows (the AD sensors of a location scan) come straight from the

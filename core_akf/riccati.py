@@ -5,13 +5,13 @@ The filter DARE for the prior (one-step predicted) covariance ``P``::
     P = A P A^T - A P G^T (G P G^T + R)^-1 G P A^T + Q
 
 is solved by the structure-preserving doubling algorithm (SDA; Chu, Fan & Lin 2005) on
-the dual control problem ``(A^T, G^T)``.  Each doubling step costs one LU solve and a few
+the dual control problem ``(A^T, G^T)``.  Each doubling step costs one inverse and a few
 matrix products and squares the convergence factor, so ~10-25 steps reach machine
 precision even for lightly damped structures.  The algorithm runs on a stack of
 problems at once (leading batch axis); each problem stops iterating when it has converged, so
-its solution does not depend on what else shares the stack, and a large stack is split over
-threads (:mod:`core_akf.threads`) with the same result.  A solution whose residual is above rounding level is
-polished by Newton (Hewer) steps; one that still fails, or did not converge, is re-solved
+its solution does not depend on what else shares the stack, and a stack of small problems is
+split over threads (:mod:`core_akf.threads`) with the same result.  A solution whose residual
+is above rounding level is polished by Newton (Hewer) steps; one that still fails, or did not converge, is re-solved
 with :func:`scipy.linalg.solve_discrete_are` and a :class:`RiccatiWarning`, and that
 solution's residual is checked too: a :class:`RiccatiError` names the problems without an
 accurate solution.

@@ -51,31 +51,20 @@ def split_stack(fn, size):
     independently."""
     threads = max(1, min(solver_threads(), size))
     parts = [slice(int(p[0]), int(p[-1]) + 1) for p in np.array_split(np.arange(size), threads)]
-    outcomes = []
     with single_threaded_blas():
         if threads == 1:
-            jobs = [_Done(fn, parts[0])]
+            results = [_outcome(fn, parts[0])]
         else:
-            pool = _POOLS.get(threads) or _POOLS.setdefault(threads, ThreadPoolExecutor(threads, "akf-stack"))
-            jobs = [pool.submit(fn, idx) for idx in parts]
-        for idx, job in zip(parts, jobs):
-            try:
-                outcomes.append((idx, job.result(), None))
-            except Exception as exc:  # noqa: BLE001 -- handed to the caller, which knows what to do
-                outcomes.append((idx, None, exc))
-    return outcomes
+            if threads not in _POOLS:
+                _POOLS[threads] = ThreadPoolExecutor(threads, "akf-stack")
+            futures = [_POOLS[threads].submit(_outcome, fn, part) for part in parts]
+            results = [f.result() for f in futures]
+    return [(part, value, exc) for part, (value, exc) in zip(parts, results)]
 
 
-class _Done:
-    """A computation run now, with the ``result()`` of a future."""
-
-    def __init__(self, fn, idx):
-        try:
-            self.value, self.error = fn(idx), None
-        except Exception as exc:  # noqa: BLE001
-            self.value, self.error = None, exc
-
-    def result(self):
-        if self.error is not None:
-            raise self.error
-        return self.value
+def _outcome(fn, part):
+    """``(fn(part), None)``, or ``(None, exception)``: the caller decides what an error means."""
+    try:
+        return fn(part), None
+    except Exception as exc:  # noqa: BLE001 -- handed to the caller
+        return None, exc
