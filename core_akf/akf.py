@@ -148,7 +148,11 @@ def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
     ``_CHECK_EVERY`` steps below ``switch_tol``, every filter of the batch), the gain is
     constant to that precision and the rest of the record runs as the fixed-gain recursion.
     ``transition`` (e.g. :class:`ModalBlockTransition`) applies ``A`` cheaply in the
-    covariance update."""
+    covariance update.
+
+    Returns ``(X, E, L, P, switched)``: filtered states, innovations, the last gain, the prior
+    covariance of the next step (or, ``switched``, the converged one) and whether the filter went
+    over to the fixed gain."""
     B, N, m = Y.shape
     n = A.shape[-1]
     out = np.empty((B, N, n))
@@ -169,7 +173,7 @@ def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
                 out[:, k:] = lti_response(I_LG @ A, L, Y[:, k:], first)
                 innov[:, k] = e
                 innov[:, k + 1:] = Y[:, k + 1:] - out[:, k:-1] @ np.swapaxes(G @ A, -1, -2)
-                return out, innov, L, P
+                return out, innov, L, P, True
             P_check = P.copy()
         x = x + np.einsum("bij,bj->bi", L, e)
         P = P - L @ np.swapaxes(PGt, -1, -2)  # a new array: P0 given by the caller stays untouched
@@ -181,7 +185,7 @@ def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
             P = 0.5 * (P + np.swapaxes(P, -1, -2))
         else:
             P = transition.propagate(P, Q)
-    return out, innov, L, P
+    return out, innov, L, P, False
 
 
 #: the time-varying filter tests every this many steps whether its covariance has converged
@@ -268,7 +272,7 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_to
             if P0.shape[-2:] != (n, n):
                 raise AKFInputError(f"P0 must be {n}x{n}, got {P0.shape}")
         P = Q.copy() if P0 is None else np.broadcast_to(P0, (B, n, n)).copy()
-        out, innov, L, P = _time_varying(A, G, Q, Rb, Yb, x, P, switch_tol, transition)
+        out, innov, L, P, _ = _time_varying(A, G, Q, Rb, Yb, x, P, switch_tol, transition)
     if not batched:
         out, innov, L, P = out[0], innov[0], L[0], P[0]
     return FilterResult(states=out, innovations=innov, gain=L, P_prior=P)
@@ -345,6 +349,8 @@ class Estimate:
         steady-state (or last) prior covariance ``P``, in squared sensor units
     filter_matrices : tuple -- ``(A_a, G_a, L)`` in the filter's internal coordinates, with the
         steady-state (or last) gain ``L``; the closed loop ``(I - L G_a) A_a`` sets the transient
+    t0 : float -- time of the first step (s); 0 except for chunks of a streamed record
+        (:class:`core_akf.streaming.Estimator`)
     """
 
     structure: object
@@ -359,6 +365,7 @@ class Estimate:
     measurements: np.ndarray = field(repr=False, default=None)
     innovation_cov: np.ndarray = field(repr=False, default=None)
     filter_matrices: tuple = field(repr=False, default=None)
+    t0: float = 0.0
 
     @property
     def predicted(self):
@@ -375,7 +382,8 @@ class Estimate:
 
     @property
     def time(self):
-        return np.arange(self.forces.shape[0]) * self.dt
+        """Time of each step (s): ``t0 + k dt`` (``t0`` > 0 for a chunk of a streamed record)."""
+        return self.t0 + np.arange(self.forces.shape[0]) * self.dt
 
     @cached_property
     def strains(self):
@@ -484,41 +492,66 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
                                 f"({', '.join(s.label for s in l)}); use steady=False (CLI: --filter time-varying) to run the "
                                 "time-varying filter and watch it drift")
-    # filter in energy-normalised modal coordinates x = T z (see modal_state_transform),
-    # discretised there mode by mode when the damping is classical: the one filter-model builder
-    from .reduced import ModalFilterModel
-
-    fm = ModalFilterModel(structure, locs, dt)
-    T, T_inv, A_a = fm.T, fm.T_inv, fm.A_a
-    nx, nf = fm.n_states, len(locs)
-    Ta = scipy.linalg.block_diag(T, np.eye(nf))
-    Ta_inv = scipy.linalg.block_diag(T_inv, np.eye(nf))
-    G_a = np.stack([np.hstack([G @ T, D]) for G, D in (observation(structure, l, locs) for l in layouts)])
-    per_layout = (isinstance(noise_cov, (list, tuple)) and len(noise_cov) > 0
-                  and all(isinstance(c, dict) for c in noise_cov)) or (
-        not isinstance(noise_cov, dict) and np.ndim(noise_cov) == 3)
-    if per_layout and len(noise_cov) != len(layouts):
-        raise AKFInputError(f"noise_cov has {len(noise_cov)} entries for {len(layouts)} layouts")
-    R = np.stack([noise_covariance(l, noise_cov[b] if per_layout else noise_cov) for b, l in enumerate(layouts)])
-    Q_a = augmented_covariance(nx, nf, state_covariance(structure, model_error_cov), force_increment_cov)
-    Q_a = Ta_inv @ Q_a @ Ta_inv.T
-    Q_a = 0.5 * (Q_a + Q_a.T)
-    z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", ndim=1, shape=(nx + nf,))
-    Pz0 = None if P0 is None else Ta_inv @ diag_levels(P0, nx + nf, "P0") @ Ta_inv.T
+    setup = _FilterSetup(structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0, P0)
     # classically damped structures are block-diagonal in these coordinates: cheap A P A^T
-    transition = None if steady else ModalBlockTransition.detect(A_a, structure.n)
+    transition = None if steady else ModalBlockTransition.detect(setup.A_a, structure.n)
     try:
         # Q, S, R and P0 were checked as the user gave them; their modal transforms need no second check
-        res = filter_states(A_a, G_a, Q_a, R, Y, x0=z0, P0=Pz0, steady=steady, transition=transition, check=False)
+        res = filter_states(setup.A_a, setup.G_a, setup.Q_a, setup.R, Y, x0=setup.z0, P0=setup.Pz0, steady=steady,
+                            transition=transition, check=False)
     except RiccatiError as exc:
-        names = "; ".join(", ".join(s.label for s in layouts[b]) for b in exc.problems)
-        raise RiccatiError(f"steady-state gain failed for the layout(s) [{names}]: {exc}", exc.problems) from None
-    states = res.states @ Ta.T                      # back to physical [u; u'; f]
-    gains = Ta @ res.gain                           # gain for the physical state
-    S_innov = G_a @ res.P_prior @ np.swapaxes(G_a, -1, -2) + R
-    return [Estimate(structure, l, locs, float(dt), states[b, :, :nx], states[b, :, nx:],
-                     res.innovations[b], gains[b], reports[b], Y[b], 0.5 * (S_innov[b] + S_innov[b].T),
-                     (A_a, G_a[b], res.gain[b])) for b, l in enumerate(layouts)]
+        raise setup.riccati_error(exc) from None
+    return setup.estimates(res.states, res.innovations, res.gain, res.P_prior, Y, reports)
+
+
+class _FilterSetup:
+    """The filter's matrices for sensor layouts of one structure and force set, in energy-normalised
+    modal coordinates ``x = T z`` (see :func:`~core_akf.statespace.modal_state_transform`),
+    discretised there mode by mode when the damping is classical: the one builder behind
+    :func:`estimate_batch` and :class:`core_akf.streaming.Estimator`.
+
+    Attributes: ``A_a`` (n_a, n_a); ``G_a`` (B, m, n_a); ``R`` (B, m, m); ``Q_a`` (n_a, n_a);
+    ``z0`` / ``Pz0`` the prior (None: zero / ``Q_a``); ``Ta``, ``Ta_inv`` the transforms of the
+    augmented state."""
+
+    def __init__(self, structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0=None, P0=None):
+        from .reduced import ModalFilterModel
+
+        self.structure, self.layouts, self.locs, self.dt = structure, layouts, locs, float(dt)
+        fm = ModalFilterModel(structure, locs, dt)
+        T, T_inv, self.A_a = fm.T, fm.T_inv, fm.A_a
+        self.nx, nf = fm.n_states, len(locs)
+        self.Ta = scipy.linalg.block_diag(T, np.eye(nf))
+        self.Ta_inv = Ta_inv = scipy.linalg.block_diag(T_inv, np.eye(nf))
+        self.G_a = np.stack([np.hstack([G @ T, D]) for G, D in (observation(structure, l, locs) for l in layouts)])
+        per_layout = (isinstance(noise_cov, (list, tuple)) and len(noise_cov) > 0
+                      and all(isinstance(c, dict) for c in noise_cov)) or (
+            not isinstance(noise_cov, dict) and np.ndim(noise_cov) == 3)
+        if per_layout and len(noise_cov) != len(layouts):
+            raise AKFInputError(f"noise_cov has {len(noise_cov)} entries for {len(layouts)} layouts")
+        self.R = np.stack([noise_covariance(l, noise_cov[b] if per_layout else noise_cov)
+                           for b, l in enumerate(layouts)])
+        Q_a = augmented_covariance(self.nx, nf, state_covariance(structure, model_error_cov), force_increment_cov)
+        Q_a = Ta_inv @ Q_a @ Ta_inv.T
+        self.Q_a = 0.5 * (Q_a + Q_a.T)
+        self.z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", ndim=1, shape=(self.nx + nf,))
+        self.Pz0 = None if P0 is None else Ta_inv @ diag_levels(P0, self.nx + nf, "P0") @ Ta_inv.T
+
+    def riccati_error(self, exc):
+        """A :class:`RiccatiError` naming the layouts whose gain failed."""
+        names = "; ".join(", ".join(s.label for s in self.layouts[b]) for b in exc.problems)
+        return RiccatiError(f"steady-state gain failed for the layout(s) [{names}]: {exc}", exc.problems)
+
+    def estimates(self, states, innovations, gain, P_prior, Y, reports, t0=0.0):
+        """One :class:`Estimate` per layout from the filter's modal-coordinate output (leading
+        batch axis): states back to physical ``[u; u'; f]``, gains for the physical state."""
+        nx = self.nx
+        states = states @ self.Ta.T
+        gains = self.Ta @ gain
+        S_innov = self.G_a @ P_prior @ np.swapaxes(self.G_a, -1, -2) + self.R
+        return [Estimate(self.structure, l, self.locs, self.dt, states[b, :, :nx], states[b, :, nx:],
+                         innovations[b], gains[b], reports[b], Y[b], 0.5 * (S_innov[b] + S_innov[b].T),
+                         (self.A_a, self.G_a[b], gain[b]), t0=t0) for b, l in enumerate(self.layouts)]
 
 
 def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements: ArrayLike, dt: float, *,

@@ -1,0 +1,498 @@
+"""Readers of data-acquisition files behind one interface: CSV, Parquet, TDMS, UFF 58 and HDF5.
+
+A :class:`Reader` opens one file and tells its channels, their units where the file records them,
+its time grid (:class:`Timing`: first time, step and length, checked to be uniform) and gives the
+samples of chosen channels chunk by chunk in the file's own units.  The format is chosen by the
+file's extension or named (``format="tdms"``).  A user adds a format by subclassing
+:class:`Reader` and calling :func:`register_reader` (or by an entry point in the group
+``akf.readers`` that names the class).
+
+Layouts read:
+
+- CSV, Parquet: a time column (default ``time``) and one column per channel.
+- TDMS (npTDMS): every channel of every group (``group/channel``, or ``channel`` where the name is
+  unique); the time from the waveform properties ``wf_start_offset`` / ``wf_increment`` or from a
+  channel named like the time column; units from ``unit_string``.
+- UFF 58 (pyuff): one data set per channel, named by its ``id1`` (or ``NODE:DIR`` from the response
+  node and direction where ``id1`` is empty or repeats); even abscissa spacing; units from the
+  ordinate's unit label.  A UFF file is read whole (the format has no random access).
+- HDF5 (h5py): one 1-D dataset per channel in a group (default the root), a ``time`` dataset or
+  the attributes ``dt`` (or ``wf_increment``) and ``t0`` (or ``wf_start_offset``) on the group;
+  units from a dataset's ``unit`` or ``units`` attribute.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import AKFInputError
+
+#: a time stamp may lie off the uniform grid ``t_0 + k dt`` by this fraction of a step
+TIME_GRID_RTOL = 0.01
+
+
+@dataclass(frozen=True)
+class Timing:
+    """A file's time grid: first time ``start`` (s), step ``dt`` (s) and ``n_steps``."""
+
+    start: float
+    dt: float
+    n_steps: int
+
+    @property
+    def end(self):
+        """Time of the step after the last one (s): where the next file of a record starts."""
+        return self.start + self.n_steps * self.dt
+
+
+class MissingExtraError(AKFInputError):
+    """A format whose reading library is not installed."""
+
+
+class Reader(ABC):
+    """One data file.  Subclasses set ``format`` (a name), ``extensions`` and, for a format that
+    needs an optional library, ``module`` (its import name) and ``extra`` (the pip extra)."""
+
+    format: str = ""
+    extensions: tuple = ()
+    module: str | None = None
+    extra: str | None = None
+
+    def __init__(self, path, time_column="time", group=None):
+        self.path = os.fspath(path)
+        self.time_column = time_column
+        self.group = group
+        if not os.path.exists(self.path):
+            raise AKFInputError(f"measurement file {self.path!r} not found")
+        if os.path.isdir(self.path):
+            raise AKFInputError(f"measurement file {self.path!r} is a folder; give a data file, or the folder as "
+                                "files = \"folder/*.ext\"")
+        if self.module:
+            self.lib = _require(self.module, self.extra, self.format)
+
+    @abstractmethod
+    def channels(self) -> list:
+        """The channel names in the file (without the time column)."""
+
+    def units(self) -> dict:
+        """Units the file records per channel (``{}`` where it records none)."""
+        return {}
+
+    @abstractmethod
+    def timing(self) -> Timing:
+        """The time grid, checked: increasing, uniform within :data:`TIME_GRID_RTOL` of a step."""
+
+    @abstractmethod
+    def chunks(self, channels, size):
+        """Samples of ``channels`` (in the file's units) as arrays (k <= size, len(channels)), in
+        time order, covering the whole file."""
+
+    def _check_channels(self, channels):
+        known = self.channels()
+        missing = [c for c in channels if c not in known]
+        if missing:
+            raise AKFInputError(f"{self.path}: no channel(s) {missing}; the file has {known}")
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.path!r})"
+
+
+def _require(module, extra, fmt):
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise MissingExtraError(f"reading {fmt} files needs the package {module!r}: pip install "
+                                f"\"akf-toolkit[{extra}]\"") from None
+
+
+def check_time_grid(t, path, dt=None, offset=0):
+    """``Timing`` of time stamps ``t`` (s), or a located error: a time that repeats or goes back,
+    or a stamp off the uniform grid (a gap or jitter).  ``dt``: the step if known (else the median
+    step); ``offset``: the row number of ``t[0]`` in the file (for messages)."""
+    t = np.asarray(t, float)
+    if t.size < 1:
+        raise AKFInputError(f"{path}: no data rows")
+    if not np.all(np.isfinite(t)):
+        r = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise AKFInputError(f"{path}: time column has a missing/NaN value in data row {offset + r + 1}")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        r = int(np.flatnonzero(steps <= 0)[0])
+        what = "repeats" if steps[r] == 0 else "goes back"
+        raise AKFInputError(f"{path}: time {what} at data row {offset + r + 2} (t = {t[r + 1]:.9g} s after "
+                            f"t = {t[r]:.9g} s in row {offset + r + 1}); time stamps must increase by dt")
+    if dt is None:
+        if t.size < 2:
+            raise AKFInputError(f"{path}: one data row; a record needs at least two time steps")
+        dt = float(np.median(steps))
+    off = np.abs(t - t[0] - dt * np.arange(t.size))
+    if off.size and np.max(off) > TIME_GRID_RTOL * dt:
+        r = int(np.argmax(off > TIME_GRID_RTOL * dt))
+        raise AKFInputError(f"{path}: data row {offset + r + 1} (t = {t[r]:.9g} s) is {off[r]:.3g} s ({off[r] / dt:.3g} "
+                            f"steps) off the uniform grid t0 + k dt (dt = {dt:.9g} s): a gap or jitter there")
+    return Timing(float(t[0]), float(dt), int(t.size))
+
+
+# ------------------------------------------------------------------------------------- tables
+class CsvReader(Reader):
+    """CSV: a header row, a time column and one numeric column per channel."""
+
+    format, extensions = "csv", (".csv", ".txt")
+
+    def __init__(self, path, time_column="time", group=None):
+        super().__init__(path, time_column, group)
+        import pandas as pd
+
+        try:
+            self._columns = list(pd.read_csv(self.path, nrows=0).columns)
+        except pd.errors.EmptyDataError:
+            raise AKFInputError(f"{self.path}: the file is empty; expected a header row and one row per time "
+                                "step") from None
+        except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+            raise AKFInputError(f"{self.path}: not a readable CSV file ({exc})") from None
+        if time_column not in self._columns:
+            raise AKFInputError(f"{self.path}: no time column {time_column!r}; found {self._columns}")
+        self._timing = None
+
+    def channels(self):
+        return [c for c in self._columns if c != self.time_column]
+
+    def _read(self, columns, size):
+        import pandas as pd
+
+        try:
+            yield from pd.read_csv(self.path, usecols=columns, chunksize=size, dtype=str)
+        except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+            raise AKFInputError(f"{self.path}: not a readable CSV file ({exc})") from None
+
+    def timing(self):
+        if self._timing is None:
+            parts = []
+            for frame in self._read([self.time_column], 1 << 20):
+                parts.append(_numeric(frame[self.time_column], self.path, self.time_column, sum(map(len, parts))))
+            t = np.concatenate(parts) if parts else np.empty(0)
+            self._timing = check_time_grid(t, self.path)
+        return self._timing
+
+    def chunks(self, channels, size):
+        self._check_channels(channels)
+        row = 0
+        for frame in self._read(list(channels), size):
+            yield np.column_stack([_numeric(frame[c], self.path, c, row) for c in channels])
+            row += len(frame)
+
+
+def _numeric(column, path, name, row0):
+    """A column as floats; a located error for a missing or non-numeric entry."""
+    import pandas as pd
+
+    values = pd.to_numeric(column, errors="coerce").to_numpy(float)
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        r = int(bad[0])
+        raise AKFInputError(f"{path}: column {name!r} has {bad.size} missing/NaN, infinite or non-numeric sample(s); "
+                            f"first {str(column.iloc[r])!r} in data row {row0 + r + 1}")
+    return values
+
+
+class ParquetReader(Reader):
+    """Parquet (pyarrow): a time column and one numeric column per channel; read by row batches."""
+
+    format, extensions = "parquet", (".parquet", ".pq")
+
+    def __init__(self, path, time_column="time", group=None):
+        super().__init__(path, time_column, group)
+        import pyarrow.parquet as pq
+
+        try:
+            self._file = pq.ParquetFile(self.path)
+        except Exception as exc:  # noqa: BLE001 -- pyarrow raises its own error types
+            raise AKFInputError(f"{self.path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
+        self._columns = [c for c in self._file.schema_arrow.names if not c.startswith("__index_level")]
+        if time_column not in self._columns:
+            raise AKFInputError(f"{self.path}: no time column {time_column!r}; found {self._columns}")
+        self._timing = None
+
+    def channels(self):
+        return [c for c in self._columns if c != self.time_column]
+
+    def timing(self):
+        if self._timing is None:
+            t = self._file.read(columns=[self.time_column]).column(0).to_numpy(zero_copy_only=False)
+            self._timing = check_time_grid(np.asarray(t, float), self.path)
+        return self._timing
+
+    def chunks(self, channels, size):
+        self._check_channels(channels)
+        row = 0
+        for batch in self._file.iter_batches(batch_size=size, columns=list(channels)):
+            block = np.column_stack([np.asarray(batch.column(i).to_numpy(zero_copy_only=False), float)
+                                     for i in range(len(channels))])
+            bad = np.argwhere(~np.isfinite(block))
+            if bad.size:
+                r, c = bad[0]
+                raise AKFInputError(f"{self.path}: column {channels[c]!r} has a missing/NaN or infinite sample in "
+                                    f"data row {row + r + 1}")
+            row += block.shape[0]
+            yield block
+
+
+# --------------------------------------------------------------------------------- DAQ formats
+class TdmsReader(Reader):
+    """LabVIEW TDMS (npTDMS), opened for streaming: only the chunks asked for are read."""
+
+    format, extensions, module, extra = "tdms", (".tdms",), "nptdms", "tdms"
+
+    def __init__(self, path, time_column="time", group=None):
+        super().__init__(path, time_column, group)
+        try:
+            self._file = self.lib.TdmsFile.open(self.path)
+        except Exception as exc:  # noqa: BLE001 -- npTDMS raises its own error types
+            raise AKFInputError(f"{self.path}: not a readable TDMS file ({type(exc).__name__}: {exc})") from None
+        groups = self._file.groups()
+        if group is not None:
+            groups = [g for g in groups if g.name == group]
+            if not groups:
+                raise AKFInputError(f"{self.path}: no group {group!r}; the file has {[g.name for g in self._file.groups()]}")
+        all_channels = [(g.name, c) for g in groups for c in g.channels()]
+        names = [c.name for _, c in all_channels]
+        self._channels = {}
+        for gname, c in all_channels:
+            self._channels[c.name if names.count(c.name) == 1 else f"{gname}/{c.name}"] = c
+        self._timing = None
+
+    def close(self):
+        self._file.close()
+
+    def __del__(self):
+        try:
+            self._file.close()
+        except Exception:  # noqa: BLE001, S110 -- closing at exit
+            pass
+
+    def channels(self):
+        return [c for c in self._channels if c != self.time_column]
+
+    def units(self):
+        return {name: c.properties["unit_string"] for name, c in self._channels.items()
+                if name != self.time_column and "unit_string" in c.properties}
+
+    def timing(self):
+        if self._timing is None:
+            data = [c for n, c in self._channels.items() if n != self.time_column]
+            if not data:
+                raise AKFInputError(f"{self.path}: no data channels")
+            lengths = {len(c) for c in data}
+            if len(lengths) > 1:
+                raise AKFInputError(f"{self.path}: channels of different lengths {sorted(lengths)}; a record needs one "
+                                    "sample of every channel per time step")
+            n = lengths.pop()
+            if self.time_column in self._channels:
+                self._timing = check_time_grid(self._channels[self.time_column][:], self.path)
+            else:
+                props = data[0].properties
+                if "wf_increment" not in props:
+                    raise AKFInputError(f"{self.path}: no time: the channels have no wf_increment property and there "
+                                        f"is no channel {self.time_column!r}")
+                for c in data:
+                    if (c.properties.get("wf_increment"), c.properties.get("wf_start_offset", 0.0)) != (
+                            props["wf_increment"], props.get("wf_start_offset", 0.0)):
+                        raise AKFInputError(f"{self.path}: channel {c.name!r} has another time grid (wf_increment, "
+                                            "wf_start_offset) than the others")
+                dt = float(props["wf_increment"])
+                if not dt > 0:
+                    raise AKFInputError(f"{self.path}: wf_increment {dt!r} is not a positive time step")
+                self._timing = Timing(float(props.get("wf_start_offset", 0.0)), dt, int(n))
+        return self._timing
+
+    def chunks(self, channels, size):
+        self._check_channels(channels)
+        n = self.timing().n_steps
+        for start in range(0, n, size):
+            stop = min(start + size, n)
+            yield np.column_stack([np.asarray(self._channels[c][start:stop], float) for c in channels])
+
+
+class Uff58Reader(Reader):
+    """Universal File Format data sets 58 (pyuff): one set per channel, evenly spaced."""
+
+    format, extensions, module, extra = "uff", (".uff", ".unv"), "pyuff", "uff"
+
+    def __init__(self, path, time_column="time", group=None):
+        super().__init__(path, time_column, group)
+        try:
+            uff = self.lib.UFF(self.path)
+            types = list(uff.get_set_types())
+            sets = uff.read_sets([i for i, t in enumerate(types) if int(t) == 58]) if 58 in types else []
+        except Exception as exc:  # noqa: BLE001 -- pyuff raises bare Exceptions
+            raise AKFInputError(f"{self.path}: not a readable UFF file ({type(exc).__name__}: {exc})") from None
+        sets = [sets] if isinstance(sets, dict) else list(sets)
+        if not sets:
+            raise AKFInputError(f"{self.path}: no data set of type 58 (function at nodal DOF)")
+        ids = [str(s.get("id1", "")).strip() for s in sets]
+        self._sets = {}
+        for s, name in zip(sets, ids):
+            if not name or name.upper() == "NONE" or ids.count(name) > 1:
+                name = f"{int(s.get('rsp_node', 0))}:{int(s.get('rsp_dir', 0))}"
+            if name in self._sets:
+                raise AKFInputError(f"{self.path}: two data sets named {name!r}")
+            if int(s.get("abscissa_spacing", 1)) != 1:
+                raise AKFInputError(f"{self.path}: data set {name!r} has uneven abscissa spacing; a record needs a "
+                                    "uniform time step")
+            self._sets[name] = s
+
+    def channels(self):
+        return list(self._sets)
+
+    def units(self):
+        from .units import is_unset
+
+        return {n: str(s["ordinate_axis_units_lab"]).strip() for n, s in self._sets.items()
+                if not is_unset(s.get("ordinate_axis_units_lab"))}
+
+    def timing(self):
+        grids = {(float(s["abscissa_min"]), float(s["abscissa_inc"]), int(len(s["data"]))) for s in self._sets.values()}
+        if len(grids) > 1:
+            raise AKFInputError(f"{self.path}: the data sets have different time grids (start, step, length): "
+                                f"{sorted(grids)}")
+        start, dt, n = grids.pop()
+        if not dt > 0:
+            raise AKFInputError(f"{self.path}: abscissa increment {dt!r} is not a positive time step")
+        return Timing(start, dt, n)
+
+    def chunks(self, channels, size):
+        self._check_channels(channels)
+        data = np.column_stack([np.real(np.asarray(self._sets[c]["data"])).astype(float) for c in channels])
+        for start in range(0, data.shape[0], size):
+            yield data[start:start + size]
+
+
+class Hdf5Reader(Reader):
+    """HDF5 (h5py): 1-D datasets per channel in a group; read by slices."""
+
+    format, extensions, module, extra = "hdf5", (".h5", ".hdf5", ".hdf"), "h5py", "hdf5"
+
+    def __init__(self, path, time_column="time", group=None):
+        super().__init__(path, time_column, group)
+        try:
+            self._file = self.lib.File(self.path, "r")
+        except Exception as exc:  # noqa: BLE001 -- h5py raises OSError subclasses of its own
+            raise AKFInputError(f"{self.path}: not a readable HDF5 file ({type(exc).__name__}: {exc})") from None
+        try:
+            self._group = self._file[group] if group else self._file
+        except KeyError:
+            raise AKFInputError(f"{self.path}: no group {group!r}; the file has {list(self._file)}") from None
+        self._data = {k: v for k, v in self._group.items() if isinstance(v, self.lib.Dataset) and v.ndim == 1}
+        self._timing = None
+
+    def __del__(self):
+        try:
+            self._file.close()
+        except Exception:  # noqa: BLE001, S110 -- closing at exit
+            pass
+
+    def channels(self):
+        return [c for c in self._data if c != self.time_column]
+
+    def units(self):
+        out = {}
+        for name, ds in self._data.items():
+            for key in ("unit", "units", "unit_string"):
+                if key in ds.attrs and name != self.time_column:
+                    v = ds.attrs[key]
+                    out[name] = v.decode() if isinstance(v, bytes) else str(v)
+                    break
+        return out
+
+    def timing(self):
+        if self._timing is None:
+            data = [self._data[c] for c in self.channels()]
+            if not data:
+                raise AKFInputError(f"{self.path}: no 1-D datasets (channels) in {self.group or 'the root group'}")
+            lengths = {ds.shape[0] for ds in data}
+            if len(lengths) > 1:
+                raise AKFInputError(f"{self.path}: channels of different lengths {sorted(lengths)}")
+            n = lengths.pop()
+            if self.time_column in self._data:
+                self._timing = check_time_grid(self._data[self.time_column][:], self.path)
+            else:
+                a = self._group.attrs
+                dt = a.get("dt", a.get("wf_increment"))
+                if dt is None:
+                    raise AKFInputError(f"{self.path}: no time: no dataset {self.time_column!r} and no attribute dt "
+                                        "(or wf_increment) on the group")
+                self._timing = Timing(float(a.get("t0", a.get("wf_start_offset", 0.0))), float(dt), int(n))
+        return self._timing
+
+    def chunks(self, channels, size):
+        self._check_channels(channels)
+        n = self.timing().n_steps
+        for start in range(0, n, size):
+            stop = min(start + size, n)
+            yield np.column_stack([np.asarray(self._data[c][start:stop], float) for c in channels])
+
+
+# ------------------------------------------------------------------------------------ registry
+_READERS: dict = {}
+
+
+def register_reader(cls):
+    """Register a :class:`Reader` subclass for its ``format`` name and ``extensions`` (a class
+    decorator; a later registration of the same name or extension wins)."""
+    if not (isinstance(cls, type) and issubclass(cls, Reader)) or not cls.format:
+        raise TypeError(f"{cls!r} is not a Reader subclass with a format name")
+    _READERS[cls.format] = cls
+    return cls
+
+
+for _cls in (CsvReader, ParquetReader, TdmsReader, Uff58Reader, Hdf5Reader):
+    register_reader(_cls)
+
+_ENTRY_POINTS_LOADED = False
+
+
+def _load_entry_points():
+    global _ENTRY_POINTS_LOADED
+    if _ENTRY_POINTS_LOADED:
+        return
+    _ENTRY_POINTS_LOADED = True
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group="akf.readers"):
+        try:
+            register_reader(ep.load())
+        except Exception as exc:  # noqa: BLE001 -- a broken plugin must not stop the built-in formats
+            import warnings
+
+            warnings.warn(f"reader plugin {ep.name!r} ({ep.value}) could not be loaded: {exc}")
+
+
+def formats():
+    """Registered format names -> their extensions."""
+    _load_entry_points()
+    return {name: cls.extensions for name, cls in _READERS.items()}
+
+
+def reader_class(path, format=None):
+    """The :class:`Reader` class for ``path``: the named ``format`` or the one of its extension."""
+    _load_entry_points()
+    if format is not None:
+        if format not in _READERS:
+            raise AKFInputError(f"unknown measurement format {format!r}; known: {sorted(_READERS)}")
+        return _READERS[format]
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    for cls in reversed(list(_READERS.values())):
+        if ext in cls.extensions:
+            return cls
+    raise AKFInputError(f"{os.fspath(path)}: no reader for extension {ext!r}; known: "
+                        + ", ".join(f"{n} ({', '.join(e)})" for n, e in formats().items())
+                        + "; or name the format (format = \"csv\")")
+
+
+def open_file(path, format=None, time_column="time", group=None):
+    """A :class:`Reader` for one file."""
+    return reader_class(path, format)(path, time_column=time_column, group=group)

@@ -1,0 +1,299 @@
+"""A measured record: one file or many (a folder, a glob pattern, a list), its channels mapped to
+sensors and converted to SI, delivered in chunks of a fixed number of steps.
+
+>>> rec = Record("run-*.tdms", ["strain:13", "acc:8:y"],                    # doctest: +SKIP
+...              channels={"SG13": "strain:13", "ACC_8Y": "acc:8:y"},
+...              units={"SG13": "microstrain", "ACC_8Y": "g"}, invert=["ACC_8Y"], remove_offset=1.0)
+>>> for first_step, Y in rec.chunks(65536):                                 # doctest: +SKIP
+...     ...                                                                 # Y (k, 2) in m/m, m/s^2
+
+The files are put in time order and checked to join: the same time step, and each file starting
+one step after the previous one ends (a gap or an overlap is an error naming both files).  The
+chunks are cut from the joined record, so a record split over many files gives the same chunks
+as the joined file.
+"""
+from __future__ import annotations
+
+import glob
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import AKFInputError
+from ..sensors import as_layout
+from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
+from .units import conversion, is_bridge_unit, is_unset
+
+#: a strain channel whose RMS exceeds this (m/m) is not in SI units: 1 % is five times the yield
+#: strain of structural steel, far beyond the elastic range every model here assumes
+MAX_PLAUSIBLE_STRAIN = 0.01
+#: a channel exactly constant over a chunk this long is disconnected or saturated
+_CONSTANT_MIN_STEPS = 16
+
+
+def record_files(spec):
+    """The files of a record from a path, a glob pattern, a folder (every file of a registered
+    format in it) or a list of those; sorted by name (:class:`Record` orders them by time)."""
+    specs = [spec] if isinstance(spec, (str, os.PathLike)) else list(spec)
+    if not specs:
+        raise AKFInputError("no measurement files given")
+    out = []
+    known = tuple(e for exts in formats().values() for e in exts)
+    for s in specs:
+        s = os.fspath(s)
+        if os.path.isdir(s):
+            found = sorted(os.path.join(s, f) for f in os.listdir(s) if f.lower().endswith(known))
+            if not found:
+                raise AKFInputError(f"measurement folder {s!r} has no data files ({', '.join(known)})")
+        elif glob.has_magic(s):
+            found = sorted(f for f in glob.glob(s) if os.path.isfile(f))
+            if not found:
+                raise AKFInputError(f"no measurement files match {s!r}")
+        else:
+            if not os.path.exists(s):
+                raise AKFInputError(f"measurement file {s!r} not found")
+            found = [s]
+        out += found
+    if len(set(out)) != len(out):
+        raise AKFInputError("a measurement file is listed twice: " + ", ".join(sorted({f for f in out if out.count(f) > 1})))
+    return out
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One sensor's source: the file channel, its conversion to SI and its sign."""
+
+    sensor: str
+    name: str
+    unit: str
+    convert: object
+    sign: float
+
+
+class Record:
+    """A measured record for ``sensors``.
+
+    Parameters
+    ----------
+    files : path, glob pattern, folder or list of those
+    sensors : sensor layout (labels such as ``"strain:13"``); the columns of every chunk, in order
+    channels : dict, optional -- file channel -> sensor label; default: each sensor's channel is
+        named like the sensor
+    units : dict, optional -- file channel -> unit (``"microstrain"``, ``"g"``, ``"mV/V"``, ...);
+        default the unit the file records, else SI
+    gauge_factor, bridge : number / str or dict per channel -- for bridge outputs (mV/V)
+    invert : channels whose sign is flipped
+    remove_offset : False, True (subtract each channel's mean over the record: one extra pass) or
+        a time in s (subtract the mean over the record's first that many seconds: zero drift of
+        gauges measured at rest)
+    format, time_column, group : passed to the readers (:mod:`core_akf.io.readers`)
+    """
+
+    def __init__(self, files, sensors, *, channels=None, units=None, gauge_factor=None, bridge=None, invert=(),
+                 remove_offset=False, format=None, time_column="time", group=None):
+        self.layout = as_layout(sensors)
+        self.labels = [s.label for s in self.layout]
+        paths = record_files(files)
+        classes = {reader_class(p, format) for p in paths}
+        if len(classes) > 1:
+            raise AKFInputError("the record's files have different formats (" + ", ".join(sorted(c.format for c in classes))
+                                + "); give files of one format")
+        self._open = lambda p: open_file(p, format, time_column, group)
+        self.channels_map = self._channel_map(channels)
+        self.units_given = dict(units or {})
+        self.gauge_factor, self.bridge = gauge_factor, bridge
+        self.invert = list(invert or ())
+        unknown = [c for c in [*self.units_given, *self.invert] if c not in self.channels_map]
+        if isinstance(gauge_factor, dict):
+            unknown += [c for c in gauge_factor if c not in self.channels_map]
+        if isinstance(bridge, dict):
+            unknown += [c for c in bridge if c not in self.channels_map]
+        if unknown:
+            raise AKFInputError(f"units/invert/gauge_factor/bridge name channel(s) {sorted(set(unknown))} that are not "
+                                f"mapped to a sensor; mapped: {sorted(self.channels_map)}")
+        if isinstance(remove_offset, bool) or remove_offset is None:
+            self.remove_offset = bool(remove_offset)
+        elif not (np.isfinite(remove_offset) and remove_offset > 0):
+            raise AKFInputError(f"remove_offset must be true, false or a positive time (s), got {remove_offset!r}")
+        else:
+            self.remove_offset = float(remove_offset)
+        self.files, self.timings, self.sources = [], [], []
+        for p in paths:
+            reader = self._open(p)
+            self.files.append(p)
+            self.timings.append(reader.timing())
+            self.sources.append(self._resolve(reader))
+            del reader
+        order = np.argsort([t.start for t in self.timings], kind="stable")
+        self.files = [self.files[i] for i in order]
+        self.timings = [self.timings[i] for i in order]
+        self.sources = [self.sources[i] for i in order]
+        self._check_joins()
+        self.offsets = None
+
+    # ---------------------------------------------------------------------------- channels
+    def _channel_map(self, channels):
+        """file channel -> sensor label, checked: every sensor mapped once, no unknown sensor."""
+        if channels is None:
+            return {label: label for label in self.labels}
+        if not isinstance(channels, dict):
+            raise AKFInputError(f"channels must map file channels to sensors, e.g. {{'SG13': 'strain:13'}}; got "
+                                f"{type(channels).__name__}")
+        mapped = {}
+        for name, sensor in channels.items():
+            label = as_layout([sensor])[0].label
+            if label not in self.labels:
+                raise AKFInputError(f"channel {name!r} is mapped to {sensor!r}, which is not among the job's sensors "
+                                    f"{self.labels}")
+            if label in mapped.values():
+                other = next(k for k, v in mapped.items() if v == label)
+                raise AKFInputError(f"sensor {label!r} is mapped twice: from channels {other!r} and {name!r}")
+            mapped[name] = label
+        unmapped = [s for s in self.labels if s not in mapped.values()]
+        if unmapped:
+            raise AKFInputError(f"sensor(s) {unmapped} have no channel: map a file channel to each, e.g. "
+                                f"channels = {{\"CHANNEL\" = \"{unmapped[0]}\"}}")
+        return mapped
+
+    def _per_channel(self, value, name):
+        return value.get(name) if isinstance(value, dict) else value
+
+    def _resolve(self, reader):
+        """The sources of the sensors (in layout order) in one file, with their conversions."""
+        by_sensor = {v: k for k, v in self.channels_map.items()}
+        missing = [by_sensor[s] for s in self.labels if by_sensor[s] not in reader.channels()]
+        if missing:
+            raise AKFInputError(f"{reader.path}: no channel(s) {missing}; the file has {reader.channels()}")
+        file_units = reader.units()
+        out = []
+        for sensor, label in zip(self.layout, self.labels):
+            name = by_sensor[label]
+            unit = self.units_given.get(name)
+            if unit is None:
+                recorded = file_units.get(name)
+                unit = None if is_unset(recorded) else recorded
+            gf = self._per_channel(self.gauge_factor, name)
+            br = self._per_channel(self.bridge, name)
+            explicit = any(isinstance(v, dict) and name in v for v in (self.gauge_factor, self.bridge))
+            if not explicit and not (sensor.kind == "strain" and is_bridge_unit(unit)):
+                gf = br = None      # a record-wide gauge factor and bridge concern the bridge channels only
+            conv = conversion(unit, sensor.kind, f"{name} ({os.path.basename(reader.path)})", gf, br)
+            out.append(Channel(label, name, conv.unit, conv, -1.0 if name in self.invert else 1.0))
+        return out
+
+    # ---------------------------------------------------------------------------- time
+    def _check_joins(self):
+        t0 = self.timings[0]
+        for (fa, a), (fb, b) in zip(zip(self.files, self.timings), zip(self.files[1:], self.timings[1:])):
+            if abs(b.dt - t0.dt) > 1e-9 * t0.dt:
+                raise AKFInputError(f"{fb}: time step {b.dt:.9g} s differs from {t0.dt:.9g} s of {self.files[0]}")
+            delta = b.start - a.end
+            if abs(delta) > TIME_GRID_RTOL * t0.dt:
+                what = (f"a gap of {delta:.6g} s ({delta / t0.dt:.6g} steps)" if delta > 0
+                        else f"an overlap of {-delta:.6g} s ({-delta / t0.dt:.6g} steps)")
+                raise AKFInputError(f"the record has {what} between {fa} (ends at {a.end - a.dt:.9g} s, next step "
+                                    f"{a.end:.9g} s) and {fb} (starts at {b.start:.9g} s); records must join step by "
+                                    "step: remove or fill the files in question")
+
+    @property
+    def dt(self):
+        return self.timings[0].dt
+
+    @property
+    def start(self):
+        return self.timings[0].start
+
+    @property
+    def n_steps(self):
+        return sum(t.n_steps for t in self.timings)
+
+    def check_dt(self, dt):
+        """Error unless the record's time step matches ``dt`` (s) to :data:`TIME_GRID_RTOL`."""
+        if abs(self.dt - dt) > TIME_GRID_RTOL * dt:
+            raise AKFInputError(f"{self.files[0]}: sampling interval {self.dt:.9g} s does not match the job's "
+                                f"dt = {dt:.9g} s ({self.dt / dt:.4g} x dt)")
+
+    # ---------------------------------------------------------------------------- data
+    def _raw_chunks(self, size):
+        """SI chunks without offset removal, cut at multiples of ``size`` across file boundaries."""
+        pending, held, step = [], 0, 0
+        for path, sources in zip(self.files, self.sources):
+            reader = self._open(path)
+            for block in reader.chunks([s.name for s in sources], size):
+                si = np.empty(block.shape)
+                for j, s in enumerate(sources):
+                    si[:, j] = s.sign * s.convert(block[:, j])
+                pending.append(si)
+                held += si.shape[0]
+                while held >= size:
+                    joined = np.vstack(pending) if len(pending) > 1 else pending[0]
+                    yield step, joined[:size]
+                    step += size
+                    rest = joined[size:]
+                    pending, held = ([rest] if rest.shape[0] else []), rest.shape[0]
+            del reader
+        if held:
+            yield step, np.vstack(pending)
+
+    def _offsets(self, size):
+        if self.remove_offset is False:
+            return np.zeros(len(self.labels))
+        if self.offsets is None:
+            n = self.n_steps if self.remove_offset is True else int(round(self.remove_offset / self.dt))
+            if n < 1 or n > self.n_steps:
+                raise AKFInputError(f"remove_offset = {self.remove_offset!r} s is not within the record "
+                                    f"({self.n_steps * self.dt:.6g} s)")
+            total, count = np.zeros(len(self.labels)), 0
+            for _, Y in self._raw_chunks(size):
+                take = Y[:n - count]
+                total += take.sum(axis=0)
+                count += take.shape[0]
+                if count >= n:
+                    break
+            self.offsets = total / count
+        return self.offsets
+
+    def chunks(self, size=65536, start=0):
+        """``(first step, Y (k, m) in SI)`` for the record in chunks of ``size`` steps (the last
+        one shorter), from step ``start`` (a multiple of ``size``: where a resumed run continues).
+        Each chunk is checked: strain plausible in m/m, no channel constant over the chunk."""
+        if size < 1:
+            raise AKFInputError(f"chunk size must be at least one step, got {size}")
+        if start % size:
+            raise AKFInputError(f"a record is resumed at a multiple of the chunk size {size}, not at step {start}")
+        offsets = self._offsets(size)
+        for step, Y in self._raw_chunks(size):
+            if step < start:
+                continue
+            Y = Y - offsets
+            self._check_chunk(step, Y)
+            yield step, Y
+
+    def _check_chunk(self, step, Y):
+        where = f"{os.path.basename(self.files[0])}{' ...' if len(self.files) > 1 else ''}, steps {step}..{step + len(Y) - 1}"
+        for j, s in enumerate(self.layout):
+            col = Y[:, j]
+            if col.size >= _CONSTANT_MIN_STEPS and np.ptp(col) == 0:
+                raise AKFInputError(f"channel {self.sources[0][j].name!r} ({s.label}) is constant ({col[0]:.9g}) over "
+                                    f"{col.size} steps ({where}): a disconnected or saturated sensor gives no "
+                                    "information; remove it from the job's sensors")
+            if s.kind == "strain":
+                level = float(np.sqrt(np.mean(col ** 2)))
+                if level > MAX_PLAUSIBLE_STRAIN:
+                    raise AKFInputError(
+                        f"strain channel {self.sources[0][j].name!r} ({s.label}) has an RMS of {level:.4g} ({where}), "
+                        f"impossible in m/m for an elastic structure (> {MAX_PLAUSIBLE_STRAIN:g}); it looks like "
+                        f"microstrain: set units = {{\"{self.sources[0][j].name}\" = \"microstrain\"}} in [measurements]")
+
+    def read(self, size=65536):
+        """The whole record in memory: ``(t (N,), Y (N, m) SI)``."""
+        parts = [Y for _, Y in self.chunks(size)]
+        Y = np.vstack(parts)
+        return self.start + self.dt * np.arange(Y.shape[0]), Y
+
+    def describe(self):
+        """One line per sensor: ``sensor <- channel [unit, sign]`` (for logs and summaries)."""
+        return [f"{s.sensor} <- {s.name} [{s.unit}{', inverted' if s.sign < 0 else ''}"
+                f"{f', bridge {s.convert.bridge} GF {s.convert.gauge_factor:g}' if s.convert.bridge else ''}]"
+                for s in self.sources[0]]

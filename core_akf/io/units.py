@@ -1,0 +1,125 @@
+"""Units of measured channels, converted to SI once at the boundary (pint).
+
+A channel's unit is a string the units library understands (``"microstrain"``, ``"µε"``,
+``"mm/s^2"``, ``"g"``, ``"in/s"``, ...) or a bridge output (``"mV/V"``, ``"V/V"``, ``"µV/V"``) that a
+gauge factor and a bridge type turn into strain.  Sensor kinds and their SI units: strain m/m,
+acc m/s^2, vel m/s, disp m.  For an acceleration channel ``g`` means standard gravity
+(9.80665 m/s^2), not gram; ``mg`` and ``µg`` likewise.
+
+Why pint: it knows every unit a data-acquisition system writes, with prefixes and compound units,
+and refuses a unit of the wrong dimension; a table of our own would know only what we thought of.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+
+from ..exceptions import AKFInputError
+
+#: the SI unit of each sensor kind (what the filter works in)
+SI_UNITS = {"strain": "m/m", "acc": "m/s^2", "vel": "m/s", "disp": "m"}
+_SI_PINT = {"strain": "dimensionless", "acc": "m/s^2", "vel": "m/s", "disp": "m"}
+
+#: bridge types: strain = factor * r / GF (``r`` the bridge output in V/V); the quarter bridge with
+#: its nonlinearity, ``4 r / (GF (1 + 2 r))`` (one active gauge, NI's "quarter-bridge I")
+BRIDGES = {"quarter": 4.0, "half": 2.0, "full": 1.0}
+
+#: acceleration in multiples of standard gravity, as DAQ systems write it
+_GRAVITY = {"g": "gravity", "mg": "milligravity", "ug": "microgravity", "µg": "microgravity"}
+
+
+@lru_cache(maxsize=1)
+def registry():
+    """The units registry (built once, about a second): strain is dimensionless (``strain``,
+    ``m/m``, ``microstrain``, ``µε``, ``µm/m``)."""
+    import pint
+
+    ureg = pint.UnitRegistry(cache_folder=":auto:")
+    ureg.define("@alias strain = ε")      # µε, uε: the prefixes apply
+    return ureg
+
+
+@dataclass(frozen=True)
+class Conversion:
+    """How one channel becomes SI: ``si = sign * scale * raw`` or, for a bridge, strain from the
+    bridge output ``r = scale * raw`` in V/V."""
+
+    unit: str
+    scale: float
+    bridge: str | None = None
+    gauge_factor: float | None = None
+
+    def __call__(self, raw):
+        r = raw * self.scale
+        if self.bridge is None:
+            return r
+        if self.bridge == "quarter":
+            return BRIDGES["quarter"] * r / (self.gauge_factor * (1.0 + 2.0 * r))
+        return BRIDGES[self.bridge] * r / self.gauge_factor
+
+
+_SIMPLE = {("strain", u): 1.0 for u in ("m/m", "strain", "")} | {("acc", "m/s^2"): 1.0, ("acc", "m/s**2"): 1.0,
+                                                                 ("vel", "m/s"): 1.0, ("disp", "m"): 1.0}
+
+
+def conversion(unit, kind, channel, gauge_factor=None, bridge=None):
+    """The :class:`Conversion` of ``channel`` (a name for messages) given in ``unit`` to the SI
+    unit of sensor ``kind``; a bridge unit (a voltage ratio) needs ``gauge_factor`` and takes
+    ``bridge`` (default "quarter")."""
+    text = "" if unit is None else str(unit).strip()
+    if (kind, text) in _SIMPLE and gauge_factor is None:
+        return Conversion(text or SI_UNITS[kind], 1.0)
+    if kind == "acc" and text in _GRAVITY:
+        text = _GRAVITY[text]
+    import pint
+
+    ureg = registry()
+    try:
+        parsed = ureg.parse_units(text)
+    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, AttributeError, TypeError,
+            ValueError, AssertionError) as exc:
+        raise AKFInputError(f"channel {channel!r}: unknown unit {unit!r} ({exc}); give a unit such as "
+                            f"{_examples(kind)}") from None
+    if kind == "strain" and is_bridge_unit(text):
+        if gauge_factor is None:
+            raise AKFInputError(f"channel {channel!r} is a bridge output in {unit!r}: give its gauge_factor (and "
+                                f"bridge = {' | '.join(BRIDGES)}) in [measurements]")
+        bridge = bridge or "quarter"
+        if bridge not in BRIDGES:
+            raise AKFInputError(f"channel {channel!r}: unknown bridge type {bridge!r}; use one of {list(BRIDGES)}")
+        if not gauge_factor > 0:
+            raise AKFInputError(f"channel {channel!r}: gauge_factor must be positive, got {gauge_factor!r}")
+        return Conversion(str(unit), float(ureg.Quantity(1.0, parsed).to("dimensionless").magnitude), bridge,
+                          float(gauge_factor))
+    if gauge_factor is not None or bridge is not None:
+        raise AKFInputError(f"channel {channel!r}: a gauge factor or bridge type applies to a bridge output "
+                            f"(mV/V, V/V) of a strain channel, not to {unit!r}")
+    try:
+        scale = ureg.Quantity(1.0, parsed).to(_SI_PINT[kind]).magnitude
+    except pint.errors.DimensionalityError:
+        raise AKFInputError(f"channel {channel!r}: unit {unit!r} is not a unit of {kind} (SI {SI_UNITS[kind]}); "
+                            f"give a unit such as {_examples(kind)}") from None
+    return Conversion(str(unit), float(scale))
+
+
+def is_bridge_unit(unit):
+    """Whether ``unit`` is a bridge output (a voltage over a voltage: mV/V, V/V, µV/V)."""
+    if is_unset(unit) or str(unit).strip() in _GRAVITY:
+        return False
+    try:
+        parsed = registry().parse_units(str(unit).strip())
+    except Exception:  # noqa: BLE001 -- an unparseable unit is reported where it is converted
+        return False
+    ureg = registry()
+    return any(ureg.get_dimensionality(u) == ureg.get_dimensionality("V") for u in parsed._units)
+
+
+def _examples(kind):
+    return {"strain": "'microstrain', 'm/m' or 'mV/V' with a gauge factor", "acc": "'m/s^2', 'mm/s^2' or 'g'",
+            "vel": "'m/s' or 'mm/s'", "disp": "'m' or 'mm'"}[kind]
+
+
+def is_unset(unit):
+    """A unit a file writes when it has none (``""``, ``"NONE"``, ``"-"``)."""
+    return unit is None or re.fullmatch(r"\s*(none|-|n/a|)\s*", str(unit), flags=re.I) is not None

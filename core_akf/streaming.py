@@ -1,0 +1,174 @@
+"""Records without end: the AKF run chunk by chunk with its state carried over, in constant memory.
+
+:class:`Estimator` holds one filter (its matrices, the steady-state gain, the last filtered state
+and, for the time-varying form, the covariance) and turns each chunk of measurements into an
+:class:`~core_akf.akf.Estimate` of that chunk alone.  Feeding a record in chunks of any sizes
+gives the estimate of the whole record (to rounding: the fixed-gain recursion is the same
+recursion, only started at other steps).  :meth:`Estimator.state` / :meth:`Estimator.restore`
+save and reload what is carried over, so a run stopped after any chunk continues where it ended.
+
+>>> from core_akf.models import s17_truss
+>>> import numpy as np
+>>> est = Estimator(s17_truss(), ["strain:13", "acc:8:y"], ["8:y"], 1e-3, model_error_cov=1e-16,
+...                 force_increment_cov=1e4, noise_cov={"strain": 1e-14, "acc": 1e-4})
+>>> first = est.update(np.zeros((100, 2)))
+>>> second = est.update(np.zeros((50, 2)))
+>>> est.n_steps, second.time[0]
+(150, 0.1)
+"""
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+from .akf import Estimate, ModalBlockTransition, _FilterSetup, _time_varying
+from .checks import as_finite_array
+from .exceptions import AKFInputError
+from .recursion import lti_response
+from .riccati import RiccatiError, steady_gain
+from .sensors import as_layout, parse_force_locations
+from .statespace import check_detectable
+
+
+class CheckpointError(AKFInputError):
+    """A saved filter state that does not belong to this filter (another structure, sensor set,
+    force set, time step or covariances) or is not a filter state at all."""
+
+
+class Estimator:
+    """The AKF over a record delivered in chunks.
+
+    Parameters are those of :func:`core_akf.akf.estimate` without the measurements, plus
+
+    t0 : float
+        Time of the record's first step (s); the chunks' :attr:`~core_akf.akf.Estimate.time`
+        continues from it.
+    switch_tol : float
+        The time-varying filter continues with its (then constant) gain once its covariance
+        changes by less than this, relatively (as :func:`core_akf.akf.filter_states`).
+
+    Each :meth:`update` returns the :class:`~core_akf.akf.Estimate` of its chunk; the memory
+    held between chunks is the filter's matrices and one state, whatever the record's length.
+    """
+
+    def __init__(self, structure, sensors, forces, dt, *, model_error_cov, force_increment_cov, noise_cov,
+                 steady=None, allow_undetectable=False, x0=None, P0=None, t0=0.0, switch_tol=1e-14):
+        if not np.isfinite(dt) or dt <= 0:
+            raise AKFInputError(f"dt must be a positive time step in seconds, got {dt!r}")
+        self.layout = as_layout(sensors)
+        self.locs = parse_force_locations(structure, forces)
+        self.report = check_detectable(structure, self.layout, self.locs, allow_undetectable)
+        if steady is None:
+            steady = self.report.detectable
+        if steady and not self.report.detectable:
+            raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
+                                f"({', '.join(s.label for s in self.layout)}); use steady=False")
+        self.setup = _FilterSetup(structure, [self.layout], self.locs, dt, model_error_cov, force_increment_cov,
+                                  noise_cov, x0, P0)
+        self.dt, self.t0, self.switch_tol = float(dt), float(t0), float(switch_tol)
+        self.steady = bool(steady)
+        s = self.setup
+        n = s.A_a.shape[0]
+        self._transition = None if steady else ModalBlockTransition.detect(s.A_a, structure.n)
+        self._GA = s.G_a[0] @ s.A_a
+        self.n_steps = 0
+        self._z = None                     # last filtered state (modal coordinates), None before step 0
+        if steady:
+            try:
+                P, L = steady_gain(s.A_a[None], s.G_a, s.Q_a[None], s.R)
+            except RiccatiError as exc:
+                raise s.riccati_error(exc) from None
+            self._P, self._L = P[0], L[0]
+        else:
+            self._P = s.Q_a.copy() if s.Pz0 is None else 0.5 * (s.Pz0 + s.Pz0.T)
+            self._L = None
+        self._switched = steady            # True: the fixed-gain recursion runs
+        self._fingerprint = self._digest()
+
+    @property
+    def n_channels(self):
+        return len(self.layout)
+
+    def _prior(self):
+        """The prior mean of the next step (modal coordinates)."""
+        if self._z is None:
+            return np.zeros(self.setup.A_a.shape[0]) if self.setup.z0 is None else self.setup.z0
+        return self.setup.A_a @ self._z
+
+    def update(self, chunk):
+        """Filter the next ``chunk`` (k, m) of measurements (SI, columns in sensor order) and
+        return its :class:`~core_akf.akf.Estimate` (``time`` continues the record)."""
+        Y = np.asarray(chunk, dtype=float)
+        if Y.ndim != 2 or Y.shape[1] != self.n_channels:
+            raise AKFInputError(f"a chunk must have shape (steps, {self.n_channels}) for the sensors "
+                                f"{[s.label for s in self.layout]}; got {Y.shape}")
+        bad = np.argwhere(~np.isfinite(Y))
+        if bad.size:
+            r, c = bad[0]
+            raise AKFInputError(f"measurements: {np.count_nonzero(~np.isfinite(Y))} NaN/infinite value(s) in the chunk "
+                                f"starting at step {self.n_steps}; first at step {self.n_steps + r} "
+                                f"(t = {self.t0 + (self.n_steps + r) * self.dt:.9g} s), channel {self.layout[c].label!r}")
+        t0 = self.t0 + self.n_steps * self.dt
+        if Y.shape[0] == 0:
+            return self.setup.estimates(np.zeros((1, 0, self.setup.A_a.shape[0])), Y[None], self._gain()[None],
+                                        self._P[None], Y[None], [self.report], t0=t0)[0]
+        s = self.setup
+        x = self._prior()
+        if self._switched:
+            L = self._L
+            I_LG = np.eye(x.size) - L @ s.G_a[0]        # as core_akf.akf._steady_filter forms them
+            first = L @ Y[0] + I_LG @ x
+            X = lti_response((I_LG @ s.A_a)[None], L[None], Y[None], first[None])[0]
+            innov = np.empty_like(Y)
+            innov[0] = Y[0] - s.G_a[0] @ x
+            innov[1:] = Y[1:] - X[:-1] @ self._GA.T
+        else:
+            X, innov, L, P, switched = _time_varying(s.A_a[None], s.G_a, s.Q_a[None], s.R, Y[None], x[None],
+                                                     self._P[None], self.switch_tol, self._transition)
+            X, innov, L, self._P = X[0], innov[0], L[0], P[0]
+            if switched:
+                self._switched, self._L = True, L
+        self._z = X[-1].copy()
+        self.n_steps += Y.shape[0]
+        return s.estimates(X[None], innov[None], L[None], self._P[None], Y[None], [self.report], t0=t0)[0]
+
+    def _gain(self):
+        return self._L if self._L is not None else np.zeros((self.setup.A_a.shape[0], self.n_channels))
+
+    # ------------------------------------------------------------------ what is carried over
+    def _digest(self):
+        """A fingerprint of the filter (matrices, time step, sensors, forces): a saved state is
+        only restored into the filter it came from."""
+        h = hashlib.sha256()
+        s = self.setup
+        for a in (s.A_a, s.G_a, s.Q_a, s.R):
+            h.update(np.ascontiguousarray(a).tobytes())
+        h.update(repr((self.dt, self.t0, self.steady, [x.label for x in self.layout], self.locs)).encode())
+        return h.hexdigest()
+
+    def state(self):
+        """What the filter carries to the next chunk, as a dict of arrays (``numpy.savez`` it):
+        the steps done, the last filtered state, the covariance and gain, and a fingerprint."""
+        n = self.setup.A_a.shape[0]
+        return {"n_steps": np.array(self.n_steps), "z": np.full(n, np.nan) if self._z is None else self._z.copy(),
+                "P": self._P.copy(), "L": self._gain().copy(), "switched": np.array(self._switched),
+                "started": np.array(self._z is not None), "fingerprint": np.array(self._fingerprint)}
+
+    def restore(self, state):
+        """Continue from a :meth:`state` saved by this filter (the same job); raises
+        :class:`CheckpointError` for a state of another filter."""
+        try:
+            fingerprint = str(np.asarray(state["fingerprint"]))
+            n_steps = int(state["n_steps"])
+            z, P, L = (as_finite_array(state[k], k) if k != "z" else np.asarray(state[k], float) for k in ("z", "P", "L"))
+            switched, started = bool(state["switched"]), bool(state["started"])
+        except (KeyError, TypeError, ValueError, AKFInputError) as exc:
+            raise CheckpointError(f"not a saved filter state ({type(exc).__name__}: {exc})") from None
+        if fingerprint != self._fingerprint:
+            raise CheckpointError("the saved filter state belongs to another filter (structure, sensors, forces, dt, "
+                                  "covariances or filter form differ); start the run anew")
+        self.n_steps, self._P, self._switched = n_steps, P, switched
+        self._L = L if switched else None
+        self._z = z.copy() if started else None
+        return self
