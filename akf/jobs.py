@@ -136,95 +136,18 @@ def _absolute_noise(spec):
     return out
 
 
-#: a time stamp may lie off the uniform grid ``t_0 + k dt`` by this fraction of a step (a time
-#: column rounded to 6 decimals is off by <= 5e-7 s: 0.2 % of a step at 4 kHz)
-_TIME_GRID_RTOL = 0.01
+def read_measurements(path, sensors, dt, time_column="time", **channel_map):
+    """Measured data (N x m, SI) of ``sensors`` from a file, folder or glob pattern in any format
+    :mod:`core_akf.io` reads, with the sampling interval checked against ``dt`` (s).
+    ``channel_map``: the keys of :class:`core_akf.io.Record` (channels, units, gauge_factor,
+    bridge, invert, remove_offset, format, group)."""
+    from core_akf.io import Record
 
-#: a strain channel whose RMS exceeds this (m/m) is not in SI units: 1 % is five times the yield
-#: strain of structural steel, far beyond the elastic range every model here assumes
-_MAX_PLAUSIBLE_STRAIN = 0.01
-
-
-def read_measurements(path, sensors, dt, time_column="time"):
-    """Measured data (N x m, SI) from CSV or Parquet: a time column and one column per sensor label.
-
-    Checks, each with a message naming the file, column and row: the file exists and is a file;
-    it parses and has data rows; every column is numeric and finite; time stamps increase and lie
-    on the grid ``t_0 + k dt`` (within :data:`_TIME_GRID_RTOL` of a step); no channel is constant
-    (a disconnected or saturated sensor); strain channels are plausible in m/m.
-    """
-    import pandas as pd
-
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise AKFInputError(f"measurement file {path!r} not found")
-    if os.path.isdir(path):
-        raise AKFInputError(f"measurement file {path!r} is a folder; give the data file (CSV or Parquet)")
-    if str(path).endswith((".parquet", ".pq")):
-        try:
-            df = pd.read_parquet(path)
-        except ImportError as exc:
-            raise AKFInputError(f"reading Parquet needs pyarrow ({exc}); pip install pyarrow, or give a CSV file") from None
-        except Exception as exc:  # noqa: BLE001 -- pyarrow raises its own error types
-            raise AKFInputError(f"{path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
-    else:
-        try:
-            df = pd.read_csv(path)
-        except pd.errors.EmptyDataError:
-            raise AKFInputError(f"{path}: the file is empty; expected a header row and one row per time step") from None
-        except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-            raise AKFInputError(f"{path}: not a readable CSV file ({exc})") from None
-    layout = as_layout(sensors)
-    labels = [s.label for s in layout]
-    missing = [c for c in [time_column] + labels if c not in df.columns]
-    if missing:
-        raise AKFInputError(f"{path}: missing column(s) {missing}; found {list(df.columns)}")
-    if len(df) < 2:
-        raise AKFInputError(f"{path}: {len(df)} data row(s); a record needs at least two time steps")
-    for col in [time_column] + labels:
-        values = pd.to_numeric(df[col], errors="coerce")
-        bad = np.flatnonzero(values.isna().to_numpy())
-        if bad.size:
-            r = int(bad[0])
-            raise AKFInputError(f"{path}: column {col!r} has {bad.size} missing/NaN or non-numeric sample(s); first "
-                                f"{str(df[col].iloc[r])!r} in data row {r + 1}")
-        df[col] = values
-    t = df[time_column].to_numpy(float)
-    Y = df[labels].to_numpy(float)
-    inf = np.argwhere(~np.isfinite(np.column_stack([t, Y])))
-    if inf.size:
-        r, c = inf[0]
-        raise AKFInputError(f"{path}: infinite value in column {([time_column] + labels)[c]!r}, data row {r + 1}")
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        r = int(np.flatnonzero(steps <= 0)[0])
-        what = "repeats" if steps[r] == 0 else "goes back"
-        raise AKFInputError(f"{path}: time {what} at data row {r + 2} (t = {t[r + 1]:.9g} s after "
-                            f"t = {t[r]:.9g} s in row {r + 1}); time stamps must increase by dt")
-    median = float(np.median(steps))
-    if abs(median - dt) > _TIME_GRID_RTOL * dt:
-        raise AKFInputError(f"{path}: sampling interval {median:.9g} s (median step) does not match the job's "
-                            f"dt = {dt:.9g} s ({median / dt:.4g} x dt)")
-    off = np.abs(t - t[0] - dt * np.arange(t.size))
-    if np.max(off) > _TIME_GRID_RTOL * dt:
-        r = int(np.argmax(off > _TIME_GRID_RTOL * dt))
-        raise AKFInputError(
-            f"{path}: data row {r + 1} (t = {t[r]:.9g} s) is {off[r]:.3g} s ({off[r] / dt:.3g} steps) off the "
-            f"uniform grid t0 + k dt (dt = {dt:.9g} s): the record has a gap or jitter there")
-    for j, s in enumerate(layout):
-        col = Y[:, j]
-        if np.ptp(col) == 0:
-            raise AKFInputError(f"{path}: channel {labels[j]!r} is constant ({col[0]:.9g}) over the whole record: "
-                                "a disconnected, saturated or unmapped sensor gives no information; remove it from "
-                                "the job's sensors")
-        if s.kind == "strain":
-            level = float(np.sqrt(np.mean(col ** 2)))
-            if level > _MAX_PLAUSIBLE_STRAIN:
-                raise AKFInputError(
-                    f"{path}: strain channel {labels[j]!r} has an RMS of {level:.4g}, impossible in m/m (SI) for an "
-                    f"elastic structure (> {_MAX_PLAUSIBLE_STRAIN:g}); it looks like microstrain: divide the column "
-                    "by 1e6")
-    return Y
+    record = Record(path, sensors, time_column=time_column, **channel_map)
+    if record.n_steps < 2:
+        raise AKFInputError(f"{record.files[0]}: {record.n_steps} data row(s); a record needs at least two time steps")
+    record.check_dt(dt)
+    return record.read()[1]
 
 
 @dataclass
@@ -343,10 +266,13 @@ def run_job(job: dict, allow_undetectable: bool | None = None, steady: bool | No
     per_step = 4 * n_a + 2 * 2 * true_structure.n + 3 * true_structure.n_strain + 4 * len(sensors)
     sim = None
     if spec.measurements is not None:
-        meas = spec.measurements
-        if meas.file is None:
-            raise AKFInputError("[measurements] needs file = 'data.csv'")
-        Y = read_measurements(meas.file, sensors, dt, meas.time_column or "time")
+        from .streaming import open_record
+
+        record = open_record(spec.measurements, sensors)
+        record.check_dt(dt)
+        check_memory(record.n_steps, per_step, f"the record of {record.n_steps} steps",
+                     "use akf estimate (it streams measured records in chunks) or core_akf.streaming.Estimator")
+        Y = record.read()[1]
     else:
         _, _, sim = simulate_job(job, per_step, true_structure)
         Y = sim.measurements

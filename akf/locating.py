@@ -48,16 +48,17 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None):
     from impactloc.locate import locate
     from impactloc.scan import Covariances
 
-    from .jobs import build_structure, read_measurements, simulate_job
+    from .jobs import build_structure, simulate_job
+    from .streaming import open_record
 
     spec = parse_job(job, "locate")
     structure = build_structure(job["structure"])
     selection_matrices(structure, spec.sensors)     # every sensor exists on this structure
     meas = spec.measurements
     if meas is not None:
-        if meas.file is None:
-            raise AKFInputError("[measurements] needs file = 'data.csv'")
-        Y = read_measurements(meas.file, spec.sensors, spec.dt, meas.time_column or "time")
+        record = open_record(meas, spec.sensors)
+        record.check_dt(spec.dt)
+        Y = record.read()[1]
     elif spec.simulation is not None:
         if spec.forces is None:
             raise AKFInputError("a simulated locate job needs forces = ['NODE:DIR'] (where the impact hits)")

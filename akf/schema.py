@@ -158,13 +158,40 @@ class Simulation(Section):
     loads: list[Load] = key("a list of tables", "one table per force location, in the order of `forces`")
 
 
-class Measurements(Section):
-    """``[measurements]``: measured data, a time column and one column per sensor."""
+Bridge = Literal["quarter", "half", "full"]
 
-    file: Text = key("a non-empty string", "CSV or Parquet file, relative to the job file",
-                               used_by=("estimate", "locate"))
-    time_column: Text = key("a non-empty string", "name of the time column (default \"time\")",
-                                      used_by=("estimate", "locate"))
+
+class Measurements(Section):
+    """``[measurements]``: measured data: one file, or a record in many files, with a channel map."""
+
+    file: Text = key("a non-empty string", "a data file (CSV, Parquet, TDMS, UFF 58, HDF5), a folder or a glob pattern "
+                     "(\"run/*.tdms\"), relative to the job file; estimate: the pieces of one record, joined in time "
+                     "order; locate: one impact per file", used_by=("estimate", "locate"))
+    format: Text = key("a non-empty string", "the file format (csv, parquet, tdms, uff, hdf5 or a registered reader); "
+                       "default from the extension", used_by=("estimate", "locate"))
+    time_column: Text = key("a non-empty string", "name of the time column or channel (default \"time\"; TDMS, UFF "
+                            "and HDF5 may give the time by their waveform properties instead)",
+                            used_by=("estimate", "locate"))
+    group: Text = key("a non-empty string", "TDMS or HDF5 group holding the channels (default all groups / the root)",
+                      used_by=("estimate", "locate"))
+    channels: dict[Text, Text] = key("a table of file channel = sensor", "which file channel is which sensor, e.g. "
+                                     "{SG13 = \"strain:13\", ACC_8Y = \"acc:8:y\"}; default: channels named like "
+                                     "the sensors", used_by=("estimate", "locate"))
+    units: dict[Text, Text] = key("a table of file channel = unit", "each channel's unit, e.g. {SG13 = \"microstrain\", "
+                                  "ACC_8Y = \"g\"} (pint units; mV/V for a bridge output); default the unit the file "
+                                  "records, else SI", used_by=("estimate", "locate"))
+    gauge_factor: Positive | dict[Text, Positive] = key(
+        "a positive number or a table per channel", "gauge factor of the channels in mV/V (bridge outputs)",
+        used_by=("estimate", "locate"))
+    bridge: Bridge | dict[Text, Bridge] = key(
+        "\"quarter\", \"half\" or \"full\", or a table per channel", "bridge type of the channels in mV/V "
+        "(default quarter)", used_by=("estimate", "locate"))
+    invert: list[Text] = key("a list of channel names", "channels whose sign is flipped", used_by=("estimate", "locate"))
+    remove_offset: bool | Positive = key(
+        "true, false or a positive number of seconds", "subtract each channel's offset (zero drift): true the mean of the "
+        "whole record, a number the mean of its first that many seconds", used_by=("estimate", "locate"), unit="s")
+    chunk: Positive = key("a positive number", "the record is filtered and written in pieces this long (constant "
+                          "memory)", used_by=ESTIMATE, unit="s", default_text="65536 steps")
 
 
 class Output(Section):
@@ -173,6 +200,8 @@ class Output(Section):
     strains: Literal["all"] | list[Text] = key(
         "\"all\" or a list of strain labels", "strain histories to write (labels as sensors: \"strain:13\", "
         "\"strain:70:ex\")", used_by=ESTIMATE)
+    format: Literal["csv", "parquet"] = key("\"csv\" or \"parquet\"", "file format of the time series "
+                                            "(timeseries.csv or timeseries.parquet)", used_by=ESTIMATE)
 
 
 class Place(Section):
@@ -425,7 +454,8 @@ def _type_text(field):
 #: defaults that the runners apply (documented here; the values live with the code that uses them:
 #: the thesis' GA settings in sensoropt.ga.THESIS, the tuning GA's in impactloc.tuning)
 _DOC_DEFAULTS = {
-    ("Measurements", "time_column"): '"time"', ("Output", "strains"): '"all"', ("Simulation", "seed"): "0",
+    ("Measurements", "time_column"): '"time"', ("Measurements", "remove_offset"): "false",
+    ("Measurements", "bridge"): '"quarter"', ("Output", "format"): '"csv"', ("Output", "strains"): '"all"', ("Simulation", "seed"): "0",
     ("Place", "kinds"): '["ex", "ey", "gxy"]', ("Place", "operators"): '"set"', ("Place", "n_modes"): '"auto"',
     ("Place", "population"): "50", ("Place", "generations"): "100", ("Place", "elite"): "2",
     ("Place", "crossover"): "0.8", ("Place", "mutation"): "0.16", ("Place", "tournament"): "4",

@@ -73,9 +73,111 @@ def force_statistics(est):
     return out
 
 
-def warnings_for(est, sensors=None):
+class RunningDiagnostics:
+    """:func:`sensor_diagnostics` and :func:`force_statistics` of a record estimated chunk by chunk
+    (:class:`core_akf.streaming.Estimator`), accumulated in constant memory: sums, the extreme
+    force, and the lag products of the innovations across chunk boundaries.
+
+    ``n_steps``: the record's length, to leave out the same first 5 % as the one-piece functions
+    (None: nothing is left out).  Feed each chunk's estimate to :meth:`update` in order.
+    """
+
+    def __init__(self, n_steps=None, lags=WHITENESS_LAGS):
+        self.skip = 0 if n_steps is None else _skip(int(n_steps))
+        self.lags = lags
+        self.step = 0            # steps seen
+        self.n = 0               # steps counted (after the skip)
+        self.last = None
+
+    def _start(self, est):
+        m, p = est.measurements.shape[1], est.forces.shape[1]
+        self.sum_y2, self.sum_e, self.sum_e2 = np.zeros(m), np.zeros(m), np.zeros(m)
+        self.lag = np.zeros((self.lags, m))
+        self.head, self.tail = np.zeros((0, m)), np.zeros((0, m))
+        self.sum_f2, self.peak, self.peak_step = np.zeros(p), np.zeros(p), np.zeros(p, int)
+
+    def update(self, est):
+        """Add one chunk's :class:`~core_akf.akf.Estimate`."""
+        if self.last is None:
+            self._start(est)
+        k = est.forces.shape[0]
+        cut = min(max(self.skip - self.step, 0), k)
+        first = self.step + cut                      # record step of the first counted sample
+        self.step += k
+        self.last = est
+        if cut == k:
+            return
+        Y, E, F = est.measurements[cut:], est.innovations[cut:], est.forces[cut:]
+        self.sum_y2 += np.sum(Y ** 2, axis=0)
+        self.sum_e += E.sum(axis=0)
+        self.sum_e2 += np.sum(E ** 2, axis=0)
+        ext = np.vstack([self.tail, E])
+        t = self.tail.shape[0]
+        for l in range(1, self.lags + 1):
+            lo = max(t, l)
+            if lo < ext.shape[0]:
+                self.lag[l - 1] += np.sum(ext[lo - l:ext.shape[0] - l] * ext[lo:], axis=0)
+        self.head = np.vstack([self.head, E[:self.lags - self.head.shape[0]]])
+        self.tail = ext[-self.lags:]
+        self.n += E.shape[0]
+        self.sum_f2 += np.sum(F ** 2, axis=0)
+        i = np.argmax(np.abs(F), axis=0)
+        better = np.abs(F[i, range(F.shape[1])]) > np.abs(self.peak)
+        self.peak = np.where(better, F[i, range(F.shape[1])], self.peak)
+        self.peak_step = np.where(better, first + i, self.peak_step)
+
+    def _whiteness(self, j):
+        n, mu = self.n, self.sum_e[j] / self.n
+        denom = self.sum_e2[j] - n * mu ** 2
+        lags = min(self.lags, n - 1)
+        if denom <= 0 or lags < 1:
+            return float("nan"), float("nan")
+        rho = np.empty(lags)
+        for l in range(1, lags + 1):
+            first_l, last_l = self.head[:l, j].sum(), self.tail[-l:, j].sum()
+            rho[l - 1] = (self.lag[l - 1, j] - mu * (2 * self.sum_e[j] - first_l - last_l) + (n - l) * mu ** 2) / denom
+        return float(np.mean(np.abs(rho) < 1.96 / np.sqrt(n))), float(rho[0])
+
+    def sensors(self):
+        """As :func:`sensor_diagnostics` of the whole record."""
+        est = self.last
+        out = []
+        for j, s in enumerate(est.sensors):
+            irms = float(np.sqrt(self.sum_e2[j] / self.n))
+            std = float(np.sqrt(max(est.innovation_cov[j, j], 0.0)))
+            white, lag1 = self._whiteness(j)
+            out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": float(np.sqrt(self.sum_y2[j] / self.n)),
+                        "innovation_rms": irms, "predicted_innovation_std": std,
+                        "consistency": irms / std if std > 0 else float("inf"), "whiteness": white,
+                        "lag1_autocorrelation": lag1})
+        return out
+
+    def forces(self, t0=0.0):
+        """As :func:`force_statistics` of the whole record (``time_of_peak`` from ``t0``)."""
+        est = self.last
+        return [{"channel": f"{node}:{d}", "unit": "N", "rms": float(np.sqrt(self.sum_f2[j] / self.n)),
+                 "peak": float(self.peak[j]), "time_of_peak": float(t0 + self.peak_step[j] * est.dt)}
+                for j, (node, d) in enumerate(est.force_locations)]
+
+    def state(self):
+        """The accumulators as a dict of arrays (saved with a resumable run)."""
+        return {f"diag_{k}": np.asarray(getattr(self, k)) for k in
+                ("skip", "step", "n", "sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step")}
+
+    def restore(self, state, est):
+        """Continue from :meth:`state`; ``est`` any chunk estimate of the run (for its shapes)."""
+        self._start(est)
+        for k in ("sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step"):
+            setattr(self, k, np.array(state[f"diag_{k}"]))
+        self.skip, self.step, self.n = (int(state[f"diag_{k}"]) for k in ("skip", "step", "n"))
+        self.last = est
+        return self
+
+
+def warnings_for(est, sensors=None, duration=None):
     """Plain-language warnings about an estimate (list of str): channels whose innovations do not
-    fit their predicted size, and a record shorter than the filter's transient."""
+    fit their predicted size, and a record shorter than the filter's transient.  ``duration``: the
+    record's length (s) when ``est`` is its last chunk (default the length of ``est``)."""
     sensors = sensor_diagnostics(est) if sensors is None else sensors
     notes = []
     off = sorted((d for d in sensors if d["consistency"] > CONSISTENCY_LIMIT), key=lambda d: -d["consistency"])
@@ -83,7 +185,7 @@ def warnings_for(est, sensors=None):
         listed = ", ".join(f"{d['channel']} ({d['consistency']:.3g}x)" for d in off)
         notes.append(f"innovations larger than predicted at {listed}: the data do not fit the model and noise_cov "
                      "there; check each channel's unit (SI), sign and noise variance")
-    duration = est.forces.shape[0] * est.dt
+    duration = est.forces.shape[0] * est.dt if duration is None else duration
     tau = est.transient_time
     if not np.isfinite(tau):
         notes.append("the filter's estimation error does not decay (its closed loop has a pole on or outside the "

@@ -22,7 +22,7 @@ import hashlib
 
 import numpy as np
 
-from .akf import Estimate, ModalBlockTransition, _FilterSetup, _time_varying
+from .akf import ModalBlockTransition, _FilterSetup, _time_varying
 from .checks import as_finite_array
 from .exceptions import AKFInputError
 from .recursion import lti_response
@@ -69,7 +69,6 @@ class Estimator:
         self.dt, self.t0, self.switch_tol = float(dt), float(t0), float(switch_tol)
         self.steady = bool(steady)
         s = self.setup
-        n = s.A_a.shape[0]
         self._transition = None if steady else ModalBlockTransition.detect(s.A_a, structure.n)
         self._GA = s.G_a[0] @ s.A_a
         self.n_steps = 0

@@ -134,7 +134,7 @@ def test_measurement_file_checks(tmp_path):
     with pytest.raises(AKFInputError, match="does not match the job's dt"):
         read_measurements(ok, sensors, 0.002)
     df.drop(columns=["acc:8:y"]).to_csv(tmp_path / "missing.csv", index=False)
-    with pytest.raises(AKFInputError, match=r"missing column\(s\) \['acc:8:y'\]"):
+    with pytest.raises(AKFInputError, match=r"no channel\(s\) \['acc:8:y'\]"):
         read_measurements(tmp_path / "missing.csv", sensors, 0.001)
     df.loc[4, "strain:13"] = np.nan
     df.to_csv(tmp_path / "nan.csv", index=False)

@@ -5,6 +5,7 @@ import json
 import os
 import sys
 
+from core_akf.exceptions import AKFInputError
 from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
@@ -76,9 +77,58 @@ def _estimate(args):
     steady = {"steady": True, "time-varying": False, None: None}[args.filter]
     name = job.get("name", os.path.splitext(os.path.basename(args.job or "job"))[0])
     out = args.out or os.path.join("akf-out", str(name))
+    if "measurements" in job:
+        if args.duration is not None or args.seed is not None:
+            raise AKFInputError("--duration and --seed apply to simulated jobs; this job reads measured data")
+        with OutputFolder(out, "--out"):
+            return _stream(args, job, name, out, steady)
+    if args.resume:
+        raise AKFInputError("--resume continues a streamed run of measured data; this job simulates its data")
     with OutputFolder(out, "--out"):      # checked and locked before the work starts
         result = run_job(job, allow_undetectable=args.allow_undetectable or None, steady=steady)
         return _write_estimate(args, job, result, name, out)
+
+
+def _stream(args, job, name, out, steady):
+    """A job with measured data: read, filtered and written chunk by chunk (:mod:`akf.streaming`)."""
+    from ..streaming import stream_job
+
+    res = stream_job(job, out, resume=args.resume, allow_undetectable=args.allow_undetectable or None, steady=steady,
+                     plot=not args.no_plot, progress=not args.json and sys.stderr.isatty())
+    m = res.metrics
+    if args.json:
+        print(json.dumps({"name": name, "complete": res.complete, "detectable": m.get("detectable"),
+                          "n_steps": m.get("n_steps"), "rms_force": None, "avg_strain_error": None,
+                          "forces": m.get("forces"), "sensors": m.get("sensors"), "warnings": m.get("warnings", []),
+                          "channels": res.channels, "resumed_at_step": res.resumed_at, "units": m.get("units"),
+                          "files": res.files, "notes": res.notes}))
+        for w in m.get("warnings", []):
+            print(f"akf: warning: {w}", file=sys.stderr)
+        return 0
+    print(f"{name}: {job.get('description', '')}")
+    print("  channels: " + "; ".join(res.channels))
+    if res.resumed_at:
+        print(f"  resumed at step {res.resumed_at}")
+    if not res.complete:
+        print_written(res.files, res.notes)
+        return 0
+    print(f"  {len(m['sensors'])} sensors, {len(m['forces'])} unknown forces, {m['n_steps']} steps, "
+          f"{'detectable' if m['detectable'] else 'NOT detectable (forced)'}")
+    _print_diagnostics(m)
+    print_written(res.files, res.notes)
+    return 0
+
+
+def _print_diagnostics(m):
+    print("  estimated forces (N):            RMS          peak   at (s)")
+    for f in m["forces"]:
+        print(f"    {f['channel']:>8s}           {f['rms']:10.4g}   {f['peak']:11.4g}   {f['time_of_peak']:.4f}")
+    print("  sensors: measured RMS, innovation RMS (SI), consistency (innovation / predicted; ~1 is good), whiteness")
+    for d in m["sensors"]:
+        print(f"    {d['channel']:>14s}  {d['measured_rms']:10.4g}  {d['innovation_rms']:10.4g}  {d['consistency']:8.3g}"
+              f"  {d['whiteness']:6.2f}")
+    for w in m["warnings"]:
+        print(f"  WARNING: {w}")
 
 
 def _write_estimate(args, job, result, name, out):
@@ -124,15 +174,7 @@ def _write_estimate(args, job, result, name, out):
         for k, v in m["rms_force"].items():
             print(f"    {k:>8s}  {v:10.2f}")
         print(f"  average strain error: {m['avg_strain_error_microstrain']:.4f} µε over {est.structure.n_strain} strain outputs")
-    print("  estimated forces (N):            RMS          peak   at (s)")
-    for f in m["forces"]:
-        print(f"    {f['channel']:>8s}           {f['rms']:10.4g}   {f['peak']:11.4g}   {f['time_of_peak']:.4f}")
-    print("  sensors: measured RMS, innovation RMS (SI), consistency (innovation / predicted; ~1 is good), whiteness")
-    for d in m["sensors"]:
-        print(f"    {d['channel']:>14s}  {d['measured_rms']:10.4g}  {d['innovation_rms']:10.4g}  {d['consistency']:8.3g}"
-              f"  {d['whiteness']:6.2f}")
-    for w in m["warnings"]:
-        print(f"  WARNING: {w}")
+    _print_diagnostics(m)
     print_written(files, notes)
     return 0
 
@@ -151,4 +193,6 @@ def register(sub):
     p.add_argument("--duration", type=float, help="override the simulated record length (s)")
     p.add_argument("--seed", type=int, help="override the noise seed")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
+    p.add_argument("--resume", action="store_true", help="measured data: continue an interrupted run in --out from its "
+                   "last written chunk")
     p.set_defaults(func=_estimate)

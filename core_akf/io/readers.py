@@ -111,11 +111,11 @@ def _require(module, extra, fmt):
 
 def check_time_grid(t, path, dt=None, offset=0):
     """``Timing`` of time stamps ``t`` (s), or a located error: a time that repeats or goes back,
-    or a stamp off the uniform grid (a gap or jitter).  ``dt``: the step if known (else the median
+    or a stamp off the uniform grid (a gap or jitter).  ``dt``: the step if known (else the mean
     step); ``offset``: the row number of ``t[0]`` in the file (for messages)."""
     t = np.asarray(t, float)
     if t.size < 1:
-        raise AKFInputError(f"{path}: no data rows")
+        raise AKFInputError(f"{path}: 0 data rows; a record needs at least two time steps")
     if not np.all(np.isfinite(t)):
         r = int(np.flatnonzero(~np.isfinite(t))[0])
         raise AKFInputError(f"{path}: time column has a missing/NaN value in data row {offset + r + 1}")
@@ -127,12 +127,21 @@ def check_time_grid(t, path, dt=None, offset=0):
                             f"t = {t[r]:.9g} s in row {offset + r + 1}); time stamps must increase by dt")
     if dt is None:
         if t.size < 2:
-            raise AKFInputError(f"{path}: one data row; a record needs at least two time steps")
-        dt = float(np.median(steps))
+            raise AKFInputError(f"{path}: 1 data row; a record needs at least two time steps")
+        dt = float(t[-1] - t[0]) / (t.size - 1)     # the mean step: time stamps rounded in the file average out
+        median = float(np.median(steps))
+        if abs(median - dt) * t.size <= TIME_GRID_RTOL * dt:
+            dt = median                             # as good over the file, and exact for exact stamps
     off = np.abs(t - t[0] - dt * np.arange(t.size))
     if off.size and np.max(off) > TIME_GRID_RTOL * dt:
-        r = int(np.argmax(off > TIME_GRID_RTOL * dt))
-        raise AKFInputError(f"{path}: data row {offset + r + 1} (t = {t[r]:.9g} s) is {off[r]:.3g} s ({off[r] / dt:.3g} "
+        jump = np.abs(steps - np.median(steps)) > TIME_GRID_RTOL * dt      # the first irregular step, if any
+        if jump.any():
+            r, dt = int(np.argmax(jump)) + 1, float(np.median(steps))
+            dev = t[r] - t[r - 1] - dt
+        else:
+            r = int(np.argmax(off > TIME_GRID_RTOL * dt))
+            dev = off[r]
+        raise AKFInputError(f"{path}: data row {offset + r + 1} (t = {t[r]:.9g} s) is {dev:.3g} s ({dev / dt:.3g} "
                             f"steps) off the uniform grid t0 + k dt (dt = {dt:.9g} s): a gap or jitter there")
     return Timing(float(t[0]), float(dt), int(t.size))
 
@@ -194,8 +203,8 @@ def _numeric(column, path, name, row0):
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         r = int(bad[0])
-        raise AKFInputError(f"{path}: column {name!r} has {bad.size} missing/NaN, infinite or non-numeric sample(s); "
-                            f"first {str(column.iloc[r])!r} in data row {row0 + r + 1}")
+        raise AKFInputError(f"{path}: column {name!r} has {bad.size} missing/NaN or non-numeric sample(s) or infinite "
+                            f"value(s); first {str(column.iloc[r])!r} in data row {row0 + r + 1}")
     return values
 
 

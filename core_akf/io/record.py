@@ -186,7 +186,7 @@ class Record:
     def _check_joins(self):
         t0 = self.timings[0]
         for (fa, a), (fb, b) in zip(zip(self.files, self.timings), zip(self.files[1:], self.timings[1:])):
-            if abs(b.dt - t0.dt) > 1e-9 * t0.dt:
+            if abs(b.dt - t0.dt) * max(b.n_steps, 1) > TIME_GRID_RTOL * t0.dt:     # drifts off the grid
                 raise AKFInputError(f"{fb}: time step {b.dt:.9g} s differs from {t0.dt:.9g} s of {self.files[0]}")
             delta = b.start - a.end
             if abs(delta) > TIME_GRID_RTOL * t0.dt:
@@ -211,7 +211,7 @@ class Record:
     def check_dt(self, dt):
         """Error unless the record's time step matches ``dt`` (s) to :data:`TIME_GRID_RTOL`."""
         if abs(self.dt - dt) > TIME_GRID_RTOL * dt:
-            raise AKFInputError(f"{self.files[0]}: sampling interval {self.dt:.9g} s does not match the job's "
+            raise AKFInputError(f"{self.files[0]}: sampling interval {self.dt:.9g} s (median step) does not match the job's "
                                 f"dt = {dt:.9g} s ({self.dt / dt:.4g} x dt)")
 
     # ---------------------------------------------------------------------------- data
@@ -275,16 +275,21 @@ class Record:
         for j, s in enumerate(self.layout):
             col = Y[:, j]
             if col.size >= _CONSTANT_MIN_STEPS and np.ptp(col) == 0:
-                raise AKFInputError(f"channel {self.sources[0][j].name!r} ({s.label}) is constant ({col[0]:.9g}) over "
+                raise AKFInputError(f"channel {self._named(j)} is constant ({col[0]:.9g}) over "
                                     f"{col.size} steps ({where}): a disconnected or saturated sensor gives no "
                                     "information; remove it from the job's sensors")
             if s.kind == "strain":
                 level = float(np.sqrt(np.mean(col ** 2)))
                 if level > MAX_PLAUSIBLE_STRAIN:
                     raise AKFInputError(
-                        f"strain channel {self.sources[0][j].name!r} ({s.label}) has an RMS of {level:.4g} ({where}), "
+                        f"strain channel {self._named(j)} has an RMS of {level:.4g} ({where}), "
                         f"impossible in m/m for an elastic structure (> {MAX_PLAUSIBLE_STRAIN:g}); it looks like "
                         f"microstrain: set units = {{\"{self.sources[0][j].name}\" = \"microstrain\"}} in [measurements]")
+
+    def _named(self, j):
+        """Channel ``j`` for messages: ``'SG13' (strain:13)``, or ``'strain:13'`` if named so."""
+        name, label = self.sources[0][j].name, self.labels[j]
+        return repr(name) if name == label else f"{name!r} ({label})"
 
     def read(self, size=65536):
         """The whole record in memory: ``(t (N,), Y (N, m) SI)``."""

@@ -35,9 +35,10 @@ def registry():
     ``m/m``, ``microstrain``, ``µε``, ``µm/m``)."""
     import pint
 
-    ureg = pint.UnitRegistry(cache_folder=":auto:")
-    ureg.define("@alias strain = ε")      # µε, uε: the prefixes apply
-    return ureg
+    try:
+        return pint.UnitRegistry(cache_folder=":auto:")      # parsed definitions cached per user: 0.1 s
+    except OSError:                                           # no writable cache folder
+        return pint.UnitRegistry()
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,7 @@ class Conversion:
         return BRIDGES[self.bridge] * r / self.gauge_factor
 
 
-_SIMPLE = {("strain", u): 1.0 for u in ("m/m", "strain", "")} | {("acc", "m/s^2"): 1.0, ("acc", "m/s**2"): 1.0,
+_SIMPLE = {("strain", u): 1.0 for u in ("m/m", "strain")} | {("acc", "m/s^2"): 1.0, ("acc", "m/s**2"): 1.0,
                                                                  ("vel", "m/s"): 1.0, ("disp", "m"): 1.0}
 
 
@@ -68,8 +69,8 @@ def conversion(unit, kind, channel, gauge_factor=None, bridge=None):
     unit of sensor ``kind``; a bridge unit (a voltage ratio) needs ``gauge_factor`` and takes
     ``bridge`` (default "quarter")."""
     text = "" if unit is None else str(unit).strip()
-    if (kind, text) in _SIMPLE and gauge_factor is None:
-        return Conversion(text or SI_UNITS[kind], 1.0)
+    if (is_unset(text) or (kind, text) in _SIMPLE) and gauge_factor is None:
+        return Conversion(SI_UNITS[kind] if is_unset(text) else text, 1.0)
     if kind == "acc" and text in _GRAVITY:
         text = _GRAVITY[text]
     import pint

@@ -1,0 +1,282 @@
+"""Measured records estimated in constant memory: read in chunks, filtered with the state carried
+over, the results written as they come, and a checkpoint after every chunk so that an interrupted
+run continues where it ended (``akf estimate JOB --resume``).
+
+The time series go to ``timeseries.csv`` (appended) or ``timeseries.parquet`` (a folder of one
+Parquet file per chunk: a dataset that ``pandas.read_parquet`` reads whole), tidy as for simulated
+jobs: one row per time step and channel.  The checkpoint (``.akf-resume.npz``) holds the filter's
+state, the running diagnostics, how much of the output is written and a fingerprint of the job
+and its files; a resumed run cuts the output back to the checkpoint and goes on from there.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core_akf.defaults import default
+from core_akf.diagnostics import CONSISTENCY_LIMIT, RunningDiagnostics, warnings_for
+from core_akf.exceptions import AKFInputError
+from core_akf.io import Record
+from core_akf.outputs import atomic_path, write_csv
+from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
+from core_akf.streaming import CheckpointError, Estimator
+
+from .schema import parse_job
+
+#: steps per chunk unless the job says ``[measurements] chunk`` (seconds)
+DEFAULT_CHUNK_STEPS = 65536
+#: points per channel kept for the figure (the record decimated to at most this)
+_PLOT_POINTS = 20000
+CHECKPOINT = ".akf-resume.npz"
+
+
+def open_record(meas, sensors):
+    """The :class:`core_akf.io.Record` of a job's ``[measurements]`` (a :class:`akf.schema.Measurements`)."""
+    if meas.file is None:
+        raise AKFInputError("[measurements] needs file = 'data.csv' (a file, a folder or a glob pattern)")
+    return Record(meas.file, sensors, channels=meas.channels, units=meas.units, gauge_factor=meas.gauge_factor,
+                  bridge=meas.bridge, invert=meas.invert or (), remove_offset=meas.remove_offset or False,
+                  format=meas.format, time_column=meas.time_column or "time", group=meas.group)
+
+
+@dataclass
+class StreamResult:
+    """What :func:`stream_job` did: the metrics (as :class:`akf.jobs.JobResult`), the files written,
+    the record's channels and the steps done in this call."""
+
+    job: dict
+    metrics: dict
+    files: dict
+    channels: list
+    notes: list = field(default_factory=list)
+    resumed_at: int = 0
+    complete: bool = True
+
+
+class _Writer:
+    """Tidy rows appended chunk by chunk, to CSV or to Parquet parts; cut back on resume."""
+
+    def __init__(self, out, fmt):
+        self.fmt = fmt
+        self.path = os.path.join(out, "timeseries.csv" if fmt == "csv" else "timeseries.parquet")
+        self.position = 0        # CSV: bytes written; Parquet: parts written
+
+    def start(self, position=0):
+        """Begin anew (0) or cut the output back to a checkpoint's ``position``."""
+        if self.fmt == "csv":
+            if position == 0:
+                with open(self.path, "w") as fh:
+                    fh.write("time,quantity,channel,unit,estimated,reference\n")
+                position = os.path.getsize(self.path)
+            else:
+                if not os.path.exists(self.path) or os.path.getsize(self.path) < position:
+                    raise CheckpointError(f"{self.path} is shorter than the checkpoint says: start the run anew")
+                with open(self.path, "r+b") as fh:
+                    fh.truncate(position)
+        else:
+            if os.path.isfile(self.path):
+                os.remove(self.path)
+            os.makedirs(self.path, exist_ok=True)
+            for name in os.listdir(self.path):
+                if name.startswith("part-") and (position == 0 or int(name[5:10]) >= position):
+                    os.remove(os.path.join(self.path, name))
+            if position and not os.path.exists(os.path.join(self.path, f"part-{position - 1:05d}.parquet")):
+                raise CheckpointError(f"{self.path} lacks parts the checkpoint says were written: start the run anew")
+        self.position = position
+
+    def write(self, frame):
+        if self.fmt == "csv":
+            with open(self.path, "a") as fh:
+                frame.to_csv(fh, header=False, index=False, float_format="%.17g")
+                fh.flush()
+                os.fsync(fh.fileno())
+            self.position = os.path.getsize(self.path)
+        else:
+            with atomic_path(os.path.join(self.path, f"part-{self.position:05d}.parquet")) as tmp:
+                frame.to_parquet(tmp, index=False)
+            self.position += 1
+
+
+def _fingerprint(job, record):
+    """The job (without output-only keys) and its files (names, sizes, times of change)."""
+    spec = copy.deepcopy(job)
+    spec.pop("output", None)
+    files = [(os.path.abspath(f), os.path.getsize(f), os.path.getmtime(f)) for f in record.files]
+    return hashlib.sha256(json.dumps([spec, files], sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _frame(est, strain_index, strain_labels, strain_rows):
+    """Tidy rows of one chunk: forces, then the chosen strains."""
+    import pandas as pd
+
+    t = est.time
+    n = t.size
+    names = [f"{node}:{d}" for node, d in est.force_locations]
+    blocks = [est.forces] + ([est.states[:, :est.structure.n] @ strain_rows.T] if len(strain_index) else [])
+    values = np.hstack(blocks)
+    channels = names + [strain_labels[i] for i in strain_index]
+    return pd.DataFrame({"time": np.tile(t, len(channels)),
+                         "quantity": np.repeat(["force"] * len(names) + ["strain"] * len(strain_index), n),
+                         "channel": np.repeat(channels, n),
+                         "unit": np.repeat(["N"] * len(names) + ["m/m"] * len(strain_index), n),
+                         "estimated": values.T.reshape(-1), "reference": np.nan})
+
+
+def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, plot=True, progress=False,
+               stop_after=None):
+    """Estimate forces and strains for a job with ``[measurements]``, chunk by chunk, into ``out``.
+
+    ``resume``: continue an interrupted run from its checkpoint in ``out``.  ``stop_after``: stop
+    after this many chunks (as if interrupted; for tests and for splitting work).  Returns a
+    :class:`StreamResult`; its metrics have the keys of :attr:`akf.jobs.JobResult.metrics`.
+    """
+    from .jobs import METRIC_UNITS, build_structure
+
+    job = copy.deepcopy(job)
+    spec = parse_job(job, "estimate")
+    if spec.measurements is None:
+        raise AKFInputError("streamed estimation needs a [measurements] section")
+    dt, filt = spec.dt, spec.filter
+    structure = build_structure(job["structure"])
+    sensors = as_layout(job["sensors"])
+    selection_matrices(structure, sensors)
+    forces = parse_force_locations(structure, job["forces"])
+    record = open_record(spec.measurements, sensors)
+    record.check_dt(dt)
+    model = structure.scaled(default("stiffness_factor", filt.stiffness_factor))
+    if filt.reduce_modes:
+        model = model.reduce(filt.reduce_modes)
+    noise_cov = filt.noise_cov
+    if noise_cov is None or isinstance(noise_cov, str):
+        raise AKFInputError("measured data need the noise variances: [filter] noise_cov = {strain = ..., acc = ...} "
+                            "(SI units squared) or one variance per sensor")
+    estimator = Estimator(model, sensors, forces, dt, steady=filt.steady if steady is None else steady,
+                          allow_undetectable=bool(filt.allow_undetectable if allow_undetectable is None
+                                                  else allow_undetectable),
+                          model_error_cov=default("model_error_cov", filt.model_error_cov),
+                          force_increment_cov=default("force_increment_cov", filt.force_increment_cov),
+                          noise_cov=noise_cov, t0=record.start)
+    chunk = DEFAULT_CHUNK_STEPS if spec.measurements.chunk is None else max(1, int(round(spec.measurements.chunk / dt)))
+    n_total = record.n_steps
+    notes = []
+    wanted = (spec.output.strains if spec.output is not None else None) or "all"
+    labels = structure.strain_labels
+    if wanted == "all":
+        if structure.n_strain * n_total <= 2_000_000 or (spec.output is not None and spec.output.strains == "all"):
+            strain_index = list(range(len(labels)))
+        else:
+            strain_index = []
+            notes.append(f"strain histories not written ({structure.n_strain} channels x {n_total} steps); list the "
+                         "channels you want in [output] strains")
+    else:
+        strain_index = structure.strain_label_index(wanted)
+    strain_rows = model.strain_operator[strain_index]
+    writer = _Writer(out, (spec.output.format if spec.output is not None else None) or "csv")
+    diag = RunningDiagnostics(n_total)
+    fingerprint = _fingerprint(job, record)
+    checkpoint = os.path.join(out, CHECKPOINT)
+    start = 0
+    decimate = max(1, -(-n_total // _PLOT_POINTS))
+    kept = {"t": [], "f": []}
+    if resume:
+        if not os.path.exists(checkpoint):
+            raise AKFInputError(f"nothing to resume in {out}: no checkpoint {CHECKPOINT} (run without --resume)")
+        saved = dict(np.load(checkpoint, allow_pickle=False))
+        if str(saved["job"]) != fingerprint:
+            raise CheckpointError(f"the checkpoint in {out} was written for another job or other data files; run "
+                                  "without --resume to start anew")
+        if int(saved["chunk"]) != chunk:
+            raise CheckpointError("the checkpoint was written with another chunk length; run without --resume")
+        estimator.restore(saved)
+        start = int(saved["next_step"])
+        writer.start(int(saved["position"]))
+        kept = {"t": [saved["plot_t"]], "f": [saved["plot_f"]]}
+    else:
+        writer.start(0)
+    last = None
+    done = 0
+    progress_bar = _progress(progress, n_total, start)
+    for step, Y in record.chunks(chunk, start):
+        est = estimator.update(Y)
+        if last is None and resume:
+            diag.restore(saved, est)
+        diag.update(est)
+        last = est
+        writer.write(_frame(est, strain_index, labels, strain_rows))
+        sel = np.arange((-step) % decimate, est.forces.shape[0], decimate)
+        kept["t"].append(est.time[sel])
+        kept["f"].append(est.forces[sel])
+        done += 1
+        progress_bar(Y.shape[0])
+        if step + Y.shape[0] < n_total:      # after the last chunk the summary follows: a resume redoes that chunk
+            state = estimator.state() | diag.state() | {
+                "next_step": np.array(step + Y.shape[0]), "position": np.array(writer.position),
+                "job": np.array(fingerprint), "chunk": np.array(chunk), "plot_t": np.concatenate(kept["t"]),
+                "plot_f": np.vstack(kept["f"])}
+            with atomic_path(checkpoint) as tmp:
+                with open(tmp, "wb") as fh:
+                    np.savez(fh, **state)
+            if stop_after is not None and done >= stop_after:
+                notes.append(f"stopped after {done} chunk(s) at step {step + Y.shape[0]} of {n_total}; continue with "
+                             "--resume")
+                return StreamResult(job, {}, {"timeseries": writer.path, "checkpoint": checkpoint}, record.describe(),
+                                    notes, start, complete=False)
+    metrics = {"detectable": estimator.report.detectable, "n_steps": int(n_total), "units": METRIC_UNITS,
+               "forces": diag.forces(record.start), "sensors": diag.sensors()}
+    metrics["warnings"] = warnings_for(last, metrics["sensors"], duration=n_total * dt)
+    if any(d["consistency"] > CONSISTENCY_LIMIT for d in metrics["sensors"]):
+        metrics["warnings"].append("check the channel map: units, signs (invert) and gauge factors of the channels named "
+                                   "above")
+    files = {"timeseries": writer.path, "summary": os.path.join(out, "summary.csv")}
+    write_csv(_summary(metrics), files["summary"])
+    if plot:
+        files["figure"] = _plot(np.concatenate(kept["t"]), np.vstack(kept["f"]), forces, metrics,
+                                os.path.join(out, "estimate.png"), job.get("name", "AKF estimate"), decimate)
+    if os.path.exists(checkpoint):
+        os.remove(checkpoint)
+    return StreamResult(job, metrics, files, record.describe(), notes, start)
+
+
+def _progress(on, total, start):
+    if not on:
+        return lambda k: None
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=total, initial=start, unit="step", unit_scale=True, desc="estimate", leave=False)
+    return bar.update
+
+
+def _summary(metrics):
+    import pandas as pd
+
+    rows = [dict(quantity="force", **f) for f in metrics["forces"]]
+    rows += [dict(quantity="sensor", channel=d["channel"], unit=d["unit"], rms=d["measured_rms"],
+                  **{k: v for k, v in d.items() if k not in ("channel", "unit", "measured_rms")})
+             for d in metrics["sensors"]]
+    columns = ["quantity", "channel", "unit", "rms_error", "rms", "peak", "time_of_peak", "innovation_rms",
+               "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def _plot(t, f, forces, metrics, path, title, decimate):
+    from core_akf.figures import save_figure, subplots
+
+    nf = f.shape[1]
+    fig, axes = subplots(nf + 1, 1, figsize=(9, 2.2 * (nf + 1)), squeeze=False)
+    for j, (node, d) in enumerate(forces):
+        axes[j, 0].plot(t, f[:, j] / 1e3, "r-", lw=0.6)
+        axes[j, 0].set_ylabel(f"force {node}:{d}\n(kN)")
+    axes[-2, 0].set_xlabel("time (s)" + (f"; every {decimate}th step drawn" if decimate > 1 else ""))
+    ax = axes[-1, 0]
+    sens = metrics["sensors"]
+    ax.bar(range(len(sens)), [d["consistency"] for d in sens], color="tab:blue")
+    ax.axhline(1.0, color="k", lw=0.6, ls=":")
+    ax.set_xticks(range(len(sens)), [d["channel"] for d in sens], rotation=45, fontsize=7)
+    ax.set_ylabel("innovation /\npredicted")
+    fig.suptitle(f"{title}: estimated forces (streamed)")
+    return save_figure(fig, path)
