@@ -176,6 +176,7 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
     else:
         strain_index = structure.strain_label_index(wanted)
     strain_rows = model.strain_operator[strain_index]
+    os.makedirs(out, exist_ok=True)
     writer = _Writer(out, (spec.output.format if spec.output is not None else None) or "csv")
     diag = RunningDiagnostics(n_total)
     fingerprint = _fingerprint(job, record)
