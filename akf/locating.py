@@ -76,6 +76,92 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None):
                   n_jobs=n_jobs, seed=seed, progress=progress, tuning=tuning)
 
 
+def is_event_folder(job):
+    """Whether a locate job's ``[measurements] file`` names many impact records (a folder or a glob
+    pattern): then every file is one event (:func:`locate_events`)."""
+    import glob
+
+    meas = job.get("measurements") or {}
+    f = meas.get("file")
+    return isinstance(f, str) and (os.path.isdir(f) or glob.has_magic(f))
+
+
+def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=True):
+    """Locate the impact of every file of a folder (or glob pattern) of impact records.
+
+    Each event is located as a job of its own (:func:`run_locate_job`) and its ranking and force
+    history are written to ``out/events/<file name>/``.  One table, ``events.csv``, has a row per
+    file: ``file``, ``node``, ``direction``, ``confidence``, ``margin``, ``peak_force`` (N),
+    ``time_of_peak`` (s, from the record's start), ``duration`` (s), ``impulse`` (N s) and
+    ``error`` (why a file could not be used; the others go on).  ``events.png`` draws the located
+    impacts on the structure.  Returns ``(DataFrame, {name: path})``."""
+    import copy
+
+    import pandas as pd
+
+    from core_akf.io import record_files
+
+    from .jobs import build_structure
+
+    files = record_files(job["measurements"]["file"])
+    rows, written = [], {}
+    os.makedirs(out, exist_ok=True)
+    for i, path in enumerate(files):
+        one = copy.deepcopy(job)
+        one["measurements"]["file"] = path
+        name = os.path.splitext(os.path.basename(path))[0]
+        row = {"file": path}
+        try:
+            result = run_locate_job(one, n_jobs=n_jobs, seed=seed, progress=False, tune=tune)
+        except AKFInputError as exc:
+            rows.append(row | {"error": str(exc)})
+            if progress:
+                print(f"  [{i + 1}/{len(files)}] {name}: not located: {exc}")
+            continue
+        d = result.to_dict()
+        row |= {"node": d["identified"], "direction": d["direction"], "confidence": d["confidence"],
+                "margin": d["margin"], "peak_force": d["peak_force"], "time_of_peak": d["time_of_peak"],
+                "duration": d["duration"], "impulse": d["impulse"], "warnings": "; ".join(d["warnings"]), "error": ""}
+        rows.append(row)
+        write_outputs(result, os.path.join(out, "events", name), plot=False)
+        if progress:
+            print(f"  [{i + 1}/{len(files)}] {name}: node {row['node']} ({row['direction']}), confidence "
+                  f"{row['confidence']:.2f}, peak {row['peak_force'] / 1e3:.3f} kN at {row['time_of_peak']:.4f} s")
+    columns = ["file", "node", "direction", "confidence", "margin", "peak_force", "time_of_peak", "duration", "impulse",
+               "warnings", "error"]
+    frame = pd.DataFrame(rows, columns=columns)
+    written["events"] = write_csv(frame, os.path.join(out, "events.csv"))
+    written["event_folders"] = os.path.join(out, "events")
+    if plot and frame["node"].notna().any():
+        written["events_figure"] = _plot_events(build_structure(job["structure"]), frame,
+                                                os.path.join(out, "events.png"), job.get("name", "impacts"))
+    return frame, written
+
+
+def _plot_events(structure, frame, path, title):
+    """The located impacts on the structure: a disc per event at its node, sized by the peak force
+    and numbered in the order of events.csv."""
+    import numpy as np
+
+    from core_akf.figures import plot_structure, save_figure
+
+    fig = plot_structure(structure, numbers=structure.n_nodes <= 60)
+    ax = fig.axes[0]
+    ok = frame[frame["node"].notna()]
+    peaks = np.abs(ok["peak_force"].to_numpy(float))
+    sizes = 60 + 340 * peaks / max(peaks.max(), 1e-300)
+    xy = structure.nodes[ok["node"].astype(int).to_numpy() - 1]
+    sc = ax.scatter(xy[:, 0], xy[:, 1], s=sizes, c=ok["confidence"].to_numpy(float), cmap="viridis", vmin=0, vmax=1,
+                    alpha=0.75, edgecolors="k", zorder=5)
+    for k, (x, y), p in zip(ok.index, xy, peaks):
+        ax.annotate(f"#{k + 1}: {p / 1e3:.3g} kN", (x, y), textcoords="offset points", xytext=(8, -12), fontsize=8,
+                    fontweight="bold", color="darkred", zorder=6)
+    fig.colorbar(sc, ax=ax, label="confidence (share of role splits)", orientation="horizontal", shrink=0.4, pad=0.2)
+    ax.set_title(f"{title}: {len(ok)} of {len(frame)} impacts located (disc size: peak force, "
+                 f"largest {peaks.max() / 1e3:.3g} kN)", fontsize=9)
+    return save_figure(fig, path)
+
+
 def write_outputs(result, out, scenario=None, plot=True):
     """Write ranking.csv, scan.csv, force.csv, response.csv, tuning.csv and the figures; returns {name: path}."""
     import pandas as pd

@@ -319,3 +319,33 @@ def test_streaming_memory_does_not_grow_with_the_record():
         return top
     short, long = peak(10), peak(40)
     assert long < 1.1 * short, (short, long)
+
+
+def test_locate_over_a_folder_of_impact_records(tmp_path, capsys):
+    """akf locate on a folder of TDMS impact records: one row per file in events.csv (the three
+    simulated impacts found at their nodes), a row with the reason for a file that cannot be
+    used, the figure, and each event's ranking."""
+    import shutil
+
+    from nptdms import ChannelObject, TdmsFile, TdmsWriter
+
+    events = tmp_path / "events"
+    shutil.copytree(DAQ.parent / "impacts", events, ignore=shutil.ignore_patterns("*.py", "*.toml"))
+    src = TdmsFile.read(events / "impact-0001.tdms")
+    with TdmsWriter(events / "impact-0004.tdms") as w:      # a dead gauge: constant
+        w.write_segment([ChannelObject("DAQ", c.name, c[:] * (0 if c.name == "SG9" else 1), properties=c.properties)
+                         for c in src["DAQ"].channels()])
+    job = load_job_file(DAQ.parent / "impacts" / "truss-impacts.toml")
+    job["measurements"]["file"] = str(events)
+    job["locate"]["max_splits"] = 6
+    (tmp_path / "job.toml").write_text(_toml(job))
+    assert main(["locate", str(tmp_path / "job.toml"), "--no-tune", "--json", "--out", str(tmp_path / "out")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    table = pd.read_csv(out["files"]["events"])
+    assert list(table.columns[:7]) == ["file", "node", "direction", "confidence", "margin", "peak_force", "time_of_peak"]
+    assert table["node"].tolist()[:3] == [14, 6, 11]
+    assert np.allclose(table["time_of_peak"][:3], 0.982, atol=0.002)
+    assert table["peak_force"][0] > table["peak_force"][2] > table["peak_force"][1] > 4e3
+    assert np.isnan(table["node"][3]) and "'SG9' (strain:9) is constant" in table["error"][3]
+    assert os.path.exists(out["files"]["events_figure"])
+    assert (tmp_path / "out" / "events" / "impact-0002" / "ranking.csv").exists()

@@ -22,6 +22,12 @@ def _locate(args):
         print_examples("locate")
         return 0
     check_job_or_example(args, "locate job file")
+    if args.job is not None:
+        job = load_job(args.job, "locate")
+        from ..locating import is_event_folder
+
+        if is_event_folder(job):
+            return _locate_events(args, job)
     with scheduler(args.scheduler, resume="run the same command again: the scan has no randomness and the seed "
                                           "repeats the tuning"):
         result, scenario, name = _run_locate(args, progress=not args.json)
@@ -54,6 +60,27 @@ def _locate(args):
     for w in result.warnings:
         print(f"  WARNING: {w}")
     print("  time: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.seconds.items()))
+    print_written(files)
+    return 0
+
+
+def _locate_events(args, job):
+    """``akf locate JOB`` whose measurements are a folder or glob of impact records: one event per file."""
+    from ..locating import locate_events
+    from .common import print_written
+
+    name = job.get("name", os.path.splitext(os.path.basename(args.job))[0])
+    out = args.out or os.path.join("akf-out", "locate", name)
+    with OutputFolder(out, "--out"), scheduler(args.scheduler, resume="run the same command again"):
+        if not args.json:
+            print(f"{name}: locating the impact of every file of {job['measurements']['file']}")
+        frame, files = locate_events(job, out, n_jobs=workers(args), seed=args.seed, progress=not args.json,
+                                     tune=False if args.no_tune else None, plot=not args.no_plot)
+    if args.json:
+        print(json.dumps({"name": name, "events": json.loads(frame.to_json(orient="records")), "files": files}))
+        return 0
+    located = frame["node"].notna().sum()
+    print(f"  {located} of {len(frame)} impacts located")
     print_written(files)
     return 0
 
