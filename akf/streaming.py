@@ -111,7 +111,8 @@ def _fingerprint(job, record):
 
 
 def _frame(est, strain_index, strain_labels, strain_rows):
-    """Tidy rows of one chunk: forces, then the chosen strains."""
+    """Tidy rows of one chunk: forces, then the chosen strains (text columns as categoricals: the
+    same rows, built and written ten times faster than strings)."""
     import pandas as pd
 
     t = est.time
@@ -120,11 +121,15 @@ def _frame(est, strain_index, strain_labels, strain_rows):
     blocks = [est.forces] + ([est.states[:, :est.structure.n] @ strain_rows.T] if len(strain_index) else [])
     values = np.hstack(blocks)
     channels = names + [strain_labels[i] for i in strain_index]
+    is_strain = np.repeat(np.arange(len(channels)) >= len(names), n).astype(np.int8)
+
+    def column(codes, categories):
+        return pd.Categorical.from_codes(codes, categories=categories)
     return pd.DataFrame({"time": np.tile(t, len(channels)),
-                         "quantity": np.repeat(["force"] * len(names) + ["strain"] * len(strain_index), n),
-                         "channel": np.repeat(channels, n),
-                         "unit": np.repeat(["N"] * len(names) + ["m/m"] * len(strain_index), n),
-                         "estimated": values.T.reshape(-1), "reference": np.nan})
+                         "quantity": column(is_strain, ["force", "strain"]),
+                         "channel": column(np.repeat(np.arange(len(channels)), n), channels),
+                         "unit": column(is_strain, ["N", "m/m"]),
+                         "estimated": values.T.reshape(-1), "reference": np.full(n * len(channels), np.nan)})
 
 
 def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, plot=True, progress=False,
