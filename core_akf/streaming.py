@@ -78,7 +78,9 @@ class Estimator:
                 P, L = steady_gain(s.A_a[None], s.G_a, s.Q_a[None], s.R)
             except RiccatiError as exc:
                 raise s.riccati_error(exc) from None
-            self._P, self._L = P[0], L[0]
+            # contiguous copies: a restored state is contiguous too, and BLAS may round a strided
+            # operand differently, so a resumed run would differ in the last bits
+            self._P, self._L = np.ascontiguousarray(P[0]), np.ascontiguousarray(L[0])
         else:
             self._P = s.Q_a.copy() if s.Pz0 is None else 0.5 * (s.Pz0 + s.Pz0.T)
             self._L = None
@@ -125,9 +127,9 @@ class Estimator:
         else:
             X, innov, L, P, switched = _time_varying(s.A_a[None], s.G_a, s.Q_a[None], s.R, Y[None], x[None],
                                                      self._P[None], self.switch_tol, self._transition)
-            X, innov, L, self._P = X[0], innov[0], L[0], P[0]
+            X, innov, L, self._P = X[0], innov[0], L[0], np.ascontiguousarray(P[0])
             if switched:
-                self._switched, self._L = True, L
+                self._switched, self._L = True, np.ascontiguousarray(L)
         self._z = X[-1].copy()
         self.n_steps += Y.shape[0]
         return s.estimates(X[None], innov[None], L[None], self._P[None], Y[None], [self.report], t0=t0)[0]
@@ -167,7 +169,7 @@ class Estimator:
         if fingerprint != self._fingerprint:
             raise CheckpointError("the saved filter state belongs to another filter (structure, sensors, forces, dt, "
                                   "covariances or filter form differ); start the run anew")
-        self.n_steps, self._P, self._switched = n_steps, P, switched
-        self._L = L if switched else None
+        self.n_steps, self._P, self._switched = n_steps, np.ascontiguousarray(P), switched
+        self._L = np.ascontiguousarray(L) if switched else None
         self._z = z.copy() if started else None
         return self

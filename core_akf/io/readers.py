@@ -251,7 +251,41 @@ class ParquetReader(Reader):
 
 
 # --------------------------------------------------------------------------------- DAQ formats
-class TdmsReader(Reader):
+class _SlicedReader(Reader):
+    """A format whose channels are arrays read by slices from an open file (``self._file``,
+    ``self._series``: name -> sliceable channel, the time channel included if there is one)."""
+
+    _file = None
+    _series: dict = {}
+
+    def __del__(self):
+        try:
+            self._file.close()
+        except Exception:  # noqa: BLE001, S110 -- closing at exit
+            pass
+
+    def channels(self):
+        return [c for c in self._series if c != self.time_column]
+
+    def _length(self):
+        """The common length of the data channels (a located error if they differ)."""
+        lengths = {len(self._series[c]) for c in self.channels()}
+        if not lengths:
+            raise AKFInputError(f"{self.path}: no data channels")
+        if len(lengths) > 1:
+            raise AKFInputError(f"{self.path}: channels of different lengths {sorted(lengths)}; a record needs one "
+                                "sample of every channel per time step")
+        return lengths.pop()
+
+    def chunks(self, channels, size):
+        self._check_channels(channels)
+        n = self.timing().n_steps
+        for start in range(0, n, size):
+            stop = min(start + size, n)
+            yield np.column_stack([np.asarray(self._series[c][start:stop], float) for c in channels])
+
+
+class TdmsReader(_SlicedReader):
     """LabVIEW TDMS (npTDMS), opened for streaming: only the chunks asked for are read."""
 
     format, extensions, module, extra = "tdms", (".tdms",), "nptdms", "tdms"
@@ -269,39 +303,21 @@ class TdmsReader(Reader):
                 raise AKFInputError(f"{self.path}: no group {group!r}; the file has {[g.name for g in self._file.groups()]}")
         all_channels = [(g.name, c) for g in groups for c in g.channels()]
         names = [c.name for _, c in all_channels]
-        self._channels = {}
+        self._series = {}
         for gname, c in all_channels:
-            self._channels[c.name if names.count(c.name) == 1 else f"{gname}/{c.name}"] = c
+            self._series[c.name if names.count(c.name) == 1 else f"{gname}/{c.name}"] = c
         self._timing = None
 
-    def close(self):
-        self._file.close()
-
-    def __del__(self):
-        try:
-            self._file.close()
-        except Exception:  # noqa: BLE001, S110 -- closing at exit
-            pass
-
-    def channels(self):
-        return [c for c in self._channels if c != self.time_column]
-
     def units(self):
-        return {name: c.properties["unit_string"] for name, c in self._channels.items()
+        return {name: c.properties["unit_string"] for name, c in self._series.items()
                 if name != self.time_column and "unit_string" in c.properties}
 
     def timing(self):
         if self._timing is None:
-            data = [c for n, c in self._channels.items() if n != self.time_column]
-            if not data:
-                raise AKFInputError(f"{self.path}: no data channels")
-            lengths = {len(c) for c in data}
-            if len(lengths) > 1:
-                raise AKFInputError(f"{self.path}: channels of different lengths {sorted(lengths)}; a record needs one "
-                                    "sample of every channel per time step")
-            n = lengths.pop()
-            if self.time_column in self._channels:
-                self._timing = check_time_grid(self._channels[self.time_column][:], self.path)
+            n = self._length()
+            data = [self._series[c] for c in self.channels()]
+            if self.time_column in self._series:
+                self._timing = check_time_grid(self._series[self.time_column][:], self.path)
             else:
                 props = data[0].properties
                 if "wf_increment" not in props:
@@ -317,13 +333,6 @@ class TdmsReader(Reader):
                     raise AKFInputError(f"{self.path}: wf_increment {dt!r} is not a positive time step")
                 self._timing = Timing(float(props.get("wf_start_offset", 0.0)), dt, int(n))
         return self._timing
-
-    def chunks(self, channels, size):
-        self._check_channels(channels)
-        n = self.timing().n_steps
-        for start in range(0, n, size):
-            stop = min(start + size, n)
-            yield np.column_stack([np.asarray(self._channels[c][start:stop], float) for c in channels])
 
 
 class Uff58Reader(Reader):
@@ -380,7 +389,7 @@ class Uff58Reader(Reader):
             yield data[start:start + size]
 
 
-class Hdf5Reader(Reader):
+class Hdf5Reader(_SlicedReader):
     """HDF5 (h5py): 1-D datasets per channel in a group; read by slices."""
 
     format, extensions, module, extra = "hdf5", (".h5", ".hdf5", ".hdf"), "h5py", "hdf5"
@@ -395,21 +404,12 @@ class Hdf5Reader(Reader):
             self._group = self._file[group] if group else self._file
         except KeyError:
             raise AKFInputError(f"{self.path}: no group {group!r}; the file has {list(self._file)}") from None
-        self._data = {k: v for k, v in self._group.items() if isinstance(v, self.lib.Dataset) and v.ndim == 1}
+        self._series = {k: v for k, v in self._group.items() if isinstance(v, self.lib.Dataset) and v.ndim == 1}
         self._timing = None
-
-    def __del__(self):
-        try:
-            self._file.close()
-        except Exception:  # noqa: BLE001, S110 -- closing at exit
-            pass
-
-    def channels(self):
-        return [c for c in self._data if c != self.time_column]
 
     def units(self):
         out = {}
-        for name, ds in self._data.items():
+        for name, ds in self._series.items():
             for key in ("unit", "units", "unit_string"):
                 if key in ds.attrs and name != self.time_column:
                     v = ds.attrs[key]
@@ -419,15 +419,9 @@ class Hdf5Reader(Reader):
 
     def timing(self):
         if self._timing is None:
-            data = [self._data[c] for c in self.channels()]
-            if not data:
-                raise AKFInputError(f"{self.path}: no 1-D datasets (channels) in {self.group or 'the root group'}")
-            lengths = {ds.shape[0] for ds in data}
-            if len(lengths) > 1:
-                raise AKFInputError(f"{self.path}: channels of different lengths {sorted(lengths)}")
-            n = lengths.pop()
-            if self.time_column in self._data:
-                self._timing = check_time_grid(self._data[self.time_column][:], self.path)
+            n = self._length()
+            if self.time_column in self._series:
+                self._timing = check_time_grid(self._series[self.time_column][:], self.path)
             else:
                 a = self._group.attrs
                 dt = a.get("dt", a.get("wf_increment"))
@@ -436,13 +430,6 @@ class Hdf5Reader(Reader):
                                         "(or wf_increment) on the group")
                 self._timing = Timing(float(a.get("t0", a.get("wf_start_offset", 0.0))), float(dt), int(n))
         return self._timing
-
-    def chunks(self, channels, size):
-        self._check_channels(channels)
-        n = self.timing().n_steps
-        for start in range(0, n, size):
-            stop = min(start + size, n)
-            yield np.column_stack([np.asarray(self._data[c][start:stop], float) for c in channels])
 
 
 # ------------------------------------------------------------------------------------ registry

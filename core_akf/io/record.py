@@ -215,12 +215,21 @@ class Record:
                                 f"dt = {dt:.9g} s ({self.dt / dt:.4g} x dt)")
 
     # ---------------------------------------------------------------------------- data
-    def _raw_chunks(self, size):
-        """SI chunks without offset removal, cut at multiples of ``size`` across file boundaries."""
-        pending, held, step = [], 0, 0
-        for path, sources in zip(self.files, self.sources):
+    def _raw_chunks(self, size, start=0):
+        """SI chunks without offset removal, cut at multiples of ``size`` across file boundaries,
+        from step ``start`` (a multiple of ``size``; the files before it are not read)."""
+        pending, held, step, file_start = [], 0, start, 0
+        for path, sources, timing in zip(self.files, self.sources, self.timings):
+            file_start, first = file_start + timing.n_steps, file_start
+            if file_start <= start:
+                continue
+            drop = max(start - first, 0)          # rows of this file before ``start``
             reader = self._open(path)
             for block in reader.chunks([s.name for s in sources], size):
+                if drop:
+                    block, drop = block[drop:], max(drop - block.shape[0], 0)
+                    if not block.shape[0]:
+                        continue
                 si = np.empty(block.shape)
                 for j, s in enumerate(sources):
                     si[:, j] = s.sign * s.convert(block[:, j])
@@ -263,9 +272,7 @@ class Record:
         if start % size:
             raise AKFInputError(f"a record is resumed at a multiple of the chunk size {size}, not at step {start}")
         offsets = self._offsets(size)
-        for step, Y in self._raw_chunks(size):
-            if step < start:
-                continue
+        for step, Y in self._raw_chunks(size, start):
             Y = Y - offsets
             self._check_chunk(step, Y)
             yield step, Y
