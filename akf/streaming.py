@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core_akf.defaults import default
-from core_akf.diagnostics import CONSISTENCY_LIMIT, RunningDiagnostics, warnings_for
+from core_akf.diagnostics import CONSISTENCY_LIMIT, RunningDiagnostics, scale_check, warnings_for
 from core_akf.exceptions import AKFInputError
 from core_akf.io import Record
 from core_akf.outputs import atomic_path, write_csv
@@ -235,9 +235,13 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
     metrics = {"detectable": estimator.report.detectable, "n_steps": int(n_total), "units": METRIC_UNITS,
                "forces": diag.forces(record.start), "sensors": diag.sensors()}
     metrics["warnings"] = warnings_for(last, metrics["sensors"], duration=n_total * dt)
-    if any(d["consistency"] > CONSISTENCY_LIMIT for d in metrics["sensors"]):
-        metrics["warnings"].append("check the channel map: units, signs (invert) and gauge factors of the channels named "
-                                   "above")
+    if estimator.report.detectable and any(d["consistency"] > CONSISTENCY_LIMIT for d in metrics["sensors"]):
+        # some channel does not fit: on the record's first chunk, find out whether a unit or a sign is wrong
+        first = next(record.chunks(chunk))[1]
+        found = scale_check(model, sensors, forces, first, dt, model_error_cov=estimator.model_error_cov,
+                            force_increment_cov=estimator.force_increment_cov, noise_cov=noise_cov)
+        metrics["warnings"] = found + metrics["warnings"] + [
+            "check the channel map in [measurements]: units, invert (sign) and gauge_factor of the channels named above"]
     files = {"timeseries": writer.path, "summary": os.path.join(out, "summary.csv")}
     write_csv(_summary(metrics), files["summary"])
     if plot:

@@ -67,6 +67,7 @@ class Estimator:
         self.setup = _FilterSetup(structure, [self.layout], self.locs, dt, model_error_cov, force_increment_cov,
                                   noise_cov, x0, P0)
         self.dt, self.t0, self.switch_tol = float(dt), float(t0), float(switch_tol)
+        self.model_error_cov, self.force_increment_cov = model_error_cov, force_increment_cov
         self.steady = bool(steady)
         s = self.setup
         self._transition = None if steady else ModalBlockTransition.detect(s.A_a, structure.n)

@@ -364,3 +364,13 @@ def test_record_chunks_from_a_later_step_skip_the_files_before(tmp_path):
     for k, Y in later.items():
         np.testing.assert_array_equal(Y, whole[k])
     assert len(opened) == 6          # steps 480.. lie in the last 6 of the 10 files (of 102-103 steps)
+
+
+def test_a_wrong_unit_in_the_channel_map_is_named(tmp_path):
+    """ACC_8Y declared in m/s^2 while the file holds mm/s^2: the streamed summary names the channel
+    and the unit mistake it looks like."""
+    meas = _channel_map("record.tdms")
+    meas["units"] = dict(meas["units"], ACC_8Y="m/s^2")          # the file holds mm/s^2
+    res = stream_job(_job(DAQ / "record.tdms", **meas), str(tmp_path), plot=False)
+    text = " ".join(res.metrics["warnings"])
+    assert "acc:8:y" in text and "millimetres" in text and "check the channel map" in text
