@@ -191,7 +191,7 @@ class Measurements(Section):
         "true, false or a positive number of seconds", "subtract each channel's offset (zero drift): true the mean of the "
         "whole record, a number the mean of its first that many seconds", used_by=("estimate", "locate"), unit="s")
     chunk: Positive = key("a positive number", "the record is filtered and written in pieces this long (constant "
-                          "memory)", used_by=ESTIMATE, unit="s", default_text="65536 steps")
+                          "memory)", used_by=ESTIMATE, unit="s", default_text="65536 steps (fewer for a large model)")
 
 
 class Output(Section):

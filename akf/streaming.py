@@ -28,8 +28,18 @@ from core_akf.streaming import CheckpointError, Estimator
 
 from .schema import parse_job
 
-#: steps per chunk unless the job says ``[measurements] chunk`` (seconds)
+#: steps per chunk at most, unless the job says ``[measurements] chunk`` (seconds)
 DEFAULT_CHUNK_STEPS = 65536
+#: bytes a chunk may hold (states, their transforms, channels, output rows)
+CHUNK_BYTES = 256e6
+
+
+def default_chunk(n_states, n_channels, n_outputs):
+    """Steps per chunk: :data:`DEFAULT_CHUNK_STEPS`, fewer for a large model so that a chunk holds
+    about :data:`CHUNK_BYTES` (about four copies of the augmented states of ``n_states``, the
+    channels and a tidy output row of six columns per written channel), at least 1024."""
+    per_step = 8 * (4 * n_states + 4 * n_channels + 6 * n_outputs)
+    return int(min(DEFAULT_CHUNK_STEPS, max(1024, CHUNK_BYTES // per_step)))
 #: points per channel kept for the figure (the record decimated to at most this)
 _PLOT_POINTS = 20000
 CHECKPOINT = ".akf-resume.npz"
@@ -166,7 +176,6 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
                           model_error_cov=default("model_error_cov", filt.model_error_cov),
                           force_increment_cov=default("force_increment_cov", filt.force_increment_cov),
                           noise_cov=noise_cov, t0=record.start)
-    chunk = DEFAULT_CHUNK_STEPS if spec.measurements.chunk is None else max(1, int(round(spec.measurements.chunk / dt)))
     n_total = record.n_steps
     notes = []
     wanted = (spec.output.strains if spec.output is not None else None) or "all"
@@ -181,6 +190,8 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
     else:
         strain_index = structure.strain_label_index(wanted)
     strain_rows = model.strain_operator[strain_index]
+    chunk = default_chunk(estimator.setup.A_a.shape[0], len(sensors), len(forces) + len(strain_index)) \
+        if spec.measurements.chunk is None else max(1, int(round(spec.measurements.chunk / dt)))
     os.makedirs(out, exist_ok=True)
     writer = _Writer(out, (spec.output.format if spec.output is not None else None) or "csv")
     diag = RunningDiagnostics(n_total)
