@@ -208,8 +208,13 @@ def main(argv=None):
         print(f"{row['case']} ({row['steps']:,} steps, full model of 330 DOFs): estimated in {row['estimate_s']:.1f} s, "
               f"{row['x_real_time']:.1f}x real time; RSS before {row['rss_before_MB']:.0f} MB, peak "
               f"{row['rss_peak_MB']:.0f} MB (the whole record in memory took about 2.6 GB)")
-    pd.DataFrame(rows).to_csv(os.path.join(HERE, "stream_results.csv"), index=False)
-    print(f"wrote {os.path.join(HERE, 'stream_results.csv')}")
+    path = os.path.join(HERE, "stream_results.csv")
+    table = pd.DataFrame(rows)
+    if os.path.exists(path):           # keep the other cases of an earlier run
+        old = pd.read_csv(path)
+        table = pd.concat([old[~old["case"].isin(table["case"])], table], ignore_index=True)
+    table.to_csv(path, index=False)
+    print(f"wrote {path}")
     if not args.data:
         shutil.rmtree(base, ignore_errors=True)
 

@@ -231,12 +231,14 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
 
     Each sensor kind (when there are several) and each single channel is held out in turn -- the
     filter ignores it (noise variance x 1e10) -- and the held-out data are regressed on what the
-    other sensors imply for them (one-step predictions): ``y ~ c y_hat``.  A factor ``c`` outside
+    other sensors imply for them (one-step predictions): ``y ~ c y_hat``.  A hold-out whose other
+    sensors are not detectable (say, accelerations alone) is skipped.  A factor ``c`` outside
     [1/3, 3] (or negative) with a correlation above 0.7 is reported with the unit it looks like.
     All hold-outs run as one batched steady-state filter.  Returns a list of warnings (str).
     """
-    from .akf import estimate_batch, noise_covariance
-    from .sensors import as_layout
+    from .akf import _FilterSetup, noise_covariance, steady_outputs
+    from .sensors import as_layout, parse_force_locations
+    from .statespace import detectability
 
     layout = as_layout(sensors)
     Y = np.asarray(measurements, float)
@@ -244,16 +246,28 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     kinds = np.array([s.kind for s in layout])
     groups = [("kind", k, np.flatnonzero(kinds == k)) for k in dict.fromkeys(kinds)] if len(set(kinds)) > 1 else []
     groups += [("channel", s.label, np.array([j])) for j, s in enumerate(layout)]
+    # a hold-out whose other sensors cannot see the forces has no steady-state filter (acceleration
+    # only, say): nothing to compare with there
+    locs = parse_force_locations(structure, forces)
+    groups = [g for g in groups if len(g[2]) < len(layout)
+              and detectability(structure, [s for j, s in enumerate(layout) if j not in g[2]], locs).detectable]
+    if not groups:
+        return []
     Rs = np.stack([R.copy() for _ in groups])
     for b, (_, _, idx) in enumerate(groups):
         Rs[b, idx, idx] *= _IGNORE
-    ests = estimate_batch(structure, [layout] * len(groups), forces, np.broadcast_to(Y, (len(groups),) + Y.shape), dt,
-                          model_error_cov=model_error_cov, force_increment_cov=force_increment_cov, noise_cov=Rs,
-                          steady=True)
+    # one-step predictions y_k^- = G_a A_a X_{k-1} of every hold-out, straight from the lifted
+    # recursion (no state histories: memory of the order of the data, also for a large model)
+    setup = _FilterSetup(structure, [layout] * len(groups), locs, dt,
+                         model_error_cov, force_increment_cov, Rs)
+    H = setup.G_a @ setup.A_a
+    predicted = np.zeros((len(groups),) + Y.shape)
+    predicted[:, 1:] = steady_outputs(setup.A_a, setup.G_a, setup.Q_a, setup.R,
+                                      np.broadcast_to(Y, (len(groups),) + Y.shape), H)[:, :-1]
     k0 = _skip(Y.shape[0])
     found = []                                   # (what, name, idx, c, r)
-    for (what, name, idx), est in zip(groups, ests):
-        y, yh = Y[k0:, idx].ravel(), est.predicted[k0:, idx].ravel()
+    for (what, name, idx), pred in zip(groups, predicted):
+        y, yh = Y[k0:, idx].ravel(), pred[k0:, idx].ravel()
         if not np.any(yh) or np.ptp(y) == 0:
             continue
         c = float(yh @ y / (yh @ yh))
