@@ -40,13 +40,15 @@ from core_akf.defaults import default
 from core_akf.diagnostics import CONSISTENCY_LIMIT, force_statistics, scale_check, sensor_diagnostics, warnings_for
 from core_akf.exceptions import AKFInputError
 from core_akf.metrics import average_strain_error, rms_error
-from core_akf.models import imp_plate, plate, s17_truss, th_plate
+from core_akf.models import from_files, imp_plate, plate, s17_truss, th_plate
 from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
 from core_akf.simulate import MG, MICROSTRAIN, simulate
 
 from .schema import parse_job
 
-MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate}
+MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate, "matrices": from_files}
+#: the keys of a ``model = "matrices"`` structure that name files (relative to the job file)
+MATRIX_FILES = ("K", "M", "C", "dofs", "nodes")
 _LOADS = {
     "band_noise": lambda t, dt, c, seed: L.band_limited_white_noise(t.size, dt, c["rms"], c.get("f_low", 0.0), c.get("f_high"), seed),
     "white_noise": lambda t, dt, c, seed: L.white_noise(t.size, c["std"], seed),
@@ -64,9 +66,15 @@ def load_job(path: str | os.PathLike, command: str) -> dict:
     to the job file's folder: the one place where job-relative paths are resolved."""
     job = load_job_file(path)
     parse_job(job, command, source=path)
+    here = os.path.dirname(os.path.abspath(path))
     meas = job.get("measurements")
     if isinstance(meas, dict) and isinstance(meas.get("file"), str) and not os.path.isabs(meas["file"]):
-        meas["file"] = os.path.join(os.path.dirname(os.path.abspath(path)), meas["file"])
+        meas["file"] = os.path.join(here, meas["file"])
+    structure = job.get("structure")
+    if isinstance(structure, dict) and structure.get("model") == "matrices":
+        for k in MATRIX_FILES:
+            if isinstance(structure.get(k), str) and not os.path.isabs(structure[k]):
+                structure[k] = os.path.join(here, structure[k])
     return job
 
 

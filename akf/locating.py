@@ -150,7 +150,7 @@ def _plot_events(structure, frame, path, title):
     ok = frame[frame["node"].notna()]
     peaks = np.abs(ok["peak_force"].to_numpy(float))
     sizes = 60 + 340 * peaks / max(peaks.max(), 1e-300)
-    xy = structure.nodes[ok["node"].astype(int).to_numpy() - 1]
+    xy = structure.nodes[structure.node_rows(ok["node"].astype(int).to_numpy())][:, :2]
     sc = ax.scatter(xy[:, 0], xy[:, 1], s=sizes, c=ok["confidence"].to_numpy(float), cmap="viridis", vmin=0, vmax=1,
                     alpha=0.75, edgecolors="k", zorder=5)
     for k, (x, y), p in zip(ok.index, xy, peaks):

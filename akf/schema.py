@@ -11,8 +11,8 @@ reference page of the documentation (:func:`reference_markdown`).
 >>> job = parse_job({"dt": 0.001, "sensors": ["strain:5"], "forces": ["4:y"],
 ...                  "structure": {"model": "s17_truss"},
 ...                  "simulation": {"duration": 0.5}}, "estimate")
->>> job.filter.steady, job.simulation.duration
-(True, 0.5)
+>>> job.dt, job.filter.steady, job.simulation.duration      # steady: None, the command's default
+(0.001, None, 0.5)
 """
 from __future__ import annotations
 
@@ -78,11 +78,15 @@ class StructureSection(BaseModel):
     """``[structure]``: a built-in model and its arguments."""
 
     model_config = ConfigDict(extra="allow", strict=True)
-    model: Literal["s17_truss", "th_plate", "imp_plate", "plate"] = key(
-        "one of 's17_truss', 'th_plate', 'imp_plate', 'plate'",
-        "the structure: the S17 truss, the thesis plate, the IMP plate, or a `plate` with its arguments "
-        "(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, damping); further keys are the model's "
-        "arguments (see the API reference of core_akf.models)")
+    model: Literal["s17_truss", "th_plate", "imp_plate", "plate", "matrices"] = key(
+        "one of 's17_truss', 'th_plate', 'imp_plate', 'plate', 'matrices'",
+        "the structure: the S17 truss, the thesis plate, the IMP plate, a `plate` with its arguments "
+        "(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, damping), or `matrices`: a model of your own "
+        "from files, K and M (Matrix Market .mtx, .npz or .npy), dofs (CSV: node, direction per matrix row), "
+        "nodes (CSV: node, x, y[, z]), fixed ([\"NODE:DIR\", ...] or node ids), damping (a modal ratio or "
+        "[\"rayleigh\", alpha, beta]), extensometers ([[a, b], ...]: strain outputs strain:1, ...), paths "
+        "relative to the job file; further keys are the model's arguments (see the API reference of "
+        "core_akf.models)")
 
 
 class Filter(Section):

@@ -50,7 +50,7 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
     fig, ax = subplots(figsize=(min(12.0, 3 + 9 * min(1.0, 1 / max(aspect, 1e-3))), min(9.0, 2.5 + 8 * min(aspect, 1.0))))
     if structure.members is not None:
         for m, (a, b) in enumerate(structure.members, start=1):
-            (x0, y0), (x1, y1) = xy[a - 1], xy[b - 1]
+            (x0, y0), (x1, y1) = xy[structure.node_rows([a, b])][:, :2]
             ax.plot([x0, x1], [y0, y1], "-", color="0.35", lw=1.2)
             if numbers:
                 ax.annotate(str(m), ((x0 + x1) / 2, (y0 + y1) / 2), ha="center", va="center", fontsize=7,
@@ -65,16 +65,16 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
                 label="support (a constrained DOF)")
     if numbers:
         small = structure.n_nodes > 60
-        for i, (x, y) in enumerate(xy, start=1):
+        for i, (x, y) in zip(structure.user_node_ids, xy[:, :2]):
             ax.annotate(str(i), (x, y), textcoords="offset points", xytext=(3, 3), fontsize=5 if small else 8)
     for j, (node, direction) in enumerate(forces):
-        x, y = xy[node - 1]
+        x, y = xy[structure.node_rows(node)[0], :2]
         ax.plot(x, y, "x", color="red", ms=11, mew=2, zorder=4, label=f"load {j + 1}: node {node} ({direction})")
     for s in sensors:
         parts = str(s).split(":")
         if len(parts) >= 3 or (parts[0] != "strain" and len(parts) >= 2):
             node = int(parts[1])
-            ax.plot(*xy[node - 1], "o", mfc="none", mec="tab:blue", ms=10, mew=1.5, zorder=4)
+            ax.plot(*xy[structure.node_rows(node)[0], :2], "o", mfc="none", mec="tab:blue", ms=10, mew=1.5, zorder=4)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")

@@ -13,7 +13,7 @@ save and reload what is carried over, so a run stopped after any chunk continues
 ...                 force_increment_cov=1e4, noise_cov={"strain": 1e-14, "acc": 1e-4})
 >>> first = est.update(np.zeros((100, 2)))
 >>> second = est.update(np.zeros((50, 2)))
->>> est.n_steps, second.time[0]
+>>> est.n_steps, float(second.time[0])
 (150, 0.1)
 """
 from __future__ import annotations

@@ -77,6 +77,10 @@ class Structure:
         only): member ``m`` joins nodes ``members[m - 1]``.
     basis : ndarray, shape (n_phys, n), optional
         ``u_phys = basis @ q`` for a modally reduced structure; ``None`` for a full one.
+    node_ids : ndarray of int, shape (n_nodes,), optional
+        The user's node ids, row by row, for a model whose nodes are not numbered 1..n_nodes
+        (one imported from an FE program, :func:`core_akf.models.from_matrices`); default
+        ``1..n_nodes``.
     """
 
     M: np.ndarray
@@ -92,6 +96,7 @@ class Structure:
     C: np.ndarray = None
     name: str = ""
     meta: dict = field(default_factory=dict)
+    node_ids: np.ndarray = None
 
     def __post_init__(self):
         self.M = as_finite_array(self.M, "mass matrix M", ndim=2)
@@ -101,6 +106,11 @@ class Structure:
         if self.K.shape != self.M.shape:
             raise ModelError(f"K has shape {self.K.shape} but M has shape {self.M.shape}")
         self.nodes = np.asarray(self.nodes, dtype=float)
+        if self.node_ids is not None:
+            self.node_ids = np.asarray(self.node_ids, dtype=int)
+            if self.node_ids.shape != (self.nodes.shape[0],) or np.unique(self.node_ids).size != self.node_ids.size:
+                raise ModelError(f"node_ids must be {self.nodes.shape[0]} distinct integers, one per node")
+            self._row_of_id = {int(k): i for i, k in enumerate(self.node_ids)}
         self.dof_names = tuple(self.dof_names)
         self.free_dofs = np.asarray(self.free_dofs, dtype=int)
         n_full = self.nodes.shape[0] * len(self.dof_names)
@@ -166,9 +176,23 @@ class Structure:
             node_int = int(node)
         except (TypeError, ValueError):
             raise AKFInputError(f"node id must be an integer, got {node!r}") from None
+        if self.node_ids is not None:
+            if node_int != node or node_int not in self._row_of_id:
+                raise AKFInputError(f"unknown node {node!r}: this structure's node ids run from {self.node_ids.min()} to "
+                                    f"{self.node_ids.max()} ({self.n_nodes} nodes)")
+            return self._row_of_id[node_int]
         if node_int != node or not 1 <= node_int <= self.n_nodes:
             raise AKFInputError(f"unknown node/joint {node!r}: this structure has nodes 1..{self.n_nodes}")
         return node_int - 1
+
+    def node_rows(self, nodes):
+        """Rows of :attr:`nodes` (0-based) of user node ids (an error names an unknown one)."""
+        return np.array([self._node_index(n) for n in np.atleast_1d(nodes)], dtype=int)
+
+    @property
+    def user_node_ids(self):
+        """The user's node ids, row by row (``1..n_nodes`` unless the model has ids of its own)."""
+        return np.arange(1, self.n_nodes + 1) if self.node_ids is None else self.node_ids
 
     def dof_index(self, node, direction):
         """0-based index of the free physical DOF (``node`` 1-based, ``direction`` a DOF name)."""
@@ -255,7 +279,8 @@ class Structure:
     def _replace(self, **changes):
         fields = dict(M=self.M, K=self.K, damping=self.damping, nodes=self.nodes, dof_names=self.dof_names,
                       free_dofs=self.free_dofs, strain_matrix=self.strain_matrix, strain_kind=self.strain_kind,
-                      members=self.members, basis=self.basis, C=None, name=self.name, meta=dict(self.meta))
+                      members=self.members, basis=self.basis, C=None, name=self.name, meta=dict(self.meta),
+                      node_ids=self.node_ids)
         fields.update(changes)
         return Structure(**fields)
 

@@ -1,10 +1,10 @@
 """Sensor placement on plates with a mixed-integer GA on DEAP (TH §4).
 
 >>> from sensoropt import Encoding, StrainErrorObjective, place     # doctest: +SKIP
->>> enc = Encoding(plate, kinds=("ex", "ey", "gxy"), n_sensors=3)
->>> obj = StrainErrorObjective(plate, forces, loads, dt, enc, window=0.1)
->>> res = place(obj, enc, seed=0, n_jobs=2)
->>> res.layout, res.best_error
+>>> enc = Encoding(plate, kinds=("ex", "ey", "gxy"), n_sensors=3)                # doctest: +SKIP
+>>> obj = StrainErrorObjective(plate, forces, loads, dt, enc, window=0.1)         # doctest: +SKIP
+>>> res = place(obj, enc, seed=0, n_jobs=2)                                       # doctest: +SKIP
+>>> res.layout, res.best_error                                                    # doctest: +SKIP
 """
 from .encoding import KINDS, STRAIN_KINDS, Encoding
 from .ga import THESIS, PlacementResult, independent_runs, place

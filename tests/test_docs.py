@@ -109,3 +109,22 @@ def test_documented_defaults_are_the_ones_the_code_applies():
     tuning = inspect.signature(tune_covariances).parameters
     for key in ("population", "generations", "n_splits", "decades", "crossover", "mutation"):
         assert float(_DOC_DEFAULTS[("Tuning", key)]) == tuning[key].default, key
+
+
+def _modules_with_examples():
+    out = []
+    for package in ("core_akf", "sensoropt", "impactloc", "akf"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            if ">>> " in path.read_text():
+                out.append(".".join(path.relative_to(ROOT).with_suffix("").parts).replace(".__init__", ""))
+    return out
+
+
+@pytest.mark.parametrize("module", _modules_with_examples())
+def test_docstring_examples_run(module):
+    """The ``>>>`` examples of the docstrings give what they show (doctest)."""
+    import doctest
+    import importlib
+
+    result = doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.failed == 0, f"{result.failed} of {result.attempted} examples of {module} fail"

@@ -1,0 +1,287 @@
+"""A linear model brought from files or an FE program: stiffness and mass matrices, the DOF map
+(node id and direction of every matrix row), node coordinates (2-D or 3-D), the constrained DOFs
+and the damping.
+
+>>> import numpy as np
+>>> K = np.array([[2.0, -1.0], [-1.0, 1.0]]) * 1e6          # two masses on springs, N/m
+>>> M = np.eye(2) * 10.0                                   # kg
+>>> s = from_matrices(K, M, dofs=[(1, "x"), (2, "x")], nodes={1: (1.0, 0.0), 2: (2.0, 0.0)},
+...                   damping=0.02)
+>>> np.round(s.frequencies(), 3)
+array([31.105, 81.434])
+
+Directions are ``x y z`` (translations, m) and ``rx ry rz`` (rotations, rad).  Node ids are the
+user's own (any distinct integers).  Strain outputs are virtual extensometers between two nodes,
+``eps = (u_b - u_a) . e / L`` with ``e`` the unit vector from ``a`` to ``b`` (the strain of a
+bar between them), addressed like truss members: ``strain:1`` is the first extensometer.  A node
+with coordinates but no DOF in the map is the ground (it does not move).
+"""
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+
+from ..exceptions import AKFInputError, ModelError
+from ..structure import Structure
+
+DIRECTIONS = ("x", "y", "z", "rx", "ry", "rz")
+#: the first natural frequencies of a structural model in SI units lie in this band (Hz);
+#: outside it, masses or stiffnesses are probably in other units (t, N/mm, kN/m, ...)
+FREQUENCY_RANGE = (0.01, 50e3)
+#: relative asymmetry of K or M above which a matrix is refused
+SYMMETRY_RTOL = 1e-10
+#: dense matrices are formed up to this many DOFs
+DENSE_LIMIT = 6000
+
+
+class ModelWarning(UserWarning):
+    """A model that can be used but looks wrong (frequencies outside :data:`FREQUENCY_RANGE`)."""
+
+
+def load_matrix(path):
+    """A matrix from a file: Matrix Market (``.mtx``, ``.mtx.gz``; what ANSYS HBMAT conversions,
+    Abaqus matrix output and OpenSees ``printA`` give), a scipy sparse ``.npz``
+    (``scipy.sparse.save_npz``), a NumPy ``.npz`` with one array, or ``.npy``."""
+    import scipy.io
+    import scipy.sparse
+
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise AKFInputError(f"matrix file {path!r} not found")
+    try:
+        if path.endswith((".mtx", ".mtx.gz", ".mm")):
+            return scipy.io.mmread(path)
+        if path.endswith(".npy"):
+            return np.load(path, allow_pickle=False)
+        if path.endswith(".npz"):
+            try:
+                return scipy.sparse.load_npz(path)
+            except (ValueError, KeyError, OSError):
+                with np.load(path, allow_pickle=False) as data:
+                    if len(data.files) != 1:
+                        raise AKFInputError(f"{path}: a .npz holds one matrix; found {data.files}") from None
+                    return data[data.files[0]]
+    except AKFInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 -- the readers raise many error types
+        raise AKFInputError(f"{path}: not a readable matrix file ({type(exc).__name__}: {exc})") from None
+    raise AKFInputError(f"{path}: unknown matrix format; give .mtx (Matrix Market), .npz or .npy")
+
+
+def read_dof_map(path):
+    """The DOF map from a CSV file with columns ``node`` and ``direction``, one row per matrix row."""
+    import pandas as pd
+
+    table = _read_table(path, ["node", "direction"])
+    nodes = pd.to_numeric(table["node"], errors="coerce")
+    if nodes.isna().any() or (nodes != nodes.round()).any():
+        r = int(np.flatnonzero(nodes.isna() | (nodes != nodes.round()))[0])
+        raise AKFInputError(f"{path}: node {table['node'].iloc[r]!r} in data row {r + 1} is not an integer id")
+    return list(zip(nodes.astype(int), table["direction"].astype(str).str.strip()))
+
+
+def read_nodes(path):
+    """Node coordinates from a CSV file with columns ``node``, ``x``, ``y`` and optionally ``z`` (m)."""
+    table = _read_table(path, ["node", "x", "y"])
+    cols = ["x", "y"] + (["z"] if "z" in table.columns else [])
+    return {int(n): tuple(float(v) for v in row) for n, row in zip(table["node"], table[cols].to_numpy())}
+
+
+def _read_table(path, columns):
+    import pandas as pd
+
+    if not os.path.exists(path):
+        raise AKFInputError(f"file {path!r} not found")
+    try:
+        table = pd.read_csv(path, skipinitialspace=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise AKFInputError(f"{path}: not a readable CSV file ({exc})") from None
+    table.columns = [str(c).strip().lower() for c in table.columns]
+    missing = [c for c in columns if c not in table.columns]
+    if missing:
+        raise AKFInputError(f"{path}: missing column(s) {missing}; found {list(table.columns)}")
+    return table
+
+
+def _dense(A, name):
+    import scipy.sparse
+
+    if scipy.sparse.issparse(A):
+        if A.shape[0] > DENSE_LIMIT:
+            raise AKFInputError(f"{name} has {A.shape[0]} rows: models above {DENSE_LIMIT} DOFs are not supported yet "
+                                "(reduce the model in the FE program, e.g. to its master DOFs)")
+        A = A.toarray()
+    A = np.asarray(A, dtype=float)
+    if A.ndim != 2 or A.shape[0] != A.shape[1]:
+        raise AKFInputError(f"{name} must be a square matrix, got shape {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise AKFInputError(f"{name} has NaN or infinite entries")
+    if A.shape[0] > DENSE_LIMIT:
+        raise AKFInputError(f"{name} has {A.shape[0]} rows: models above {DENSE_LIMIT} DOFs are not supported yet")
+    return A
+
+
+def _check_symmetric(A, name):
+    scale = np.max(np.abs(A))
+    if scale == 0:
+        raise AKFInputError(f"{name} is all zeros")
+    asym = np.abs(A - A.T)
+    if asym.max() > SYMMETRY_RTOL * scale:
+        i, j = np.unravel_index(np.argmax(asym), A.shape)
+        raise AKFInputError(f"{name} is not symmetric: entries ({i + 1}, {j + 1}) and ({j + 1}, {i + 1}) differ by "
+                            f"{asym[i, j]:.3g} ({asym[i, j] / scale:.2g} of its largest entry); a linear structural model "
+                            "has symmetric matrices (was the file written as a triangle or with another DOF order?)")
+    return 0.5 * (A + A.T)
+
+
+def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, name="imported model"):
+    """A :class:`~core_akf.structure.Structure` from stiffness and mass matrices.
+
+    Parameters
+    ----------
+    K, M : (n, n) arrays or scipy sparse matrices -- N/m (N m/rad) and kg (kg m^2), one row per DOF
+    dofs : sequence of (node id, direction) -- the DOF of every matrix row, directions in
+        :data:`DIRECTIONS`
+    nodes : dict node id -> (x, y) or (x, y, z) in m -- every node of ``dofs``
+    fixed : sequence of (node, direction), ``"node:direction"`` or node ids (all of a node's DOFs)
+        -- constrained DOFs, removed from the model
+    damping : modal ratio (one or one per mode), ``("rayleigh", alpha, beta)`` or None; or ``C``
+        (n, n) a damping matrix in N s/m
+    extensometers : sequence of (node a, node b) -- strain outputs ``strain:1``, ``strain:2``, ...
+
+    Checks, each a clear error: sizes, symmetry, finite entries, a DOF map that covers the matrix
+    once, known directions and nodes, positive definite M, and no rigid-body mode left (a model
+    without enough constraints).  The first frequencies outside :data:`FREQUENCY_RANGE` give a
+    :class:`ModelWarning` (units that look wrong).
+    """
+    K, M = _dense(K, "K"), _dense(M, "M")
+    if K.shape != M.shape:
+        raise AKFInputError(f"K is {K.shape[0]}x{K.shape[1]} but M is {M.shape[0]}x{M.shape[1]}")
+    K, M = _check_symmetric(K, "K"), _check_symmetric(M, "M")
+    n = K.shape[0]
+    dofs = [(_node_id(d[0]), str(d[1]).strip().lower()) for d in dofs]
+    if len(dofs) != n:
+        raise AKFInputError(f"the DOF map has {len(dofs)} rows for matrices of {n} rows: it must name the node and "
+                            "direction of every row")
+    bad = [d for d in dofs if d[1] not in DIRECTIONS]
+    if bad:
+        raise AKFInputError(f"unknown direction {bad[0][1]!r} (node {bad[0][0]}) in the DOF map; use {DIRECTIONS}")
+    seen = {}
+    for r, d in enumerate(dofs):
+        if d in seen:
+            raise AKFInputError(f"DOF {d[0]}:{d[1]} appears twice in the DOF map (rows {seen[d] + 1} and {r + 1})")
+        seen[d] = r
+    coords = {_node_id(k): np.asarray(v, dtype=float) for k, v in dict(nodes).items()}
+    dims = {c.size for c in coords.values()}
+    if not coords or dims - {2, 3} or len(dims) != 1:
+        raise AKFInputError(f"node coordinates must all be (x, y) or all (x, y, z); got sizes {sorted(dims)}")
+    unknown = sorted({d[0] for d in dofs} - set(coords))
+    if unknown:
+        raise AKFInputError(f"the DOF map names node(s) {unknown[:10]} that have no coordinates")
+    ids = np.array(sorted(coords))
+    row_of = {int(k): i for i, k in enumerate(ids)}
+    dof_names = tuple(d for d in DIRECTIONS if any(x[1] == d for x in dofs))
+    keep = np.ones(n, bool)
+    for f in fixed or ():
+        if isinstance(f, str):
+            f = tuple(f.split(":")) if ":" in f else f
+        targets = [d for d in dofs if d[0] == _node_id(f)] if np.ndim(f) == 0 else [(_node_id(f[0]), str(f[1]).lower())]
+        for t in targets:
+            if t not in seen:
+                raise AKFInputError(f"fixed DOF {t[0]}:{t[1]} is not in the DOF map")
+            keep[seen[t]] = False
+        if not targets:
+            raise AKFInputError(f"fixed node {f} has no DOF in the DOF map")
+    rows = np.flatnonzero(keep)
+    free_dofs = np.array([row_of[dofs[r][0]] * len(dof_names) + dof_names.index(dofs[r][1]) for r in rows])
+    Kf, Mf = K[np.ix_(rows, rows)], M[np.ix_(rows, rows)]
+    strain = None
+    members = None
+    if extensometers is not None and len(extensometers):
+        members = np.array([[_node_id(a), _node_id(b)] for a, b in extensometers], dtype=int)
+        strain = _extensometer_rows(members, coords, dofs, seen, rows, dof_names)
+    try:
+        structure = Structure(M=Mf, K=Kf, damping=damping if C is None else None,
+                              C=None if C is None else _check_symmetric(_dense(C, "C"), "C")[np.ix_(rows, rows)],
+                              nodes=np.array([coords[k] for k in ids]), dof_names=dof_names, free_dofs=free_dofs,
+                              strain_matrix=strain, strain_kind="member", members=members, name=name,
+                              node_ids=ids, meta={"dof_map": [dofs[r] for r in rows]})
+    except ModelError as exc:
+        raise AKFInputError(f"{name}: {exc}") from None
+    _check_modes(structure)
+    return structure
+
+
+def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, name=None):
+    """:func:`from_matrices` with the matrices and tables given as files: ``K``, ``M`` (and
+    ``C``) as :func:`load_matrix` reads them, ``dofs`` a CSV of columns node, direction
+    (:func:`read_dof_map`), ``nodes`` a CSV of columns node, x, y[, z] (:func:`read_nodes`).
+    ``damping`` may also be ``["rayleigh", alpha, beta]`` as a job file writes it."""
+    if isinstance(damping, list):
+        damping = tuple(damping)
+    return from_matrices(load_matrix(K), load_matrix(M), read_dof_map(dofs), read_nodes(nodes), fixed=fixed,
+                         damping=damping, C=None if C is None else load_matrix(C), extensometers=extensometers,
+                         name=name or os.path.splitext(os.path.basename(os.fspath(K)))[0])
+
+
+def _node_id(v):
+    if isinstance(v, str):
+        v = v.strip()
+        if not v.lstrip("-").isdigit():
+            raise AKFInputError(f"node ids are integers, got {v!r}")
+        return int(v)
+    try:
+        i = int(v)
+    except (TypeError, ValueError):
+        raise AKFInputError(f"node ids are integers, got {v!r}") from None
+    if i != v:
+        raise AKFInputError(f"node ids are integers, got {v!r}")
+    return i
+
+
+def _extensometer_rows(members, coords, dofs, seen, rows, dof_names):
+    """Strain rows (k, n_free): ``(u_b - u_a) . e / L`` on the translational DOFs."""
+    col = {r: i for i, r in enumerate(rows)}
+    out = np.zeros((members.shape[0], rows.size))
+    trans = ("x", "y", "z")
+    for k, (a, b) in enumerate(members):
+        for node in (a, b):
+            if node not in coords:
+                raise AKFInputError(f"extensometer {k + 1}: node {node} has no coordinates")
+        d = coords[b] - coords[a]
+        L = float(np.linalg.norm(d))
+        if L == 0:
+            raise AKFInputError(f"extensometer {k + 1} joins node {a} to itself (or to a node at the same place)")
+        e = d / L
+        for sign, node in ((-1.0, a), (1.0, b)):
+            for j, direction in enumerate(trans[:d.size]):
+                if e[j] == 0:
+                    continue
+                r = seen.get((node, direction))
+                if r is None and not any(d[0] == node for d in dofs):
+                    continue                  # a node without DOFs in the model: the ground
+                if r is None:
+                    raise AKFInputError(f"extensometer {k + 1} ({a}-{b}) needs DOF {node}:{direction}, which the DOF "
+                                        "map does not have")
+                if r in col:                  # a constrained DOF does not move
+                    out[k, col[r]] += sign * e[j] / L
+    return out
+
+
+def _check_modes(structure):
+    """No rigid-body mode; the first frequencies in :data:`FREQUENCY_RANGE`."""
+    import scipy.linalg
+
+    w2 = scipy.linalg.eigh(structure.K, structure.M, eigvals_only=True, subset_by_index=[0, min(5, structure.n) - 1])
+    top = float(np.max(np.abs(np.diag(structure.K)) / np.diag(structure.M)))
+    if w2[0] <= 1e-9 * top:
+        raise AKFInputError(f"{structure.name}: the model has a rigid-body mode (lowest eigenvalue {w2[0]:.3g} against "
+                            f"{top:.3g}): constrain it (fixed = [...]) so that it cannot move freely")
+    f = np.sqrt(w2) / (2 * np.pi)
+    lo, hi = FREQUENCY_RANGE
+    if f[0] < lo or f[0] > hi:
+        warnings.warn(f"{structure.name}: first natural frequencies {', '.join(f'{x:.4g}' for x in f)} Hz lie outside "
+                      f"{lo:g} Hz .. {hi / 1e3:g} kHz: check the units of K and M (SI: N/m and kg; a mass in tonnes against "
+                      "a stiffness in N/m, or N/mm against kg, gives absurd frequencies)", ModelWarning)

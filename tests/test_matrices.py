@@ -1,0 +1,159 @@
+"""Models brought as matrices (core_akf.models.from_matrices): the S17 truss exported as K, M, a
+DOF map and coordinates -- with node ids of its own -- is the built-in truss; files and job keys;
+clear errors for matrices that cannot be a structural model."""
+import json
+
+import numpy as np
+import pytest
+import scipy.io
+import scipy.sparse
+
+from akf.cli import main
+from core_akf import estimate, simulate
+from core_akf.exceptions import AKFInputError
+from core_akf.models import from_matrices, load_matrix, s17_truss
+from core_akf.models.matrices import ModelWarning
+
+OFFSET = 100        # the exported model numbers its nodes 101..118
+
+
+@pytest.fixture(scope="module")
+def s17():
+    return s17_truss()
+
+
+def _export(s):
+    """The S17 truss as an FE program would export it: full K and M, the DOF map, coordinates."""
+    ids = np.arange(1, s.n_nodes + 1) + OFFSET
+    dofs = [(int(i), d) for i in ids for d in "xy"]
+    nodes = {int(i): tuple(s.nodes[i - OFFSET - 1]) for i in ids}
+    fixed = [(j + OFFSET, d) for j, ds in s.meta["supports"].items() for d in ds]
+    return s.meta["K_full"], s.meta["M_full"], dofs, nodes, fixed
+
+
+def test_s17_from_matrices_is_the_builtin_truss(s17):
+    K, M, dofs, nodes, fixed = _export(s17)
+    m = from_matrices(scipy.sparse.csr_matrix(K), M, dofs, nodes, fixed=fixed, damping=s17.damping,
+                      extensometers=s17.members + OFFSET)
+    np.testing.assert_allclose(m.frequencies(), s17.frequencies(), rtol=1e-12)
+    np.testing.assert_allclose(m.strain_matrix, s17.strain_matrix, rtol=0, atol=1e-15)
+    sensors = ["acc:4:y", "acc:8:y", "strain:5", "strain:13"]
+    shifted = ["acc:104:y", "acc:108:y", "strain:5", "strain:13"]       # extensometer k = member k
+    dt = 1 / 2048
+    loads = 300 * np.sin(2 * np.pi * 4 * np.arange(2048) * dt)[:, None]
+    sim = simulate(s17, sensors, ["8:y"], loads, dt, relative_noise=0.02, seed=1)
+    kw = dict(model_error_cov=1e-16, force_increment_cov=1e4, noise_cov=np.diag(sim.noise_std ** 2))
+    a = estimate(s17, sensors, ["8:y"], sim.measurements, dt, **kw)
+    b = estimate(m, shifted, ["108:y"], sim.measurements, dt, **kw)
+    np.testing.assert_allclose(b.forces, a.forces, rtol=0, atol=1e-9 * np.max(np.abs(a.forces)))
+    np.testing.assert_allclose(b.strains, a.strains, rtol=0, atol=1e-9 * np.max(np.abs(a.strains)))
+    with pytest.raises(AKFInputError, match="unknown node 4: this structure's node ids run from 101 to 118"):
+        estimate(m, ["acc:4:y"], ["108:y"], sim.measurements[:, :1], dt, **kw)
+
+
+def test_a_job_reads_the_model_from_matrix_market_files(tmp_path, capsys, s17):
+    """akf estimate on K.mtx, M.mtx, dofs.csv, nodes.csv gives the RMS errors of the built-in truss."""
+    K, M, dofs, nodes, fixed = _export(s17)
+    scipy.io.mmwrite(tmp_path / "K.mtx", scipy.sparse.coo_matrix(K), symmetry="symmetric")
+    scipy.io.mmwrite(tmp_path / "M.mtx", scipy.sparse.coo_matrix(M), symmetry="symmetric")
+    (tmp_path / "dofs.csv").write_text("node,direction\n" + "".join(f"{n},{d}\n" for n, d in dofs))
+    (tmp_path / "nodes.csv").write_text("node,x,y\n" + "".join(f"{n},{float(x)!r},{float(y)!r}\n" for n, (x, y) in nodes.items()))
+    members = ", ".join(f"[{a + OFFSET}, {b + OFFSET}]" for a, b in s17.members)
+    common = '''dt = 0.0009765625
+forces = ["{f}"]
+sensors = ["strain:13", "strain:21", "acc:{a}:y"]
+[filter]
+model_error_cov = 1e-16
+force_increment_cov = 1e4
+[simulation]
+duration = 1.0
+relative_noise = 0.02
+[[simulation.loads]]
+components = [{{type = "sine", frequency = 4.0, amplitude = 500.0}}]
+'''
+    (tmp_path / "built.toml").write_text(common.format(f="8:y", a=8) + '[structure]\nmodel = "s17_truss"\n')
+    (tmp_path / "files.toml").write_text(common.format(f="108:y", a=108) + f'''[structure]
+model = "matrices"
+K = "K.mtx"
+M = "M.mtx"
+dofs = "dofs.csv"
+nodes = "nodes.csv"
+fixed = [{", ".join(f'"{n}:{d}"' for n, d in fixed)}]
+damping = {s17.damping}
+extensometers = [{members}]
+''')
+    out = {}
+    for name in ("built", "files"):
+        assert main(["estimate", str(tmp_path / f"{name}.toml"), "--json", "--no-plot", "--out", str(tmp_path / name)]) == 0
+        out[name] = json.loads(capsys.readouterr().out)
+    assert list(out["files"]["rms_force"].values()) == pytest.approx(list(out["built"]["rms_force"].values()), rel=1e-8)
+    assert out["files"]["avg_strain_error"] == pytest.approx(out["built"]["avg_strain_error"], rel=1e-8)
+
+
+def test_load_matrix_formats(tmp_path):
+    A = np.array([[4.0, -1.0], [-1.0, 3.0]])
+    scipy.io.mmwrite(tmp_path / "a.mtx", scipy.sparse.coo_matrix(A))
+    scipy.sparse.save_npz(tmp_path / "a.npz", scipy.sparse.csr_matrix(A))
+    np.savez(tmp_path / "b.npz", K=A)
+    np.save(tmp_path / "c.npy", A)
+    for name in ("a.mtx", "a.npz", "b.npz", "c.npy"):
+        B = load_matrix(tmp_path / name)
+        np.testing.assert_array_equal(B.toarray() if scipy.sparse.issparse(B) else B, A)
+    np.savez(tmp_path / "two.npz", K=A, M=A)
+    with pytest.raises(AKFInputError, match="holds one matrix"):
+        load_matrix(tmp_path / "two.npz")
+    with pytest.raises(AKFInputError, match="not found"):
+        load_matrix(tmp_path / "none.mtx")
+
+
+def test_three_dimensional_tripod_extensometers():
+    """A 3-D tripod: three bars from the ground to an apex (3 translational DOFs).  A unit apex
+    displacement along a bar stretches it by 1/L (the extensometer along it reads 1/L); the
+    stiffness is sum(EA/L e e^T), so the frequencies are those of K/m."""
+    base = {1: (1.0, 0.0, 0.0), 2: (-0.5, 0.8660254037844386, 0.0), 3: (-0.5, -0.8660254037844386, 0.0)}
+    apex = np.array([0.0, 0.0, 2.0])
+    EA, mass = 2e8, 50.0
+    K = np.zeros((3, 3))
+    for p in base.values():
+        d = apex - np.array(p)
+        L = np.linalg.norm(d)
+        K += EA / L * np.outer(d / L, d / L)
+    s = from_matrices(K, mass * np.eye(3), [(4, "x"), (4, "y"), (4, "z")], base | {4: tuple(apex)},
+                      extensometers=[(1, 4), (2, 4), (3, 4)])
+    np.testing.assert_allclose(s.frequencies(), np.sqrt(np.linalg.eigvalsh(K) / mass) / (2 * np.pi), rtol=1e-12)
+    d = apex - np.array(base[2])
+    L = np.linalg.norm(d)
+    u = d / L * 1e-3                                 # 1 mm along bar 2
+    np.testing.assert_allclose(s.strain_matrix @ u, [u @ (apex - base[k]) / np.linalg.norm(apex - base[k]) ** 2
+                                                      for k in (1, 2, 3)], rtol=1e-12)
+    assert s.strain_matrix @ u == pytest.approx([s.strain_matrix[0] @ u, 1e-3 / L, s.strain_matrix[2] @ u])
+    assert s.nodes.shape == (4, 3) and s.dof_names == ("x", "y", "z")
+
+
+def _two_dof():
+    K = np.array([[2.0, -1.0], [-1.0, 1.0]]) * 1e6
+    return K, np.eye(2) * 10.0, [(1, "x"), (2, "x")], {1: (1.0, 0.0), 2: (2.0, 0.0)}
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda K, M, d, n: (K + np.triu(np.ones((2, 2)), 1) * 1e3, M, d, n), "K is not symmetric: entries \\(1, 2\\)"),
+    (lambda K, M, d, n: (K, np.eye(3), d, n), "K is 2x2 but M is 3x3"),
+    (lambda K, M, d, n: (K, M, d[:1], n), "the DOF map has 1 rows for matrices of 2 rows"),
+    (lambda K, M, d, n: (K, M, [(1, "x"), (1, "x")], n), "DOF 1:x appears twice"),
+    (lambda K, M, d, n: (K, M, [(1, "x"), (2, "w")], n), "unknown direction 'w'"),
+    (lambda K, M, d, n: (K, M, d, {1: (0.0, 0.0)}), "node\\(s\\) \\[2\\] that have no coordinates"),
+    (lambda K, M, d, n: (K * np.nan, M, d, n), "K has NaN"),
+    (lambda K, M, d, n: (np.array([[1.0, -1.0], [-1.0, 1.0]]), M, d, n), "rigid-body mode"),
+    (lambda K, M, d, n: (K, -M, d, n), "positive definite"),
+])
+def test_matrices_that_cannot_be_a_model_are_refused(change, message):
+    with pytest.raises(AKFInputError, match=message):
+        from_matrices(*change(*_two_dof()))
+
+
+def test_absurd_frequencies_warn_about_units():
+    K, M, dofs, nodes = _two_dof()
+    with pytest.warns(ModelWarning, match=r"first natural frequencies 3\.111e\+05, 8\.143e\+05 Hz lie outside"):
+        from_matrices(K * 1e8, M, dofs, nodes)        # a mass 1e8 times too small
+    with pytest.raises(AKFInputError, match="extensometer 1 \\(1-2\\) needs DOF 1:y"):
+        from_matrices(K, M, dofs, {1: (0.0, 0.0), 2: (1.0, 1.0)}, extensometers=[(1, 2)])
