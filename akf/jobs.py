@@ -48,7 +48,7 @@ from .schema import parse_job
 
 MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate, "matrices": from_files}
 #: the keys of a ``model = "matrices"`` structure that name files (relative to the job file)
-MATRIX_FILES = ("K", "M", "C", "dofs", "nodes")
+MATRIX_FILES = ("K", "M", "C", "dofs", "nodes", "strains")
 _LOADS = {
     "band_noise": lambda t, dt, c, seed: L.band_limited_white_noise(t.size, dt, c["rms"], c.get("f_low", 0.0), c.get("f_high"), seed),
     "white_noise": lambda t, dt, c, seed: L.white_noise(t.size, c["std"], seed),

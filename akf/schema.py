@@ -84,9 +84,9 @@ class StructureSection(BaseModel):
         "(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, damping), or `matrices`: a model of your own "
         "from files, K and M (Matrix Market .mtx, .npz or .npy), dofs (CSV: node, direction per matrix row), "
         "nodes (CSV: node, x, y[, z]), fixed ([\"NODE:DIR\", ...] or node ids), damping (a modal ratio or "
-        "[\"rayleigh\", alpha, beta]), extensometers ([[a, b], ...]: strain outputs strain:1, ...), paths "
-        "relative to the job file; further keys are the model's arguments (see the API reference of "
-        "core_akf.models)")
+        "[\"rayleigh\", alpha, beta]), extensometers ([[a, b], ...]: strain outputs strain:1, ...), strains (a strain "
+        "operator file, k x n: strain outputs ahead of the extensometers), paths relative to the job file; "
+        "further keys are the model's arguments (see the API reference of core_akf.models)")
 
 
 class Filter(Section):

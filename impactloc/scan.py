@@ -73,9 +73,9 @@ def default_covariances(sensors, measurements, model_error=default("model_error_
 
 def candidate_locations(structure, direction, nodes=None):
     """Candidate impact locations ``(node, direction)``: every free node in ``direction`` (or
-    the given 1-based ``nodes``, each checked)."""
+    the given node ids, each checked)."""
     if nodes is None:
-        nodes = [n for n in range(1, structure.n_nodes + 1) if _free(structure, n, direction)]
+        nodes = [int(n) for n in structure.user_node_ids if _free(structure, int(n), direction)]
         if not nodes:
             raise AKFInputError(f"no free node moves in direction {direction!r}")
     return parse_force_locations(structure, [(int(n), direction) for n in nodes])

@@ -157,3 +157,37 @@ def test_absurd_frequencies_warn_about_units():
         from_matrices(K * 1e8, M, dofs, nodes)        # a mass 1e8 times too small
     with pytest.raises(AKFInputError, match="extensometer 1 \\(1-2\\) needs DOF 1:y"):
         from_matrices(K, M, dofs, {1: (0.0, 0.0), 2: (1.0, 1.0)}, extensometers=[(1, 2)])
+
+
+def test_impact_located_on_the_exported_model(s17):
+    """Localisation takes a model's own node ids: the IMP truss impact at joint 14 is found at
+    node 114 of the exported truss, as at 14 of the built-in one."""
+    from akf.examples.impact import example_scenario
+    from impactloc.locate import locate
+
+    sc = example_scenario("imp-truss-case1")
+    K, M, dofs, nodes, fixed = _export(s17)
+    m = from_matrices(K, M, dofs, nodes, fixed=fixed, damping=s17.damping, extensometers=s17.members + OFFSET)
+    sensors = [s if s.startswith("strain") else f"acc:{int(s.split(':')[1]) + OFFSET}:y" for s in sc.sensors]
+    kw = dict(n_ad=sc.n_ad, ad_kinds=sc.ad_kinds, direction="y", tune=False, max_splits=6, seed=0)
+    built = locate(sc.structure, sc.sensors, sc.measurements, sc.dt, **kw)
+    exported = locate(m, sensors, sc.measurements, sc.dt, **kw)
+    assert built.identified == (14, "y") and exported.identified == (114, "y")
+    np.testing.assert_allclose(exported.scan.summary["mean"], built.scan.summary["mean"], rtol=1e-8)
+
+
+def test_strain_rows_of_ones_own_come_before_the_extensometers(s17):
+    """A strain operator from the FE program (here the S17 member strains over the full DOFs):
+    strain:1..34 are its rows, strain:35 the extensometer after them."""
+    K, M, dofs, nodes, fixed = _export(s17)
+    S_full = np.zeros((s17.n_strain, K.shape[0]))
+    S_full[:, s17.free_dofs] = s17.strain_matrix
+    m = from_matrices(K, M, dofs, nodes, fixed=fixed, damping=s17.damping, strain_rows=scipy.sparse.csr_matrix(S_full),
+                      extensometers=[(101, 118)])
+    assert m.n_strain == 35 and m.members is None
+    np.testing.assert_array_equal(m.strain_matrix[:34], s17.strain_matrix)
+    u = np.linalg.solve(m.K, m.dof_rows([(108, "y")])[0] * 1e4)           # 10 kN down at joint 8
+    ends = m.dof_rows([(118, "x")])[0] @ u - 0.0                          # joint 1 is pinned, 18 rolls in x
+    assert m.strain_matrix[34] @ u == pytest.approx(ends / np.linalg.norm(s17.nodes[17] - s17.nodes[0]), rel=1e-12)
+    with pytest.raises(AKFInputError, match="one column per matrix row \\(36\\)"):
+        from_matrices(K, M, dofs, nodes, fixed=fixed, strain_rows=np.zeros((2, 5)))

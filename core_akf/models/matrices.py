@@ -136,7 +136,8 @@ def _check_symmetric(A, name):
     return 0.5 * (A + A.T)
 
 
-def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, name="imported model"):
+def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, strain_rows=None,
+                  name="imported model"):
     """A :class:`~core_akf.structure.Structure` from stiffness and mass matrices.
 
     Parameters
@@ -150,6 +151,9 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
     damping : modal ratio (one or one per mode), ``("rayleigh", alpha, beta)`` or None; or ``C``
         (n, n) a damping matrix in N s/m
     extensometers : sequence of (node a, node b) -- strain outputs ``strain:1``, ``strain:2``, ...
+    strain_rows : (k, n) array or sparse matrix, optional -- strain outputs of one's own (a strain
+        operator from the FE program: strain = row . u over the matrix rows); they come first,
+        ``strain:1`` .. ``strain:k``, then the extensometers
 
     Checks, each a clear error: sizes, symmetry, finite entries, a DOF map that covers the matrix
     once, known directions and nodes, positive definite M, and no rigid-body mode left (a model
@@ -197,11 +201,16 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
     rows = np.flatnonzero(keep)
     free_dofs = np.array([row_of[dofs[r][0]] * len(dof_names) + dof_names.index(dofs[r][1]) for r in rows])
     Kf, Mf = K[np.ix_(rows, rows)], M[np.ix_(rows, rows)]
-    strain = None
-    members = None
+    blocks, members = [], None
+    if strain_rows is not None:
+        S = _rows(strain_rows, n)
+        blocks.append(S[:, rows])
     if extensometers is not None and len(extensometers):
         members = np.array([[_node_id(a), _node_id(b)] for a, b in extensometers], dtype=int)
-        strain = _extensometer_rows(members, coords, dofs, seen, rows, dof_names)
+        blocks.append(_extensometer_rows(members, coords, dofs, seen, rows, dof_names))
+        if strain_rows is not None:           # extensometer k is strain:(k_own + k); no member drawing then
+            members = None
+    strain = np.vstack(blocks) if blocks else None
     try:
         structure = Structure(M=Mf, K=Kf, damping=damping if C is None else None,
                               C=None if C is None else _check_symmetric(_dense(C, "C"), "C")[np.ix_(rows, rows)],
@@ -214,16 +223,30 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
     return structure
 
 
-def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, name=None):
+def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, strains=None, name=None):
     """:func:`from_matrices` with the matrices and tables given as files: ``K``, ``M`` (and
     ``C``) as :func:`load_matrix` reads them, ``dofs`` a CSV of columns node, direction
-    (:func:`read_dof_map`), ``nodes`` a CSV of columns node, x, y[, z] (:func:`read_nodes`).
+    (:func:`read_dof_map`), ``nodes`` a CSV of columns node, x, y[, z] (:func:`read_nodes`),
+    ``strains`` a strain operator (k x n) as :func:`load_matrix` reads it.
     ``damping`` may also be ``["rayleigh", alpha, beta]`` as a job file writes it."""
     if isinstance(damping, list):
         damping = tuple(damping)
     return from_matrices(load_matrix(K), load_matrix(M), read_dof_map(dofs), read_nodes(nodes), fixed=fixed,
                          damping=damping, C=None if C is None else load_matrix(C), extensometers=extensometers,
+                         strain_rows=None if strains is None else load_matrix(strains),
                          name=name or os.path.splitext(os.path.basename(os.fspath(K)))[0])
+
+
+def _rows(A, n):
+    """A (k, n) operator as a dense array, checked."""
+    import scipy.sparse
+
+    A = A.toarray() if scipy.sparse.issparse(A) else np.asarray(A, dtype=float)
+    if A.ndim != 2 or A.shape[1] != n:
+        raise AKFInputError(f"strain_rows must have one column per matrix row ({n}), got shape {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise AKFInputError("strain_rows has NaN or infinite entries")
+    return A
 
 
 def _node_id(v):
