@@ -194,23 +194,28 @@ class JobResult:
         return pd.concat(frames, ignore_index=True)
 
     def summary_frame(self):
-        """One row per channel: every force location (estimated RMS and peak, and the RMS error
-        against the reference if there is one), every sensor (measured RMS and the innovation
-        statistics of :mod:`core_akf.diagnostics`) and, with a reference, every strain output (RMS
-        error).  Never empty: measured data without a reference still has forces and sensors."""
-        import pandas as pd
+        """One row per channel (:func:`summary_frame` of the metrics)."""
+        return summary_frame(self.metrics)
 
-        m = self.metrics
-        errors = m.get("rms_force", {})
-        rows = [dict(quantity="force", **f, rms_error=errors.get(f["channel"], np.nan)) for f in m.get("forces", [])]
-        rows += [dict(quantity="sensor", channel=d["channel"], unit=d["unit"], rms=d["measured_rms"],
-                      **{k: v for k, v in d.items() if k not in ("channel", "unit", "measured_rms")})
-                 for d in m.get("sensors", [])]
-        rows += [{"quantity": "strain", "channel": k, "unit": "m/m", "rms_error": v}
-                 for k, v in m.get("rms_strain", {}).items()]
-        columns = ["quantity", "channel", "unit", "rms_error", "rms", "peak", "time_of_peak", "innovation_rms",
-                   "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation"]
-        return pd.DataFrame(rows, columns=columns)
+
+def summary_frame(metrics):
+    """One row per channel of a job's metrics: every force location (estimated RMS and peak, and
+    the RMS error against the reference if there is one), every sensor (measured RMS and the
+    innovation statistics of :mod:`core_akf.diagnostics`) and, with a reference, every strain
+    output (RMS error).  Never empty: measured data without a reference still has forces and sensors."""
+    import pandas as pd
+
+    m = metrics
+    errors = m.get("rms_force", {})
+    rows = [dict(quantity="force", **f, rms_error=errors.get(f["channel"], np.nan)) for f in m.get("forces", [])]
+    rows += [dict(quantity="sensor", channel=d["channel"], unit=d["unit"], rms=d["measured_rms"],
+                  **{k: v for k, v in d.items() if k not in ("channel", "unit", "measured_rms")})
+             for d in m.get("sensors", [])]
+    rows += [{"quantity": "strain", "channel": k, "unit": "m/m", "rms_error": v}
+             for k, v in m.get("rms_strain", {}).items()]
+    columns = ["quantity", "channel", "unit", "rms_error", "rms", "peak", "time_of_peak", "innovation_rms",
+               "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation"]
+    return pd.DataFrame(rows, columns=columns)
 
 
 #: units of the numbers in :attr:`JobResult.metrics` (and the CLI's JSON)

@@ -150,7 +150,7 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
     after this many chunks (as if interrupted; for tests and for splitting work).  Returns a
     :class:`StreamResult`; its metrics have the keys of :attr:`akf.jobs.JobResult.metrics`.
     """
-    from .jobs import METRIC_UNITS, build_structure
+    from .jobs import METRIC_UNITS, build_structure, summary_frame
 
     job = copy.deepcopy(job)
     spec = parse_job(job, "estimate")
@@ -254,7 +254,7 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
         metrics["warnings"] = found + metrics["warnings"] + [
             "check the channel map in [measurements]: units, invert (sign) and gauge_factor of the channels named above"]
     files = {"timeseries": writer.path, "summary": os.path.join(out, "summary.csv")}
-    write_csv(_summary(metrics), files["summary"])
+    write_csv(summary_frame(metrics), files["summary"])
     if plot:
         files["figure"] = _plot(np.concatenate(kept["t"]), np.vstack(kept["f"]), forces, metrics,
                                 os.path.join(out, "estimate.png"), job.get("name", "AKF estimate"), decimate)
@@ -270,18 +270,6 @@ def _progress(on, total, start):
 
     bar = tqdm(total=total, initial=start, unit="step", unit_scale=True, desc="estimate", leave=False)
     return bar.update
-
-
-def _summary(metrics):
-    import pandas as pd
-
-    rows = [dict(quantity="force", **f) for f in metrics["forces"]]
-    rows += [dict(quantity="sensor", channel=d["channel"], unit=d["unit"], rms=d["measured_rms"],
-                  **{k: v for k, v in d.items() if k not in ("channel", "unit", "measured_rms")})
-             for d in metrics["sensors"]]
-    columns = ["quantity", "channel", "unit", "rms_error", "rms", "peak", "time_of_peak", "innovation_rms",
-               "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation"]
-    return pd.DataFrame(rows, columns=columns)
 
 
 def _plot(t, f, forces, metrics, path, title, decimate):
