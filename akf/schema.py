@@ -85,7 +85,9 @@ class StructureSection(BaseModel):
         "from files, K and M (Matrix Market .mtx, .npz or .npy), dofs (CSV: node, direction per matrix row), "
         "nodes (CSV: node, x, y[, z]), fixed ([\"NODE:DIR\", ...] or node ids), damping (a modal ratio or "
         "[\"rayleigh\", alpha, beta]), extensometers ([[a, b], ...]: strain outputs strain:1, ...), strains (a strain "
-        "operator file, k x n: strain outputs ahead of the extensometers), paths relative to the job file; "
+        "operator file, k x n: strain outputs ahead of the extensometers), n_modes (keep the lowest modes of "
+        "the sparse matrices with a static correction; always done above 6000 DOFs, 100 modes unless given), "
+        "paths relative to the job file; "
         "further keys are the model's arguments (see the API reference of core_akf.models)")
 
 

@@ -34,6 +34,7 @@ from .statespace import (
     check_detectable,
     diag_levels,
     observation,
+    strain_feedthrough,
 )
 
 
@@ -389,7 +390,9 @@ class Estimate:
     def strains(self):
         """Strains at every member (truss) or node component (plate), shape (N, n_strain)."""
         n = self.structure.n
-        return self.states[:, :n] @ self.structure.strain_operator.T
+        out = self.states[:, :n] @ self.structure.strain_operator.T
+        extra = strain_feedthrough(self.structure, self.force_locations)
+        return out if extra is None else out + self.forces @ extra.T
 
     def response(self, sensors):
         """Estimated response at any sensors (e.g. held-back validation sensors), shape (N, k)."""
@@ -436,6 +439,18 @@ def state_covariance(structure, model_error_cov):
     if not structure.is_reduced:
         return diag_levels(model_error_cov, 2 * structure.n, "model_error_cov")
     n_phys = structure.free_dofs.size
+    P = structure.projection
+    if np.ndim(model_error_cov) <= 1 and not isinstance(model_error_cov, (bool, np.bool_)):
+        # P diag(q) P^T block by block: no (2 n_phys)^2 matrix for a large model
+        q = as_finite_array(model_error_cov, "model_error_cov")
+        q = np.broadcast_to(q, (2 * n_phys,)) if q.ndim == 0 else q
+        if q.size != 2 * n_phys:
+            raise AKFInputError(f"model_error_cov has {q.size} variances; expected {2 * n_phys} (displacements and "
+                                "velocities of every free physical DOF)")
+        if np.any(q < 0):
+            raise AKFInputError("model_error_cov: variances must be >= 0")
+        Q = scipy.linalg.block_diag((P * q[:n_phys]) @ P.T, (P * q[n_phys:]) @ P.T)
+        return 0.5 * (Q + Q.T)
     if np.ndim(model_error_cov) == 2 and np.shape(model_error_cov) == (2 * structure.n,) * 2 \
             and structure.n != n_phys:
         return diag_levels(model_error_cov, 2 * structure.n, "model_error_cov")

@@ -167,9 +167,10 @@ class StaticGain:
         return self.visibility()[2]
 
 
-def static_gain(structure, S_static, S_p):
+def static_gain(structure, S_static, S_p, extra=None):
     """:class:`StaticGain` of sensor rows ``S_static`` (m x n, strain plus displacement
-    selection in generalised coordinates) for the force selection ``S_p`` (n x n_p).
+    selection in generalised coordinates) for the force selection ``S_p`` (n x n_p); ``extra``
+    (m x n_p) is a static feed-through added to it (the static correction of a reduced model).
 
     Needs a supported structure (``K`` positive definite); see :func:`is_supported`."""
     S = np.asarray(S_static, float)
@@ -179,6 +180,9 @@ def static_gain(structure, S_static, S_p):
     H = S @ X
     absK = np.abs(structure.K)
     bound = MODEL_RTOL * (np.abs(W).T @ (absK @ np.abs(X)) + np.abs(S) @ np.abs(X))
+    if extra is not None:
+        H = H + extra
+        bound = bound + MODEL_RTOL * np.abs(extra)
     H[np.abs(H) <= SAFETY * bound] = 0.0
     return StaticGain(H, bound)
 

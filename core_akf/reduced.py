@@ -20,7 +20,8 @@ from .akf import state_covariance, steady_outputs  # noqa: F401  (steady_outputs
 from .defaults import auto_modes
 from .exceptions import AKFInputError
 from .sensors import as_layout, parse_force_locations, selection_matrices
-from .statespace import augment, continuous, force_selection, modal_state_transform, modal_zoh, observation, zoh
+from .statespace import (augment, continuous, force_selection, modal_state_transform, modal_zoh, observation,
+                         strain_feedthrough, zoh)
 
 
 class ModalFilterModel:
@@ -89,8 +90,8 @@ class ModalFilterModel:
         """Augmented observation rows ``[G T, D]`` (m x n_a) for a sensor layout, with the
         static correction on strain and displacement rows."""
         layout = as_layout(sensors)
-        G, D = observation(self.structure, layout, self.forces)
-        if self.n_modes is not None:
+        G, D = observation(self.structure, layout, self.forces)      # with the structure's own static correction
+        if self.n_modes is not None and self.full.static is None:
             S = selection_matrices(self.full, layout)
             D = D + (S["strain"] + S["disp"]) @ self.residual_flexibility()
         return np.hstack([G @ self.T, D])
@@ -100,7 +101,9 @@ class ModalFilterModel:
         ops = self.structure.strain_operator            # (n_strain, n) in the model's coordinates
         out = np.zeros((ops.shape[0], self.n_a))
         out[:, :self.n_states] = np.hstack([ops, np.zeros_like(ops)]) @ self.T
-        if self.n_modes is not None:
+        if self.structure.static is not None:
+            out[:, self.n_states:] = strain_feedthrough(self.structure, self.forces)
+        elif self.n_modes is not None:
             out[:, self.n_states:] = self.full.strain_operator @ self.residual_flexibility()
         return out
 

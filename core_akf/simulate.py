@@ -15,7 +15,7 @@ if TYPE_CHECKING:
 from .checks import as_finite_array
 from .exceptions import AKFInputError
 from .sensors import as_layout, parse_force_locations
-from .statespace import continuous, observation, zoh
+from .statespace import continuous, observation, strain_feedthrough, zoh
 
 #: standard gravity (m/s^2), for levels given in g or mg
 G0 = 9.80665
@@ -53,7 +53,9 @@ class Simulation:
     @cached_property
     def strains(self):
         """True strains at every member/node component, shape (N, n_strain)."""
-        return self.states[:, : self.structure.n] @ self.structure.strain_operator.T
+        out = self.states[:, : self.structure.n] @ self.structure.strain_operator.T
+        extra = strain_feedthrough(self.structure, self.force_locations)
+        return out if extra is None else out + self.loads @ extra.T
 
     def response(self, sensors):
         """Noise-free readings of any other sensors, shape (N, k)."""

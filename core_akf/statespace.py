@@ -114,7 +114,42 @@ def observation(structure, sensors, forces):
     Sa_Mi = scipy.linalg.cho_solve(cf, S["acc"].T).T  # S_a M^-1
     G = np.hstack([S["strain"] + S["disp"] - Sa_Mi @ structure.K, S["vel"] - Sa_Mi @ structure.C])
     D = Sa_Mi @ Sp
+    if structure.static is not None:
+        D = D + static_feedthrough(structure, sensors, forces)
     return G, D
+
+
+def _residual(structure, forces):
+    """Residual displacement (n_phys, n_p) of a reduced structure with a static correction."""
+    locs = parse_force_locations(structure, forces)
+    return structure.static.residual([structure.dof_index(node, d) for node, d in locs])
+
+
+def static_feedthrough(structure, sensors, forces):
+    """Feed-through (m x n_p) of the modes a reduced structure leaves out: the quasi-static strain
+    and displacement of its :class:`~core_akf.residual.StaticCorrection` at the sensors (zero
+    rows for accelerometers and velocity sensors; all zero without a correction)."""
+    layout = as_layout(sensors)
+    locs = parse_force_locations(structure, forces)
+    out = np.zeros((len(layout), len(locs)))
+    if structure.static is None:
+        return out
+    U = _residual(structure, locs)
+    for i, s in enumerate(layout):
+        if s.kind == "strain":
+            key = s.member if s.member is not None else (s.node, s.component)
+            out[i] = structure.strain_matrix[[structure.strain_index(key)]] @ U
+        elif s.kind == "disp":
+            out[i] = U[structure.dof_index(s.node, s.direction)]
+    return out
+
+
+def strain_feedthrough(structure, forces):
+    """Feed-through (n_strain x n_p) of the forces on every strain output: the static correction
+    of a reduced structure (:func:`static_feedthrough` for all strains), ``None`` without one."""
+    if structure.static is None or structure.n_strain == 0:
+        return None
+    return np.asarray(structure.strain_matrix @ _residual(structure, forces))
 
 
 def augment(A, B, G, D):
@@ -250,7 +285,8 @@ def static_gain(structure, sensors, forces):
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
     S = selection_matrices(structure, layout)
-    return rank.static_gain(structure, S["strain"] + S["disp"], force_selection(structure, locs))
+    extra = static_feedthrough(structure, layout, locs) if structure.static is not None else None
+    return rank.static_gain(structure, S["strain"] + S["disp"], force_selection(structure, locs), extra)
 
 
 def static_test_suffices(structure):

@@ -16,6 +16,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse
 
 from .checks import as_finite_array, check_positive_definite, check_square_symmetric
 from .exceptions import AKFInputError, ModelError
@@ -81,6 +82,11 @@ class Structure:
         The user's node ids, row by row, for a model whose nodes are not numbered 1..n_nodes
         (one imported from an FE program, :func:`core_akf.models.from_matrices`); default
         ``1..n_nodes``.
+    static : :class:`~core_akf.residual.StaticCorrection`, optional
+        For a reduced structure: the residual flexibility of the modes it leaves out, added to
+        every strain and displacement output as a feed-through of the forces (a large model
+        reduced by :func:`core_akf.models.from_matrices` has one).  ``strain_matrix`` may then be
+        a ``scipy.sparse`` matrix.
     """
 
     M: np.ndarray
@@ -97,6 +103,7 @@ class Structure:
     name: str = ""
     meta: dict = field(default_factory=dict)
     node_ids: np.ndarray = None
+    static: object = None
 
     def __post_init__(self):
         self.M = as_finite_array(self.M, "mass matrix M", ndim=2)
@@ -241,6 +248,8 @@ class Structure:
     def strain_rows(self, keys):
         """Strain rows in generalised coordinates, shape (len(keys), n)."""
         idx = [self.strain_index(k) for k in keys]
+        if self.basis is not None and scipy.sparse.issparse(self.strain_matrix) and "strain_operator" not in self.__dict__:
+            return np.asarray(self.strain_matrix[idx] @ self.basis)     # a large model: only the rows asked for
         return self.strain_operator[idx]
 
     @cached_property
@@ -280,7 +289,7 @@ class Structure:
         fields = dict(M=self.M, K=self.K, damping=self.damping, nodes=self.nodes, dof_names=self.dof_names,
                       free_dofs=self.free_dofs, strain_matrix=self.strain_matrix, strain_kind=self.strain_kind,
                       members=self.members, basis=self.basis, C=None, name=self.name, meta=dict(self.meta),
-                      node_ids=self.node_ids)
+                      node_ids=self.node_ids, static=self.static)
         fields.update(changes)
         return Structure(**fields)
 
@@ -294,6 +303,8 @@ class Structure:
             if not np.isfinite(v) or v <= 0:
                 raise AKFInputError(f"{name} must be a positive number, got {v!r}")
         changes = dict(K=self.K * stiffness_factor, M=self.M * mass_factor)
+        if self.static is not None:
+            changes["static"] = self.static.scaled(stiffness_factor, mass_factor)
         if self.damping is None and np.any(self.C):
             raise AKFInputError("cannot rescale a structure with an explicit C and no damping spec")
         return self._replace(**changes)
@@ -302,7 +313,8 @@ class Structure:
         """Modal reduction to the first ``n_modes`` modes, same sensor/strain interface.
 
         The reduced model has ``M = I``, ``K = diag(omega^2)`` and ``C = Phi^T C Phi`` (diagonal
-        for modal damping).
+        for modal damping).  A structure that is itself reduced with a static correction
+        (:attr:`static`) keeps it, the modes dropped now joining the residual.
         """
         n_modes = int(n_modes)
         if not 1 <= n_modes <= self.n:
@@ -319,7 +331,8 @@ class Structure:
         P_prev = self.meta.get("projection")
         P = phi.T @ self.M if P_prev is None else phi.T @ self.M @ P_prev
         meta = dict(self.meta, projection=P)
-        return self._replace(M=np.eye(n_modes), K=np.diag(omega[:n_modes] ** 2), basis=basis,
+        static = None if self.static is None else self.static.keeping(basis, omega[:n_modes])
+        return self._replace(M=np.eye(n_modes), K=np.diag(omega[:n_modes] ** 2), basis=basis, static=static,
                              damping=zeta, C=0.5 * (Cr + Cr.T), name=f"{self.name} ({n_modes} modes)", meta=meta)
 
     @property

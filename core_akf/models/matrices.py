@@ -25,6 +25,7 @@ import numpy as np
 
 from ..exceptions import AKFInputError, ModelError
 from ..structure import Structure
+from .sparse import DEFAULT_MODES, DENSE_LIMIT, RIGID_BODY_RTOL, as_sparse, check_symmetric, modal_parts
 
 DIRECTIONS = ("x", "y", "z", "rx", "ry", "rz")
 #: the first natural frequencies of a structural model in SI units lie in this band (Hz);
@@ -32,8 +33,6 @@ DIRECTIONS = ("x", "y", "z", "rx", "ry", "rz")
 FREQUENCY_RANGE = (0.01, 50e3)
 #: relative asymmetry of K or M above which a matrix is refused
 SYMMETRY_RTOL = 1e-10
-#: dense matrices are formed up to this many DOFs
-DENSE_LIMIT = 6000
 
 
 class ModelWarning(UserWarning):
@@ -84,9 +83,20 @@ def read_dof_map(path):
 
 def read_nodes(path):
     """Node coordinates from a CSV file with columns ``node``, ``x``, ``y`` and optionally ``z`` (m)."""
+    import pandas as pd
+
     table = _read_table(path, ["node", "x", "y"])
-    cols = ["x", "y"] + (["z"] if "z" in table.columns else [])
-    return {int(n): tuple(float(v) for v in row) for n, row in zip(table["node"], table[cols].to_numpy())}
+    cols = ["node", "x", "y"] + (["z"] if "z" in table.columns else [])
+    values = table[cols].apply(pd.to_numeric, errors="coerce")
+    bad = values.isna().to_numpy() | ~np.isfinite(values.to_numpy(dtype=float, na_value=np.nan))
+    if bad.any():
+        r, c = (int(i[0]) for i in np.nonzero(bad))
+        raise AKFInputError(f"{path}: {cols[c]} {table[cols[c]].iloc[r]!r} in data row {r + 1} is not a finite number")
+    ids = values["node"].to_numpy()
+    if np.any(ids != np.round(ids)):
+        r = int(np.flatnonzero(ids != np.round(ids))[0])
+        raise AKFInputError(f"{path}: node {table['node'].iloc[r]!r} in data row {r + 1} is not an integer id")
+    return {int(n): tuple(row) for n, row in zip(ids, values[cols[1:]].to_numpy(dtype=float))}
 
 
 def _read_table(path, columns):
@@ -109,17 +119,12 @@ def _dense(A, name):
     import scipy.sparse
 
     if scipy.sparse.issparse(A):
-        if A.shape[0] > DENSE_LIMIT:
-            raise AKFInputError(f"{name} has {A.shape[0]} rows: models above {DENSE_LIMIT} DOFs are not supported yet "
-                                "(reduce the model in the FE program, e.g. to its master DOFs)")
         A = A.toarray()
     A = np.asarray(A, dtype=float)
     if A.ndim != 2 or A.shape[0] != A.shape[1]:
         raise AKFInputError(f"{name} must be a square matrix, got shape {A.shape}")
     if not np.all(np.isfinite(A)):
         raise AKFInputError(f"{name} has NaN or infinite entries")
-    if A.shape[0] > DENSE_LIMIT:
-        raise AKFInputError(f"{name} has {A.shape[0]} rows: models above {DENSE_LIMIT} DOFs are not supported yet")
     return A
 
 
@@ -137,7 +142,7 @@ def _check_symmetric(A, name):
 
 
 def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, strain_rows=None,
-                  name="imported model"):
+                  name="imported model", n_modes=None):
     """A :class:`~core_akf.structure.Structure` from stiffness and mass matrices.
 
     Parameters
@@ -154,16 +159,28 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
     strain_rows : (k, n) array or sparse matrix, optional -- strain outputs of one's own (a strain
         operator from the FE program: strain = row . u over the matrix rows); they come first,
         ``strain:1`` .. ``strain:k``, then the extensometers
+    n_modes : int, optional -- keep only the lowest ``n_modes`` modes, found by shift-invert
+        Lanczos on the sparse matrices, with a static correction for the others
+        (:mod:`core_akf.models.sparse`).  Models above :data:`~core_akf.models.sparse.DENSE_LIMIT` DOFs are always reduced
+        this way (default :data:`~core_akf.models.sparse.DEFAULT_MODES` modes); no dense n x n
+        matrix is formed then.
 
     Checks, each a clear error: sizes, symmetry, finite entries, a DOF map that covers the matrix
     once, known directions and nodes, positive definite M, and no rigid-body mode left (a model
     without enough constraints).  The first frequencies outside :data:`FREQUENCY_RANGE` give a
     :class:`ModelWarning` (units that look wrong).
     """
-    K, M = _dense(K, "K"), _dense(M, "M")
+    large = n_modes is not None or max(np.shape(K)[0], np.shape(M)[0]) > DENSE_LIMIT
+    if large:
+        K, M = as_sparse(K, "K"), as_sparse(M, "M")
+    else:
+        K, M = _dense(K, "K"), _dense(M, "M")
     if K.shape != M.shape:
         raise AKFInputError(f"K is {K.shape[0]}x{K.shape[1]} but M is {M.shape[0]}x{M.shape[1]}")
-    K, M = _check_symmetric(K, "K"), _check_symmetric(M, "M")
+    if large:
+        K, M = check_symmetric(K, "K", SYMMETRY_RTOL), check_symmetric(M, "M", SYMMETRY_RTOL)
+    else:
+        K, M = _check_symmetric(K, "K"), _check_symmetric(M, "M")
     n = K.shape[0]
     dofs = [(_node_id(d[0]), str(d[1]).strip().lower()) for d in dofs]
     if len(dofs) != n:
@@ -200,30 +217,38 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
             raise AKFInputError(f"fixed node {f} has no DOF in the DOF map")
     rows = np.flatnonzero(keep)
     free_dofs = np.array([row_of[dofs[r][0]] * len(dof_names) + dof_names.index(dofs[r][1]) for r in rows])
-    Kf, Mf = K[np.ix_(rows, rows)], M[np.ix_(rows, rows)]
     blocks, members = [], None
     if strain_rows is not None:
-        S = _rows(strain_rows, n)
-        blocks.append(S[:, rows])
+        blocks.append(_rows(strain_rows, n, keep_sparse=large)[:, rows])
     if extensometers is not None and len(extensometers):
         members = np.array([[_node_id(a), _node_id(b)] for a, b in extensometers], dtype=int)
         blocks.append(_extensometer_rows(members, coords, dofs, seen, rows, dof_names))
         if strain_rows is not None:           # extensometer k is strain:(k_own + k); no member drawing then
             members = None
-    strain = np.vstack(blocks) if blocks else None
+    strain = _stack(blocks)
+    common = dict(nodes=np.array([coords[k] for k in ids]), dof_names=dof_names, free_dofs=free_dofs,
+                  strain_matrix=strain, strain_kind="member", members=members, name=name, node_ids=ids)
+    meta = {"dof_map": [dofs[r] for r in rows]}
     try:
-        structure = Structure(M=Mf, K=Kf, damping=damping if C is None else None,
-                              C=None if C is None else _check_symmetric(_dense(C, "C"), "C")[np.ix_(rows, rows)],
-                              nodes=np.array([coords[k] for k in ids]), dof_names=dof_names, free_dofs=free_dofs,
-                              strain_matrix=strain, strain_kind="member", members=members, name=name,
-                              node_ids=ids, meta={"dof_map": [dofs[r] for r in rows]})
+        if large:
+            Kf, Mf = K[rows][:, rows], M[rows][:, rows]
+            Cf = None if C is None else check_symmetric(as_sparse(C, "C"), "C", SYMMETRY_RTOL)[rows][:, rows]
+            Kr, basis, P, Cr, static = modal_parts(Kf, Mf, DEFAULT_MODES if n_modes is None else n_modes, Cf, name)
+            meta["projection"] = P
+            structure = Structure(M=np.eye(Kr.shape[0]), K=Kr, damping=damping if C is None else None, C=Cr,
+                                  basis=basis, static=static, meta=meta, **common)
+        else:
+            Cf = None if C is None else _check_symmetric(_dense(C, "C"), "C")[np.ix_(rows, rows)]
+            structure = Structure(M=M[np.ix_(rows, rows)], K=K[np.ix_(rows, rows)],
+                                  damping=damping if C is None else None, C=Cf, meta=meta, **common)
     except ModelError as exc:
         raise AKFInputError(f"{name}: {exc}") from None
     _check_modes(structure)
     return structure
 
 
-def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, strains=None, name=None):
+def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, strains=None, name=None,
+               n_modes=None):
     """:func:`from_matrices` with the matrices and tables given as files: ``K``, ``M`` (and
     ``C``) as :func:`load_matrix` reads them, ``dofs`` a CSV of columns node, direction
     (:func:`read_dof_map`), ``nodes`` a CSV of columns node, x, y[, z] (:func:`read_nodes`),
@@ -234,19 +259,33 @@ def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometer
     return from_matrices(load_matrix(K), load_matrix(M), read_dof_map(dofs), read_nodes(nodes), fixed=fixed,
                          damping=damping, C=None if C is None else load_matrix(C), extensometers=extensometers,
                          strain_rows=None if strains is None else load_matrix(strains),
-                         name=name or os.path.splitext(os.path.basename(os.fspath(K)))[0])
+                         name=name or os.path.splitext(os.path.basename(os.fspath(K)))[0], n_modes=n_modes)
 
 
-def _rows(A, n):
-    """A (k, n) operator as a dense array, checked."""
+def _rows(A, n, keep_sparse=False):
+    """A (k, n) operator as a dense array (CSR if it is sparse and ``keep_sparse``), checked."""
     import scipy.sparse
 
-    A = A.toarray() if scipy.sparse.issparse(A) else np.asarray(A, dtype=float)
+    if scipy.sparse.issparse(A):
+        A = scipy.sparse.csr_matrix(A, dtype=float) if keep_sparse else A.toarray()
+    else:
+        A = np.asarray(A, dtype=float)
     if A.ndim != 2 or A.shape[1] != n:
         raise AKFInputError(f"strain_rows must have one column per matrix row ({n}), got shape {A.shape}")
-    if not np.all(np.isfinite(A)):
+    if not np.all(np.isfinite(A.data if scipy.sparse.issparse(A) else A)):
         raise AKFInputError("strain_rows has NaN or infinite entries")
     return A
+
+
+def _stack(blocks):
+    """Strain rows stacked: sparse if any block is sparse, else dense; None without blocks."""
+    import scipy.sparse
+
+    if not blocks:
+        return None
+    if any(scipy.sparse.issparse(b) for b in blocks):
+        return scipy.sparse.vstack([scipy.sparse.csr_matrix(b) for b in blocks]).tocsr()
+    return np.vstack(blocks)
 
 
 def _node_id(v):
@@ -299,7 +338,7 @@ def _check_modes(structure):
 
     w2 = scipy.linalg.eigh(structure.K, structure.M, eigvals_only=True, subset_by_index=[0, min(5, structure.n) - 1])
     top = float(np.max(np.abs(np.diag(structure.K)) / np.diag(structure.M)))
-    if w2[0] <= 1e-9 * top:
+    if w2[0] <= RIGID_BODY_RTOL * top:
         raise AKFInputError(f"{structure.name}: the model has a rigid-body mode (lowest eigenvalue {w2[0]:.3g} against "
                             f"{top:.3g}): constrain it (fixed = [...]) so that it cannot move freely")
     f = np.sqrt(w2) / (2 * np.pi)

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..exceptions import ModelError
 from ..structure import Structure
+from .sparse import DEFAULT_MODES, DENSE_LIMIT, modal_parts
 
 _GAUSS2 = np.array([-1.0, 1.0]) / np.sqrt(3.0)
 _CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -103,7 +104,7 @@ def _as_edges(value, what):
 
 
 def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01,
-          simply_supported_edges=None, name=None):
+          simply_supported_edges=None, name=None, n_modes=None):
     """Rectangular Mindlin plate on an ``nx`` x ``ny`` element mesh.
 
     Parameters
@@ -120,7 +121,33 @@ def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01
     damping : see :class:`~core_akf.structure.Structure` (default 1 % modal, TH)
     simply_supported_edges : str or sequence of str, optional
         Hard simple supports: ``w`` and the rotation along the edge fixed.
+    n_modes : int, optional
+        Assemble sparse and keep the lowest ``n_modes`` modes with a static correction
+        (:mod:`core_akf.models.sparse`).  A mesh of more than
+        :data:`~core_akf.models.sparse.DENSE_LIMIT` DOFs is always built this way (default
+        :data:`~core_akf.models.sparse.DEFAULT_MODES` modes).
     """
+    large = n_modes is not None or 3 * (int(nx) + 1) * (int(ny) + 1) > DENSE_LIMIT
+    K, M, S, nodes, free = _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges, large)
+    nx, ny = int(nx), int(ny)
+    meta = dict(nx=nx, ny=ny, lx=lx, ly=ly, thickness=thickness, E=E, nu=nu, rho=rho, clamped_edge=clamped_edge)
+    if large:
+        name = name or f"plate {nx}x{ny}"
+        Kr, basis, P, _, static = modal_parts(K[free][:, free], M[free][:, free],
+                                              DEFAULT_MODES if n_modes is None else n_modes, None, name)
+        return Structure(M=np.eye(Kr.shape[0]), K=Kr, damping=damping, nodes=nodes, dof_names=("w", "rx", "ry"),
+                         free_dofs=free, strain_matrix=S[:, free], strain_kind="node", basis=basis, static=static,
+                         name=name, meta=dict(meta, projection=P))
+    ix = np.ix_(free, free)
+    return Structure(M=M[ix], K=K[ix], damping=damping, nodes=nodes, dof_names=("w", "rx", "ry"),
+                     free_dofs=free, strain_matrix=S[:, free], strain_kind="node",
+                     name=name or f"plate {nx}x{ny}",
+                     meta=dict(meta, K_full=K, M_full=M))
+
+
+def _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges, large):
+    """Checked inputs to K, M (all DOFs), the nodal strain operator, the node coordinates and
+    the free DOFs; sparse (CSR) if ``large``."""
     nx, ny = int(nx), int(ny)
     if nx < 1 or ny < 1:
         raise ModelError(f"the mesh needs at least one element each way, got {nx} x {ny}")
@@ -142,22 +169,25 @@ def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01
     edofs = (3 * conn[:, :, None] + np.arange(3)).reshape(-1, 12)
 
     n_full = 3 * n_nodes
-    K = np.zeros((n_full, n_full))
-    M = np.zeros((n_full, n_full))
     rows = np.repeat(edofs, 12, axis=1)
     cols = np.tile(edofs, (1, 12))
-    np.add.at(K, (rows, cols), np.broadcast_to(Ke.ravel(), rows.shape))
-    np.add.at(M, (rows, cols), np.broadcast_to(Me.ravel(), rows.shape))
-
-    # nodal strains: average the corner values of all elements sharing a node
-    S = np.zeros((3, n_nodes, n_full))
     count = np.bincount(conn.ravel(), minlength=n_nodes).astype(float)
-    for c in range(4):
-        for comp in range(3):
-            np.add.at(S[comp], (np.repeat(conn[:, c], 12), edofs.ravel()),
-                      np.tile(Bc[c, comp], conn.shape[0]))
-    S /= count[None, :, None]
-    S = S.reshape(3 * n_nodes, n_full)
+    if large:
+        K, M, S = _sparse_assembly(rows, cols, Ke, Me, Bc, conn, edofs, count, n_full)
+    else:
+        K = np.zeros((n_full, n_full))
+        M = np.zeros((n_full, n_full))
+        np.add.at(K, (rows, cols), np.broadcast_to(Ke.ravel(), rows.shape))
+        np.add.at(M, (rows, cols), np.broadcast_to(Me.ravel(), rows.shape))
+
+        # nodal strains: average the corner values of all elements sharing a node
+        S = np.zeros((3, n_nodes, n_full))
+        for c in range(4):
+            for comp in range(3):
+                np.add.at(S[comp], (np.repeat(conn[:, c], 12), edofs.ravel()),
+                          np.tile(Bc[c, comp], conn.shape[0]))
+        S /= count[None, :, None]
+        S = S.reshape(3 * n_nodes, n_full)
 
     fixed = set()
     for e in _as_edges(clamped_edge, "clamped_edge"):
@@ -168,12 +198,39 @@ def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01
         for nd in _edge_nodes(e, nx, ny):
             fixed.update((3 * nd, 3 * nd + tangential))
     free = np.setdiff1d(np.arange(n_full), sorted(fixed))
-    ix = np.ix_(free, free)
-    return Structure(M=M[ix], K=K[ix], damping=damping, nodes=nodes, dof_names=("w", "rx", "ry"),
-                     free_dofs=free, strain_matrix=S[:, free], strain_kind="node",
-                     name=name or f"plate {nx}x{ny}",
-                     meta=dict(K_full=K, M_full=M, nx=nx, ny=ny, lx=lx, ly=ly, thickness=thickness,
-                               E=E, nu=nu, rho=rho, clamped_edge=clamped_edge))
+    return K, M, S, nodes, free
+
+
+def plate_matrices(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", simply_supported_edges=None):
+    """The sparse matrices of :func:`plate` as an FE program would export them, for
+    :func:`~core_akf.models.from_matrices`: ``K``, ``M`` (N/m, kg; all DOFs, CSR), ``strains``
+    (3 n_nodes x n_dofs: all e_x, then e_y, then g_xy at the nodes), ``dofs`` (node id, direction
+    per row: ``z`` for w, ``rx``, ``ry``), ``nodes`` (id -> (x, y), m) and ``fixed`` (the
+    constrained DOFs), node ids 1-based as in :func:`plate`."""
+    K, M, S, nodes, free = _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges,
+                                     True)
+    n_nodes = nodes.shape[0]
+    dofs = [(i + 1, d) for i in range(n_nodes) for d in ("z", "rx", "ry")]
+    fixed = [dofs[r] for r in np.setdiff1d(np.arange(3 * n_nodes), free)]
+    return dict(K=K, M=M, strains=S, dofs=dofs, nodes={i + 1: tuple(xy) for i, xy in enumerate(nodes)}, fixed=fixed)
+
+
+def _sparse_assembly(rows, cols, Ke, Me, Bc, conn, edofs, count, n_full):
+    """Sparse K, M (n_full x n_full) and nodal strain operator (3 n_nodes x n_full), CSR."""
+    import scipy.sparse
+
+    n_el, n_nodes = conn.shape[0], count.size
+    K = scipy.sparse.coo_matrix((np.tile(Ke.ravel(), n_el), (rows.ravel(), cols.ravel())), shape=(n_full, n_full))
+    M = scipy.sparse.coo_matrix((np.tile(Me.ravel(), n_el), (rows.ravel(), cols.ravel())), shape=(n_full, n_full))
+    r, c, v = [], [], []
+    for corner in range(4):
+        for comp in range(3):
+            node = np.repeat(conn[:, corner], 12)
+            r.append(comp * n_nodes + node)
+            c.append(edofs.ravel())
+            v.append(np.tile(Bc[corner, comp], n_el) / count[node])
+    S = scipy.sparse.coo_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(3 * n_nodes, n_full))
+    return K.tocsr(), M.tocsr(), S.tocsr()
 
 
 def uniform_pressure_load(structure, q):
