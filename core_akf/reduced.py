@@ -20,8 +20,7 @@ from .akf import state_covariance, steady_outputs  # noqa: F401  (steady_outputs
 from .defaults import auto_modes
 from .exceptions import AKFInputError
 from .sensors import as_layout, parse_force_locations, selection_matrices
-from .statespace import (augment, continuous, force_selection, modal_state_transform, modal_zoh, observation,
-                         strain_feedthrough, zoh)
+from .statespace import augment, continuous, force_selection, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
 
 
 class ModalFilterModel:
