@@ -40,15 +40,16 @@ from core_akf.defaults import default
 from core_akf.diagnostics import CONSISTENCY_LIMIT, force_statistics, scale_check, sensor_diagnostics, warnings_for
 from core_akf.exceptions import AKFInputError
 from core_akf.metrics import average_strain_error, rms_error
-from core_akf.models import from_files, imp_plate, plate, s17_truss, th_plate
+from core_akf.models import footbridge, from_files, imp_plate, plate, s17_truss, th_plate
 from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
 from core_akf.simulate import MG, MICROSTRAIN, simulate
 
 from .schema import parse_job
 
-MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate, "matrices": from_files}
+MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate, "footbridge": footbridge,
+          "matrices": from_files}
 #: the keys of a ``model = "matrices"`` structure that name files (relative to the job file)
-MATRIX_FILES = ("K", "M", "C", "dofs", "nodes", "strains")
+MATRIX_FILES = ("K", "M", "C", "dofs", "nodes", "strains", "extensometers")
 _LOADS = {
     "band_noise": lambda t, dt, c, seed: L.band_limited_white_noise(t.size, dt, c["rms"], c.get("f_low", 0.0), c.get("f_high"), seed),
     "white_noise": lambda t, dt, c, seed: L.white_noise(t.size, c["std"], seed),
@@ -268,7 +269,7 @@ def run_job(job: dict, allow_undetectable: bool | None = None, steady: bool | No
     allow_undetectable = bool(filt.allow_undetectable if allow_undetectable is None else allow_undetectable)
     model = true_structure.scaled(default("stiffness_factor", filt.stiffness_factor))
     if filt.reduce_modes:
-        model = model.reduce(filt.reduce_modes)
+        model = model.reduce(filt.reduce_modes, static_correction=True)
     sensors = as_layout(job["sensors"])
     selection_matrices(true_structure, sensors)      # every sensor exists on this structure
     forces = parse_force_locations(true_structure, job["forces"])

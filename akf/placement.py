@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from core_akf.defaults import default
 from core_akf.exceptions import AKFInputError
-from sensoropt.encoding import STRAIN_KINDS
 from sensoropt.problem import PlacementProblem
 
 from .examples import TH_CASE2, load_example
@@ -42,7 +41,9 @@ def problem_from_job(job):
     if p.sensors is None and p.budget is None:
         raise AKFInputError("[place] needs sensors = N or budget = {strain = N, acc = M}")
     problem = PlacementProblem(spec.name or "place", structure, list(spec.forces), loads, dt,
-                               kinds=tuple(p.kinds or STRAIN_KINDS), n_sensors=p.sensors, budget=p.budget,
+                               kinds=tuple(p.kinds) if p.kinds else None, n_sensors=p.sensors, budget=p.budget,
+                               candidates=list(p.candidates) if p.candidates else None,
+                               targets=list(p.targets) if p.targets else None,
                                window=default("window", p.window),
                                stiffness_factor=default("placement_stiffness_factor", f.stiffness_factor),
                                relative_noise=default("relative_noise", sim.relative_noise),

@@ -78,13 +78,15 @@ class StructureSection(BaseModel):
     """``[structure]``: a built-in model and its arguments."""
 
     model_config = ConfigDict(extra="allow", strict=True)
-    model: Literal["s17_truss", "th_plate", "imp_plate", "plate", "matrices"] = key(
-        "one of 's17_truss', 'th_plate', 'imp_plate', 'plate', 'matrices'",
+    model: Literal["s17_truss", "th_plate", "imp_plate", "plate", "footbridge", "matrices"] = key(
+        "one of 's17_truss', 'th_plate', 'imp_plate', 'plate', 'footbridge', 'matrices'",
         "the structure: the S17 truss, the thesis plate, the IMP plate, a `plate` with its arguments "
-        "(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, damping), or `matrices`: a model of your own "
+        "(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, damping, n_modes), the 3-D truss `footbridge` "
+        "(1011 DOFs, members strain:1..1097), or `matrices`: a model of your own "
         "from files, K and M (Matrix Market .mtx, .npz or .npy), dofs (CSV: node, direction per matrix row), "
         "nodes (CSV: node, x, y[, z]), fixed ([\"NODE:DIR\", ...] or node ids), damping (a modal ratio or "
-        "[\"rayleigh\", alpha, beta]), extensometers ([[a, b], ...]: strain outputs strain:1, ...), strains (a strain "
+        "[\"rayleigh\", alpha, beta]), extensometers ([[a, b], ...] or a CSV of columns a, b: strain outputs strain:1, "
+        "...), strains (a strain "
         "operator file, k x n: strain outputs ahead of the extensometers), n_modes (keep the lowest modes of "
         "the sparse matrices with a static correction; always done above 6000 DOFs, 100 modes unless given), "
         "paths relative to the job file; "
@@ -216,8 +218,14 @@ class Place(Section):
     sensors: Count = key("an integer >= 1", "number of sensors", used_by=PLACE)
     budget: dict[Literal["strain", "acc"], Count0] = key(
         "a table of counts per sensor type, e.g. {strain = 2, acc = 1}", "sensors per type", used_by=PLACE)
-    kinds: Texts = key("a non-empty list of strings", "kinds that may be placed: ex, ey, gxy, acc",
-                                 used_by=PLACE)
+    kinds: Texts = key("a non-empty list of strings", "kinds that may be placed: strain (a gauge on every strain "
+                       "output: truss members, extensometers, strain rows), acc (an accelerometer on every free "
+                       "translational DOF), acc:DIR (one direction, e.g. acc:z); on a plate ex, ey, gxy, acc; default "
+                       "a plate's ex, ey, gxy or strain", used_by=PLACE)
+    candidates: Texts = key("a non-empty list of sensor strings", "the candidate set itself, e.g. [\"strain:13\", "
+                            "\"acc:8:y\"] (instead of kinds)", used_by=PLACE)
+    targets: Texts = key("a non-empty list of strain output labels", "the strain outputs whose error is averaged "
+                         "(default all), e.g. [\"strain:1\", \"strain:2\"]", used_by=PLACE)
     window: Positive = key("a positive number", "simulated response per fitness evaluation",
                                      used_by=PLACE, unit="s", registry="window")
     population: Count = key("an integer >= 1", "GA population (TH: 50)", used_by=PLACE)

@@ -165,7 +165,7 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
     record.check_dt(dt)
     model = structure.scaled(default("stiffness_factor", filt.stiffness_factor))
     if filt.reduce_modes:
-        model = model.reduce(filt.reduce_modes)
+        model = model.reduce(filt.reduce_modes, static_correction=True)
     noise_cov = filt.noise_cov
     if noise_cov is None or isinstance(noise_cov, str):
         raise AKFInputError("measured data need the noise variances: [filter] noise_cov = {strain = ..., acc = ...} "

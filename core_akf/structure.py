@@ -309,12 +309,15 @@ class Structure:
             raise AKFInputError("cannot rescale a structure with an explicit C and no damping spec")
         return self._replace(**changes)
 
-    def reduce(self, n_modes):
+    def reduce(self, n_modes, static_correction=False):
         """Modal reduction to the first ``n_modes`` modes, same sensor/strain interface.
 
         The reduced model has ``M = I``, ``K = diag(omega^2)`` and ``C = Phi^T C Phi`` (diagonal
         for modal damping).  A structure that is itself reduced with a static correction
-        (:attr:`static`) keeps it, the modes dropped now joining the residual.
+        (:attr:`static`) keeps it, the modes dropped now joining the residual.  With
+        ``static_correction`` a full structure's reduction gets one too
+        (:class:`~core_akf.residual.StaticCorrection` from a Cholesky factor of K): every strain
+        and displacement output then has the full model's static response.
         """
         n_modes = int(n_modes)
         if not 1 <= n_modes <= self.n:
@@ -331,7 +334,15 @@ class Structure:
         P_prev = self.meta.get("projection")
         P = phi.T @ self.M if P_prev is None else phi.T @ self.M @ P_prev
         meta = dict(self.meta, projection=P)
-        static = None if self.static is None else self.static.keeping(basis, omega[:n_modes])
+        if self.static is not None:
+            static = self.static.keeping(basis, omega[:n_modes])
+        elif static_correction and self.basis is None:
+            from .residual import StaticCorrection
+
+            factor = scipy.linalg.cho_factor(self.K)
+            static = StaticCorrection(lambda B: scipy.linalg.cho_solve(factor, B), basis, omega[:n_modes])
+        else:
+            static = None
         return self._replace(M=np.eye(n_modes), K=np.diag(omega[:n_modes] ** 2), basis=basis, static=static,
                              damping=zeta, C=0.5 * (Cr + Cr.T), name=f"{self.name} ({n_modes} modes)", meta=meta)
 

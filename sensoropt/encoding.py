@@ -1,6 +1,14 @@
-"""Layout encoding for the placement GA on a rectangular plate mesh (TH §4).
+"""Layout encodings for the placement GA: a candidate set of sensors of any kind at any place on
+any structure (:class:`CandidateSet`), and the thesis' rectangular plate grid (:class:`Encoding`,
+TH §4), one way to build such a set.
 
-A sensor is a gene triple ``(ix, iy, kind)`` -- grid column and row (1-based, node number
+On any structure (:class:`CandidateSet`) a candidate is a sensor string -- a strain gauge on a
+member, an extensometer or a row of the model's strain operator (``strain:13``), an accelerometer
+on a node and direction (``acc:8:y``) -- placed at a point: the node, or the centroid of the nodes
+a strain output reads.  The *move* mutation steps to one of the nearest candidates of the same
+kind (a KD-tree on those points); the distance between layouts matches sensors by that spacing.
+
+On the plate grid (:class:`Encoding`) a sensor is a gene triple ``(ix, iy, kind)`` -- grid column and row (1-based, node number
 ``(iy - 1)(nx + 1) + ix``) and kind ``"ex"``, ``"ey"``, ``"gxy"`` (strain components) or
 ``"acc"`` (out-of-plane acceleration w).  Only *admissible* sensors are candidates: a sensor
 whose observation row is identically zero (an accelerometer on the clamped edge, e_x along a
@@ -19,62 +27,141 @@ from core_akf.rank import zero_rows
 
 STRAIN_KINDS = ("ex", "ey", "gxy")
 KINDS = STRAIN_KINDS + ("acc",)
+#: directions an accelerometer measures (w: a plate's out-of-plane translation)
+TRANSLATIONS = ("x", "y", "z", "w")
 
 
 def sensor_type(kind):
-    return "acc" if kind == "acc" else "strain"
+    """``"acc"`` for an accelerometer kind (``acc``, ``acc:z``), else ``"strain"``."""
+    return "acc" if kind == "acc" or str(kind).startswith("acc:") else "strain"
 
 
-class Encoding:
-    """Admissible sensor candidates of a plate and the GA operators on layouts.
+def candidate_sensors(structure, kinds):
+    """Every sensor of ``kinds`` on ``structure`` as sensor strings: ``"strain"`` every strain output
+    (``"ex"``, ``"ey"``, ``"gxy"`` one component of a plate's), ``"acc"`` an accelerometer on every
+    free translational DOF (``"acc:z"`` only direction z; ``w`` on a plate)."""
+    out = []
+    for kind in kinds:
+        if kind == "strain" or kind in STRAIN_KINDS:
+            out += [lab for lab in structure.strain_labels if kind == "strain" or lab.endswith(f":{kind}")]
+        elif kind == "acc" or kind.startswith("acc:"):
+            dirs = [d for d in structure.dof_names if d in TRANSLATIONS] if kind == "acc" else [kind.split(":", 1)[1]]
+            bad = [d for d in dirs if d not in structure.dof_names]
+            if bad:
+                raise AKFInputError(f"kind {kind!r}: this structure has no direction {bad[0]!r} (it has "
+                                    f"{list(structure.dof_names)})")
+            for node in structure.user_node_ids:
+                for d in dirs:
+                    try:
+                        structure.dof_index(node, d)
+                    except AKFInputError:
+                        continue              # a support: no response there
+                    out.append(f"acc:{node}:{d}")
+        else:
+            raise AKFInputError(f"unknown sensor kind {kind!r}; use 'strain', 'acc', 'acc:DIR' (e.g. 'acc:z') or a "
+                                f"plate's strain components {list(STRAIN_KINDS)}")
+    return list(dict.fromkeys(out))
+
+
+def _kind_of(sensor):
+    """The kind of a sensor for the GA: ``strain`` (member, extensometer, operator row), a plate's
+    strain component, or ``acc:DIR``."""
+    if sensor.kind == "strain":
+        return sensor.component if sensor.component is not None else "strain"
+    return f"{sensor.kind}:{sensor.direction}"
+
+
+class CandidateSet:
+    """Admissible sensors of any kind at any place of a structure and the GA operators on layouts.
 
     Parameters
     ----------
-    structure : Structure -- a plate from :func:`core_akf.models.plate`
-    kinds : allowed kinds, subset of ``("ex", "ey", "gxy", "acc")``
-    n_sensors : int -- total number of sensors (any allowed kind), or
-    budget : dict -- sensors per type, e.g. ``{"strain": 3, "acc": 1}`` (fixed counts)
+    structure : Structure -- any model (truss, plate, one's own from matrices, 2-D or 3-D)
+    kinds : kinds that may be placed (:func:`candidate_sensors`), default strain gauges on every
+        strain output and accelerometers on every free translational DOF
+    n_sensors : int -- total number of sensors, or
+    budget : dict -- sensors per type, e.g. ``{"strain": 4, "acc": 2}`` (fixed counts)
+    candidates : sequence of sensor strings, optional -- the candidate set itself (instead of
+        ``kinds``); each must exist on the structure and measure something
+    neighbours : int -- candidates of the same kind a *move* mutation may step to (nearest first)
+
+    Layouts are sorted tuples of candidate indices.  Outputs that are identically zero (a strain
+    gauge on a member that cannot strain) are not candidates.
     """
 
-    def __init__(self, structure, kinds=STRAIN_KINDS, n_sensors=None, budget=None):
-        kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
-        bad = [k for k in kinds if k not in KINDS]
-        if bad or not kinds:
-            raise AKFInputError(f"unknown sensor kind(s) {bad or kinds}; use some of {list(KINDS)}")
-        if structure.strain_kind != "node":
-            raise AKFInputError("sensor placement works on plate models (strains at nodes)")
+    def __init__(self, structure, kinds=("strain", "acc"), n_sensors=None, budget=None, candidates=None, neighbours=8):
+        from scipy.spatial import cKDTree
+
+        from core_akf.sensors import as_layout, selection_matrices
+
         self.structure = structure
-        self.kinds = tuple(dict.fromkeys(kinds))
-        xs, ys = np.unique(np.round(structure.nodes[:, 0], 12)), np.unique(np.round(structure.nodes[:, 1], 12))
-        self.nx, self.ny = len(xs), len(ys)
-        if self.nx * self.ny != structure.n_nodes:
-            raise AKFInputError("the plate's nodes do not form a rectangular grid")
-        ix = np.searchsorted(xs, np.round(structure.nodes[:, 0], 12)) + 1
-        iy = np.searchsorted(ys, np.round(structure.nodes[:, 1], 12)) + 1
-        dead = zero_rows(structure.strain_operator)      # identically zero outputs (e_x along a clamp)
-        cands = []
-        for node in range(1, structure.n_nodes + 1):
-            for kind in self.kinds:
-                if kind == "acc":
-                    try:
-                        structure.dof_index(node, "w")
-                    except (AKFInputError, ValueError, KeyError):
-                        continue
-                else:
-                    if dead[structure.strain_labels.index(f"strain:{node}:{kind}")]:
-                        continue
-                cands.append((node, int(ix[node - 1]), int(iy[node - 1]), kind))
-        if not cands:
-            raise AKFInputError(f"no admissible sensor position for kinds {list(self.kinds)}")
-        self.candidates = cands
-        self.node = np.array([c[0] for c in cands])
-        self.ix = np.array([c[1] for c in cands])
-        self.iy = np.array([c[2] for c in cands])
-        self.kind = np.array([c[3] for c in cands])
+        kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
+        if candidates is None:
+            if not kinds:
+                raise AKFInputError("give the kinds of sensor to place (e.g. ['strain', 'acc']) or the candidates")
+            candidates = candidate_sensors(structure, kinds)
+            given = False
+        else:
+            candidates, given = [str(c) for c in candidates], True
+        layout = as_layout(candidates)
+        labels = [s.label for s in layout]
+        dup = sorted({lab for lab in labels if labels.count(lab) > 1})
+        if dup:
+            raise AKFInputError(f"duplicate candidate sensor(s) {dup}")
+        S = selection_matrices(structure, layout)          # every candidate exists (a clear error names one)
+        dead = zero_rows(S["strain"] + S["disp"] + S["vel"] + S["acc"])
+        if given and dead.any():
+            raise AKFInputError(f"candidate sensor(s) {[labels[i] for i in np.flatnonzero(dead)][:5]} measure nothing "
+                                "(an output that is identically zero on this structure)")
+        keep = np.flatnonzero(~dead)
+        if keep.size == 0:
+            raise AKFInputError(f"no admissible sensor position for kinds {list(kinds)}")
+        layout = [layout[i] for i in keep]
+        self.labels = [labels[i] for i in keep]
+        self.candidates = list(self.labels)
+        self.kind = np.array([_kind_of(s) for s in layout])
         self.type = np.array([sensor_type(k) for k in self.kind])
-        self.index = {(c[1], c[2], c[3]): i for i, c in enumerate(cands)}
+        self.kinds = tuple(dict.fromkeys(self.kind.tolist()))
+        self.node = np.array([s.node if s.node is not None else -1 for s in layout])
+        self.position = self._positions(layout)
+        self.index = {lab: i for i, lab in enumerate(self.labels)}
         self.budget = self._budget(n_sensors, budget)
         self.n_sensors = sum(self.budget.values()) if self.budget else int(n_sensors)
+        pts = np.unique(np.round(self.position, 9), axis=0)
+        if pts.shape[0] > 1:
+            d, _ = cKDTree(pts).query(pts, k=2)
+            self.spacing = float(np.median(d[:, 1]))
+        else:
+            self.spacing = 1.0
+        self.span = float(np.max(np.ptp(self.position, axis=0)) / self.spacing) if pts.shape[0] > 1 else 1.0
+        self.neighbours = {}
+        for kind in self.kinds:
+            pool = np.flatnonzero(self.kind == kind)
+            k = min(int(neighbours) + 1, pool.size)
+            _, nb = cKDTree(self.position[pool]).query(self.position[pool], k=k)
+            nb = np.atleast_2d(nb.T).T if k > 1 else np.zeros((pool.size, 0), int)
+            for row, g in enumerate(pool):
+                self.neighbours[int(g)] = [int(pool[j]) for j in np.atleast_1d(nb[row]) if pool[j] != g]
+
+    def _positions(self, layout):
+        """Where each candidate is (m): an accelerometer's node; a strain output's centroid of the
+        nodes it reads, weighted by the size of its coefficients."""
+        s = self.structure
+        nodes = s.nodes
+        ndof = len(s.dof_names)
+        out = np.zeros((len(layout), nodes.shape[1]))
+        for i, sensor in enumerate(layout):
+            if sensor.kind != "strain":
+                out[i] = nodes[s.node_rows([sensor.node])[0]]
+                continue
+            key = sensor.member if sensor.member is not None else (sensor.node, sensor.component)
+            row = s.strain_matrix[[s.strain_index(key)]]
+            row = np.abs(row.toarray() if hasattr(row, "toarray") else np.asarray(row)).ravel()
+            cols = np.flatnonzero(row)
+            node_rows = s.free_dofs[cols] // ndof
+            w = np.bincount(node_rows, weights=row[cols], minlength=nodes.shape[0])
+            out[i] = w @ nodes / w.sum()
+        return out
 
     def _budget(self, n_sensors, budget):
         types_allowed = set(self.type)
@@ -101,33 +188,29 @@ class Encoding:
             raise AKFInputError(f"{n_sensors} sensors requested but only {len(self.candidates)} admissible positions")
         return None
 
+
     # ------------------------------------------------------------------ conversions
     def sensors(self, layout):
-        """Sensor strings (``"strain:58:ex"``, ``"acc:12:w"``) of a layout."""
-        return [f"acc:{self.node[i]}:w" if self.kind[i] == "acc" else f"strain:{self.node[i]}:{self.kind[i]}"
-                for i in layout]
-
-    def triples(self, layout):
-        return [(int(self.ix[i]), int(self.iy[i]), str(self.kind[i])) for i in layout]
+        """Sensor strings (``"strain:13"``, ``"acc:8:y"``, ``"strain:58:ex"``) of a layout."""
+        return [self.labels[i] for i in layout]
 
     def records(self, layout):
-        """``[{"node": id, "kind": "ex"|"ey"|"gxy"|"acc"}, ...]`` (1-based node ids)."""
-        return [{"node": int(self.node[i]), "kind": str(self.kind[i])} for i in layout]
+        """``[{"sensor": "acc:8:y", "kind": "acc:y", "node": 8}, ...]`` (node None for a strain
+        output that is not at one node)."""
+        return [{"sensor": self.labels[i], "kind": str(self.kind[i]),
+                 "node": int(self.node[i]) if self.node[i] >= 0 else None} for i in layout]
 
     def from_sensors(self, sensors):
-        """Layout (sorted candidate indices) from sensor strings or ``(node, kind)`` pairs."""
+        """Layout (sorted candidate indices) from sensor strings."""
+        from core_akf.sensors import as_layout
+
         out = []
         for s in sensors:
-            if isinstance(s, str):
-                parts = s.split(":")
-                node, kind = int(parts[1]), ("acc" if parts[0] == "acc" else parts[2])
-            else:
-                node, kind = int(s[0]), str(s[1])
-            hits = [i for i, c in enumerate(self.candidates) if c[0] == node and c[3] == kind]
-            if not hits:
-                raise AKFInputError(f"sensor {s!r} is not an admissible position (off the mesh, clamped, "
-                                    f"or kind not in {list(self.kinds)})")
-            out.append(hits[0])
+            label = as_layout([s])[0].label
+            if label not in self.index:
+                raise AKFInputError(f"sensor {s!r} is not a candidate (kinds {list(self.kinds)}; an output that "
+                                    "measures nothing is not one)")
+            out.append(self.index[label])
         if len(set(out)) != len(out):
             raise AKFInputError(f"duplicate sensors in {list(sensors)}")
         return tuple(sorted(out))
@@ -193,6 +276,186 @@ class Encoding:
             return self.repair([int(i) for i in rng.choice(union, size=self.n_sensors, replace=False)], rng)
         return child(), child()
 
+    def _nearest(self, point, kind, exclude, rng):
+        """The candidate of ``kind`` nearest to ``point`` (m), not in ``exclude``."""
+        pool = np.flatnonzero(self.kind == kind)
+        pool = pool[~np.isin(pool, list(exclude))]
+        if pool.size == 0:
+            return None
+        d = np.sum((self.position[pool] - point) ** 2, axis=1)
+        best = pool[d <= d.min() * (1 + 1e-12)]
+        return int(rng.choice(best))
+
+    def crossover_intermediate(self, a, b, rng, alpha=0.5):
+        """Intermediate crossover on the positions of paired sensors, ``c = p1 + u (p2 - p1)`` with
+        ``u ~ U(-alpha, 1 + alpha)`` per coordinate, then the nearest unused candidate of the kind
+        of either parent (of the first under a budget)."""
+        def child():
+            genes, used = [], set()
+            for g1, g2 in zip(a, b):
+                u = rng.uniform(-alpha, 1 + alpha, size=self.position.shape[1])
+                point = self.position[g1] + u * (self.position[g2] - self.position[g1])
+                kind = self.kind[g1] if (self.budget or rng.random() < 0.5) else self.kind[g2]
+                g = self._nearest(point, kind, used, rng)
+                if g is not None:
+                    genes.append(g)
+                    used.add(g)
+            return self.repair(genes, rng)
+        return child(), child()
+
+    def _same_place(self, g, others, rng):
+        """Another allowed kind at the place of candidate ``g`` (same type under a budget)."""
+        here = np.flatnonzero(np.all(np.abs(self.position - self.position[g]) <= 1e-9 * self.spacing, axis=1))
+        here = [int(h) for h in here if self.kind[h] != self.kind[g] and h not in others
+                and (not self.budget or self.type[h] == self.type[g])]
+        return int(rng.choice(here)) if here else None
+
+    def mutate(self, layout, rng, indpb=None, p_move=0.5, p_jump=0.3):
+        """Per-sensor mutation (each sensor with probability ``indpb``, default 1/n): a *move*
+        to one of the nearest candidates of the same kind, a *jump* anywhere, or a *kind flip*
+        (another kind at the same place)."""
+        genes = list(layout)
+        indpb = 1.0 / len(genes) if indpb is None else indpb
+        hit = rng.random(len(genes)) < indpb
+        if not hit.any():
+            hit[rng.integers(len(genes))] = True
+        for j in np.flatnonzero(hit):
+            g = genes[j]
+            others = set(genes) - {g}
+            r = rng.random()
+            if r < p_move:
+                near = [h for h in self.neighbours[g] if h not in others]
+                ng = int(rng.choice(near)) if near else None
+            elif r < p_move + p_jump:
+                pool = self._pool(self.type[g] if self.budget else None)
+                pool = pool[~np.isin(pool, list(others | {g}))]
+                ng = int(rng.choice(pool)) if pool.size else None
+            else:
+                ng = self._same_place(g, others, rng)
+            if ng is not None:
+                genes[j] = ng
+        return self.repair(genes, rng)
+
+    def mutate_adaptive(self, layout, rng, scale):
+        """Gaussian steps of ``scale`` candidate spacings on the positions, a random kind change
+        with probability ``scale / span``, repaired to the nearest unused candidate."""
+        genes, used = [], set()
+        for g in layout:
+            point = self.position[g] + rng.normal(0, scale * self.spacing, size=self.position.shape[1])
+            kind = self.kind[g]
+            if rng.random() < scale / max(self.span, 1.0):
+                kinds = [k for k in self.kinds if not self.budget or sensor_type(k) == self.type[g]]
+                kind = str(rng.choice(kinds))
+            ng = self._nearest(point, kind, used, rng)
+            if ng is not None:
+                genes.append(ng)
+                used.add(ng)
+        return self.repair(genes, rng)
+
+    def distance(self, a, b):
+        """Distance between two layouts: the minimum-cost matching of their sensors, cost = distance
+        in candidate spacings + 1 for a different kind; 0 for the same layout."""
+        a, b = list(a), list(b)
+        C = np.linalg.norm(self.position[a][:, None] - self.position[b][None, :], axis=2) / self.spacing
+        C = C + (self.kind[a][:, None] != self.kind[b][None, :])
+        r, c = linear_sum_assignment(C)
+        return float(C[r, c].sum())
+
+    def diversity(self, layouts):
+        """Mean distance of each layout to its nearest *other* individual (TH's diversity)."""
+        n = len(layouts)
+        if n < 2:
+            return 0.0
+        D = np.full((n, n), np.inf)
+        for i in range(n):
+            for j in range(i + 1, n):
+                D[i, j] = D[j, i] = self.distance(layouts[i], layouts[j])
+        return float(np.mean(D.min(axis=1)))
+
+
+class Encoding(CandidateSet):
+    """Admissible sensor candidates of a plate and the GA operators on layouts.
+
+    Parameters
+    ----------
+    structure : Structure -- a plate from :func:`core_akf.models.plate`
+    kinds : allowed kinds, subset of ``("ex", "ey", "gxy", "acc")``
+    n_sensors : int -- total number of sensors (any allowed kind), or
+    budget : dict -- sensors per type, e.g. ``{"strain": 3, "acc": 1}`` (fixed counts)
+    """
+
+    def __init__(self, structure, kinds=STRAIN_KINDS, n_sensors=None, budget=None):
+        kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
+        bad = [k for k in kinds if k not in KINDS]
+        if bad or not kinds:
+            raise AKFInputError(f"unknown sensor kind(s) {bad or kinds}; use some of {list(KINDS)}")
+        if structure.strain_kind != "node":
+            raise AKFInputError("sensor placement works on plate models (strains at nodes)")
+        self.structure = structure
+        self.kinds = tuple(dict.fromkeys(kinds))
+        xs, ys = np.unique(np.round(structure.nodes[:, 0], 12)), np.unique(np.round(structure.nodes[:, 1], 12))
+        self.nx, self.ny = len(xs), len(ys)
+        if self.nx * self.ny != structure.n_nodes:
+            raise AKFInputError("the plate's nodes do not form a rectangular grid")
+        ix = np.searchsorted(xs, np.round(structure.nodes[:, 0], 12)) + 1
+        iy = np.searchsorted(ys, np.round(structure.nodes[:, 1], 12)) + 1
+        dead = zero_rows(structure.strain_operator)      # identically zero outputs (e_x along a clamp)
+        cands = []
+        for node in range(1, structure.n_nodes + 1):
+            for kind in self.kinds:
+                if kind == "acc":
+                    try:
+                        structure.dof_index(node, "w")
+                    except (AKFInputError, ValueError, KeyError):
+                        continue
+                else:
+                    if dead[structure.strain_labels.index(f"strain:{node}:{kind}")]:
+                        continue
+                cands.append((node, int(ix[node - 1]), int(iy[node - 1]), kind))
+        if not cands:
+            raise AKFInputError(f"no admissible sensor position for kinds {list(self.kinds)}")
+        self.candidates = cands
+        self.node = np.array([c[0] for c in cands])
+        self.ix = np.array([c[1] for c in cands])
+        self.iy = np.array([c[2] for c in cands])
+        self.kind = np.array([c[3] for c in cands])
+        self.type = np.array([sensor_type(k) for k in self.kind])
+        self.index = {(c[1], c[2], c[3]): i for i, c in enumerate(cands)}
+        self.labels = [f"acc:{c[0]}:w" if c[3] == "acc" else f"strain:{c[0]}:{c[3]}" for c in cands]
+        self.position = structure.nodes[self.node - 1]
+        self.span = max(self.nx, self.ny)           # grid units across the plate
+        self.spacing = 1.0
+        self.budget = self._budget(n_sensors, budget)
+        self.n_sensors = sum(self.budget.values()) if self.budget else int(n_sensors)
+
+    # ------------------------------------------------------------------ conversions
+    def triples(self, layout):
+        return [(int(self.ix[i]), int(self.iy[i]), str(self.kind[i])) for i in layout]
+
+    def records(self, layout):
+        """``[{"sensor": "strain:58:ex", "kind": "ex"|"ey"|"gxy"|"acc", "node": id}, ...]`` (1-based
+        node ids)."""
+        return [{"sensor": self.labels[i], "kind": str(self.kind[i]), "node": int(self.node[i])} for i in layout]
+
+    def from_sensors(self, sensors):
+        """Layout (sorted candidate indices) from sensor strings or ``(node, kind)`` pairs."""
+        out = []
+        for s in sensors:
+            if isinstance(s, str):
+                parts = s.split(":")
+                node, kind = int(parts[1]), ("acc" if parts[0] == "acc" else parts[2])
+            else:
+                node, kind = int(s[0]), str(s[1])
+            hits = [i for i, c in enumerate(self.candidates) if c[0] == node and c[3] == kind]
+            if not hits:
+                raise AKFInputError(f"sensor {s!r} is not an admissible position (off the mesh, clamped, "
+                                    f"or kind not in {list(self.kinds)})")
+            out.append(hits[0])
+        if len(set(out)) != len(out):
+            raise AKFInputError(f"duplicate sensors in {list(sensors)}")
+        return tuple(sorted(out))
+
+    # ------------------------------------------------------------------ operators
     def _nearest(self, ix, iy, kind, exclude, rng):
         """The admissible candidate of ``kind`` nearest to grid point (ix, iy), not in ``exclude``."""
         pool = np.flatnonzero(self.kind == kind)
@@ -283,13 +546,18 @@ class Encoding:
         r, c = linear_sum_assignment(C)
         return float(C[r, c].sum())
 
-    def diversity(self, layouts):
-        """Mean distance of each layout to its nearest *other* individual (TH's diversity)."""
-        n = len(layouts)
-        if n < 2:
-            return 0.0
-        D = np.full((n, n), np.inf)
-        for i in range(n):
-            for j in range(i + 1, n):
-                D[i, j] = D[j, i] = self.distance(layouts[i], layouts[j])
-        return float(np.mean(D.min(axis=1)))
+
+def make_encoding(structure, kinds=None, n_sensors=None, budget=None, candidates=None):
+    """The encoding of a placement problem: the thesis' plate grid (:class:`Encoding`) for a plate
+    whose nodes form a rectangular grid and plate kinds (``ex ey gxy acc``), else a
+    :class:`CandidateSet` of ``candidates`` or of ``kinds`` (default: strain gauges on every
+    strain output, plus nothing else)."""
+    if candidates is None:
+        if kinds is None:
+            kinds = STRAIN_KINDS if structure.strain_kind == "node" else ("strain",)
+        kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
+        if structure.strain_kind == "node" and set(kinds) <= set(KINDS) and "w" in structure.dof_names:
+            xs, ys = np.unique(np.round(structure.nodes[:, 0], 12)), np.unique(np.round(structure.nodes[:, 1], 12))
+            if len(xs) * len(ys) == structure.n_nodes and structure.nodes.shape[1] == 2:
+                return Encoding(structure, kinds=kinds, n_sensors=n_sensors, budget=budget)
+    return CandidateSet(structure, kinds=kinds or (), n_sensors=n_sensors, budget=budget, candidates=candidates)

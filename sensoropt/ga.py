@@ -81,7 +81,7 @@ class PlacementGA(Algorithm):
             if rng.random() < self.cx:
                 op = enc.crossover_set if self.operators == "set" else enc.crossover_intermediate
                 kids[j], kids[j + 1] = op(kids[j], kids[j + 1], rng)
-        scale = max(0.5, 0.5 * max(enc.nx, enc.ny) * (1 - gen / max(self.generations, 1)))
+        scale = max(0.5, 0.5 * enc.span * (1 - gen / max(self.generations, 1)))
         for j in range(len(kids)):
             if rng.random() < self.mut:
                 kids[j] = enc.mutate(kids[j], rng) if self.operators == "set" else enc.mutate_adaptive(kids[j], rng, scale)

@@ -50,7 +50,10 @@ class StrainErrorObjective:
     ----------
     structure : Structure -- the true plate;  forces : force locations;  loads : (N, n_p) N
     dt : float (s);  window : float (s) -- the record used, from the start of ``loads``
-    encoding : :class:`~sensoropt.encoding.Encoding` -- the candidates to prepare
+    encoding : :class:`~sensoropt.encoding.CandidateSet` (or the plate grid
+        :class:`~sensoropt.encoding.Encoding`) -- the candidates to prepare
+    targets : strain output labels (``"strain:13"``, ``"strain:58:ex"``) whose error is averaged;
+        default every strain output
     n_modes : filter modes with static correction (None: the full model).  ``"auto"``:
         :func:`core_akf.defaults.auto_modes` (thesis plate at 2 kHz: 80 modes when only strain
         gauges are placed, 101 when accelerometers may be: they see higher modes).
@@ -65,7 +68,7 @@ class StrainErrorObjective:
     def __init__(self, structure, forces, loads, dt, encoding, *, window=default("window"),
                  stiffness_factor=default("placement_stiffness_factor"), relative_noise=default("relative_noise"),
                  model_error_cov=default("model_error_cov"), force_increment_cov=default("force_increment_cov"),
-                 n_modes="auto", seed=0):
+                 n_modes="auto", seed=0, targets=None):
         loads = np.asarray(loads, float)
         if loads.ndim != 2:
             raise AKFInputError("loads must be (N, n_forces)")
@@ -73,17 +76,20 @@ class StrainErrorObjective:
         if not 2 <= n <= loads.shape[0]:
             raise AKFInputError(f"window {window} s must hold at least 2 steps of the {loads.shape[0] * dt:.3g} s loads")
         if n_modes == "auto":
-            n_modes = auto_modes(structure, dt, accelerations="acc" in encoding.kind)
+            n_modes = auto_modes(structure, dt, accelerations="acc" in set(encoding.type))
         n_modes = min(int(n_modes), structure.n) if n_modes is not None else None
         self.encoding = encoding
         self.labels = encoding.sensors(range(len(encoding.candidates)))
         sim = simulate(structure, self.labels, forces, loads[:n], dt, relative_noise=relative_noise, seed=seed)
         self.Y = sim.measurements                      # (n, n_candidates)
         self.var = np.maximum(sim.noise_std, default("noise_floor")) ** 2
-        self.reference = sim.strains                   # (n, n_strain)
+        rows = None if targets is None else structure.strain_label_index(targets)
+        if rows is not None and not rows:
+            raise AKFInputError("targets is empty: name the strain outputs whose error to average")
+        self.reference = sim.strains if rows is None else sim.strains[:, rows]    # (n, n_targets)
         self.model = ModalFilterModel(structure.scaled(stiffness_factor), forces, dt, n_modes)
         self.G = self.model.observation(self.labels)   # (n_candidates, n_a)
-        self.H = self.model.strain_rows()
+        self.H = self.model.strain_rows() if rows is None else self.model.strain_rows()[rows]
         self.Q = self.model.Q_a(model_error_cov, force_increment_cov)
         self._detectability = SubsetDetectability(structure, self.labels, self.model.forces)
         self.n_forces = len(self.model.forces)

@@ -1,4 +1,4 @@
-"""Placement problems: the plate, its loads, what may be placed, and the full-record check.
+"""Placement problems: the structure, its loads, what may be placed, and the full-record check.
 (The built-in thesis problems are job files of the application layer: ``akf.examples``.)"""
 from __future__ import annotations
 
@@ -11,22 +11,26 @@ from core_akf.metrics import average_strain_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.simulate import simulate
 
-from .encoding import STRAIN_KINDS, Encoding
+from .encoding import make_encoding
 from .objective import StrainErrorObjective
 
 
 @dataclass
 class PlacementProblem:
-    """A plate, its force locations and load histories (full record), what to place, and the
+    """A structure, its force locations and load histories (full record), what to place, and the
     filter settings.  ``objective()`` builds the GA fitness on the first ``window`` seconds;
-    ``full_record_error(sensors)`` checks a layout on the whole record."""
+    ``full_record_error(sensors)`` checks a layout on the whole record.
+
+    ``kinds`` (default: a plate's strain components, or strain gauges on every strain output) or
+    ``candidates`` (sensor strings) make the candidate set (:func:`~sensoropt.encoding.make_encoding`);
+    ``targets`` (strain output labels, default all) are the outputs whose error is averaged."""
 
     name: str
     structure: object
     forces: list
     loads: np.ndarray
     dt: float
-    kinds: tuple = STRAIN_KINDS
+    kinds: tuple = None
     n_sensors: int = None
     budget: dict = None
     window: float = default("window")
@@ -37,16 +41,23 @@ class PlacementProblem:
     n_modes: object = "auto"
     seed: int = 0
     reference_layouts: dict = field(default_factory=dict)
+    candidates: list = None
+    targets: list = None
 
     def encoding(self):
-        return Encoding(self.structure, kinds=self.kinds, n_sensors=self.n_sensors, budget=self.budget)
+        return make_encoding(self.structure, kinds=self.kinds, n_sensors=self.n_sensors, budget=self.budget,
+                             candidates=self.candidates)
+
+    def target_rows(self):
+        """Rows of the target strain outputs (None: all)."""
+        return None if self.targets is None else self.structure.strain_label_index(self.targets)
 
     def objective(self, encoding=None):
         return StrainErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding or self.encoding(),
                                     window=self.window, stiffness_factor=self.stiffness_factor,
                                     relative_noise=self.relative_noise, model_error_cov=self.model_error_cov,
                                     force_increment_cov=self.force_increment_cov, n_modes=self.n_modes,
-                                    seed=self.seed)
+                                    seed=self.seed, targets=self.targets)
 
     def full_record_error(self, sensors, seed=None):
         """Average strain error (µε) over the whole record: simulation of the true plate with
@@ -60,6 +71,8 @@ class PlacementProblem:
         fm = ModalFilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt,
                               None if n_modes is None else min(int(n_modes), self.structure.n))
         R = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2)
+        rows = self.target_rows()
+        H = fm.strain_rows() if rows is None else fm.strain_rows()[rows]
         est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov, self.force_increment_cov),
-                             R[None], sim.measurements[None], fm.strain_rows())[0]
-        return float(average_strain_error(est, sim.strains)) * 1e6
+                             R[None], sim.measurements[None], H)[0]
+        return float(average_strain_error(est, sim.strains if rows is None else sim.strains[:, rows])) * 1e6

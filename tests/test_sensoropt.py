@@ -173,7 +173,7 @@ def test_cli_place_json(tmp_path, capsys):
     assert main(["place", "--example", "th-case5", "--generations", "2", "--population", "6", "--json",
                  "--out", str(tmp_path), "--no-plot"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert len(d["layout"]) == 3 and {"node", "kind"} == set(d["layout"][0])
+    assert len(d["layout"]) == 3 and {"sensor", "node", "kind"} == set(d["layout"][0])
     assert d["layout"][0]["kind"] in ("ex", "ey", "gxy") and d["error"] > 0
     assert main(["place", "--example", "th-multi", "--sensors", "4"]) == 2
 

@@ -91,7 +91,7 @@ def _run_place(args, problem, settings, out):
         return 0
     print(f"{problem.name}: {enc.n_sensors} sensors from {len(enc.candidates)} admissible positions "
           f"({', '.join(enc.kinds)}), seed {args.seed}")
-    print("  best layout (node, kind):  " + ", ".join(f"{d['node']} {d['kind']}" for d in res.layout))
+    print("  best layout:  " + ", ".join(res.sensors))
     print(f"  average strain error: {error:.4f} µε over the {problem.loads.shape[0] * problem.dt:.3g} s record "
           f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
     for name, e in refs.items():
@@ -106,8 +106,8 @@ def _run_place(args, problem, settings, out):
 def window_notes(problem):
     """What a user should know about the fitness window: with accelerometers among the kinds, a
     window shorter than 1 s finds layouts that do not carry over to the full record."""
-    kinds = set(problem.kinds)
-    if "acc" in kinds and problem.window < 1.0:
+    kinds = list(problem.kinds or ()) + list(problem.candidates or ())
+    if any(str(k).startswith("acc") for k in kinds) and problem.window < 1.0:
         return [f"multi-metric placement (accelerometers allowed) on a {problem.window:g} s fitness window: the "
                 "window from rest holds only the dynamic response, where an accelerometer looks better than over "
                 "the whole record, and the layouts found do not carry over to it; use --window 1 (1 s costs little "
@@ -118,7 +118,7 @@ def window_notes(problem):
 def register(sub):
     from ..examples import example_names
 
-    p = sub.add_parser("place", help="optimise sensor positions on a plate (GA, TH)")
+    p = sub.add_parser("place", help="optimise sensor positions on a structure (GA, TH)")
     p.add_argument("job", nargs="?", help="place job file (TOML)")
     p.add_argument("--example", choices=example_names("place"), help="built-in problem")
     p.add_argument("--list-examples", action="store_true", help="list the built-in problems")

@@ -99,6 +99,20 @@ def read_nodes(path):
     return {int(n): tuple(row) for n, row in zip(ids, values[cols[1:]].to_numpy(dtype=float))}
 
 
+def read_extensometers(path):
+    """Extensometers (or truss members) from a CSV file with columns ``a`` and ``b`` (node ids), one
+    strain output per row in order: ``strain:1`` is the first row."""
+    import pandas as pd
+
+    table = _read_table(path, ["a", "b"])
+    ends = table[["a", "b"]].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
+    bad = ~np.isfinite(ends) | (ends != np.round(ends))
+    if bad.any():
+        r, c = (int(i[0]) for i in np.nonzero(bad))
+        raise AKFInputError(f"{path}: node {table[['a', 'b'][c]].iloc[r]!r} in data row {r + 1} is not an integer id")
+    return [(int(a), int(b)) for a, b in ends]
+
+
 def _read_table(path, columns):
     import pandas as pd
 
@@ -252,10 +266,13 @@ def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometer
     """:func:`from_matrices` with the matrices and tables given as files: ``K``, ``M`` (and
     ``C``) as :func:`load_matrix` reads them, ``dofs`` a CSV of columns node, direction
     (:func:`read_dof_map`), ``nodes`` a CSV of columns node, x, y[, z] (:func:`read_nodes`),
-    ``strains`` a strain operator (k x n) as :func:`load_matrix` reads it.
+    ``strains`` a strain operator (k x n) as :func:`load_matrix` reads it, ``extensometers`` a list
+    of node pairs or a CSV of columns a, b (:func:`read_extensometers`).
     ``damping`` may also be ``["rayleigh", alpha, beta]`` as a job file writes it."""
     if isinstance(damping, list):
         damping = tuple(damping)
+    if isinstance(extensometers, (str, os.PathLike)):
+        extensometers = read_extensometers(extensometers)
     return from_matrices(load_matrix(K), load_matrix(M), read_dof_map(dofs), read_nodes(nodes), fixed=fixed,
                          damping=damping, C=None if C is None else load_matrix(C), extensometers=extensometers,
                          strain_rows=None if strains is None else load_matrix(strains),
@@ -334,9 +351,11 @@ def _extensometer_rows(members, coords, dofs, seen, rows, dof_names):
 
 def _check_modes(structure):
     """No rigid-body mode; the first frequencies in :data:`FREQUENCY_RANGE`."""
-    import scipy.linalg
-
-    w2 = scipy.linalg.eigh(structure.K, structure.M, eigvals_only=True, subset_by_index=[0, min(5, structure.n) - 1])
+    try:            # the modes are needed anyway (damping, the filter's modal coordinates): computed once
+        omega = structure._eig[0][:5]
+    except ModelError:
+        omega = np.zeros(1)
+    w2 = omega ** 2
     top = float(np.max(np.abs(np.diag(structure.K)) / np.diag(structure.M)))
     if w2[0] <= RIGID_BODY_RTOL * top:
         raise AKFInputError(f"{structure.name}: the model has a rigid-body mode (lowest eigenvalue {w2[0]:.3g} against "
