@@ -20,8 +20,15 @@ def example_problem(name, n_sensors=None):
             raise AKFInputError(f"{name} has a fixed budget {job['place']['budget']}; --sensors does not apply")
         job["place"]["sensors"] = int(n_sensors)
     problem, _ = problem_from_job(job)
-    problem.reference_layouts = {"TH case 2 (trial and error)": list(TH_CASE2)}
+    if name.startswith("th-"):
+        problem.reference_layouts = {"TH case 2 (trial and error)": list(TH_CASE2)}
     return problem
+
+
+def example_settings(name):
+    """The GA settings a built-in place example sets in its ``[place]`` table (the thesis'
+    defaults for the rest)."""
+    return problem_from_job(load_example(name, "place"))[1]
 
 
 GA_KEYS = ("population", "generations", "elite", "crossover", "mutation", "tournament", "stall_generations", "operators")

@@ -26,12 +26,13 @@ def figure(figsize=None):
     return Figure(figsize=figsize)
 
 
-def save_figure(fig, path, dpi=110):
-    """Lay out ``fig`` and write it to ``path`` (creating the folder; complete or absent, also on
-    Ctrl-C); returns ``path``."""
+def save_figure(fig, path, dpi=110, tight=True):
+    """Lay out ``fig`` (``tight``: :meth:`~matplotlib.figure.Figure.tight_layout`) and write it to
+    ``path`` (creating the folder; complete or absent, also on Ctrl-C); returns ``path``."""
     from .outputs import atomic_path
 
-    fig.tight_layout()
+    if tight:
+        fig.tight_layout()
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format=os.path.splitext(path)[1].lstrip(".") or "png")
@@ -45,6 +46,8 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
     import numpy as np
 
     xy = structure.nodes
+    if xy.shape[1] == 3:
+        return plot_layout_3d(structure, sensors=sensors, forces=forces, path=path, title=title)
     span = np.ptp(xy, axis=0)
     aspect = span[1] / span[0] if span[0] > 0 else 1.0
     fig, ax = subplots(figsize=(min(12.0, 3 + 9 * min(1.0, 1 / max(aspect, 1e-3))), min(9.0, 2.5 + 8 * min(aspect, 1.0))))
@@ -84,4 +87,84 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     if path is not None:
         save_figure(fig, path)
+    return fig
+
+
+#: sensor kind -> (marker, colour) in the layout figures
+SENSOR_STYLE = {"strain": ("s", "tab:blue"), "acc": ("o", "tab:red"), "vel": ("^", "tab:orange"),
+                "disp": ("D", "tab:green")}
+
+
+def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exaggerate=None):
+    """A 3-D structure with a sensor layout: members (grey lines), supports (grey squares), strain
+    gauges (their member drawn thick in blue, a square at its middle), accelerometers and other
+    point sensors (a marker at the node and an arrow along the measured direction), forces (red
+    arrows).  The cross-section (y and z) is drawn ``exaggerate`` times larger than the length
+    when the structure is slender (default: chosen to make it readable; the axis labels say so).
+    Returns the Figure; writes it to ``path`` if given."""
+    import numpy as np
+
+    from .sensors import as_layout
+
+    xyz = structure.nodes
+    lo, span = xyz.min(axis=0), np.maximum(np.ptp(xyz, axis=0), 1e-12)
+    if exaggerate is None:
+        exaggerate = float(np.clip(span.max() / (4 * max(span[1], span[2])), 1.0, 5.0))
+    scale = np.array([1.0, exaggerate, exaggerate])
+    P = (xyz - lo) * scale
+    fig = figure(figsize=(11, 3.9))
+    ax = fig.add_subplot(projection="3d")
+    if structure.members is not None:
+        for a, b in structure.node_rows(structure.members.ravel()).reshape(-1, 2):
+            ax.plot(*P[[a, b]].T, "-", color="0.7", lw=0.6)
+    else:
+        ax.scatter(*P.T, s=2, color="0.6")
+    n_dof = len(structure.dof_names)
+    counts = np.bincount(np.asarray(structure.free_dofs) // n_dof, minlength=structure.n_nodes)
+    sup = np.flatnonzero(counts < n_dof)
+    if sup.size:
+        ax.scatter(*P[sup].T, marker="s", s=30, color="0.4", label="support")
+    arrow = 0.04 * span.max()
+    dirs = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "w": (0, 0, 1)}
+    labelled = set()
+    for s in as_layout(list(sensors)):
+        marker, colour = SENSOR_STYLE[s.kind]
+        label = None if s.kind in labelled else {"strain": "strain gauge", "acc": "accelerometer"}.get(s.kind, s.kind)
+        labelled.add(s.kind)
+        if s.kind == "strain" and s.member is not None and structure.members is not None:
+            a, b = structure.node_rows(structure.members[s.member - 1])
+            ax.plot(*P[[a, b]].T, "-", color=colour, lw=3)
+            point = 0.5 * (P[a] + P[b])
+            text = f"{s.member}"
+        else:
+            point = P[structure.node_rows([s.node])[0]]
+            text = f"{s.node}{s.direction or ''}"
+            if s.direction in dirs:
+                ax.quiver(*point, *(arrow * np.array(dirs[s.direction])), color=colour, lw=1.5)
+        ax.scatter(*point, marker=marker, s=60, facecolors="none", edgecolors=colour, linewidths=2, label=label)
+        ax.text(*(point + 0.02 * span.max() * np.array([0, 0, 1])), text, fontsize=7, color=colour)
+    for j, (node, direction) in enumerate(forces):
+        point = P[structure.node_rows([node])[0]]
+        d = np.array(dirs.get(direction, (0, 0, 1)), float)
+        ax.quiver(*(point + 2 * arrow * d), *(-2 * arrow * d), color="red", lw=2,
+                  label=f"load {j + 1}: node {node} ({direction})")
+    ax.set_box_aspect(np.maximum(span * scale, 0.02 * span.max()), zoom=1.2)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)" if exaggerate == 1 else f"y (m, drawn x{exaggerate:.3g})")
+    ax.set_zlabel("z (m)" if exaggerate == 1 else f"z (m, x{exaggerate:.3g})")
+    for setter, k in ((ax.set_xticks, 0), (ax.set_yticks, 1), (ax.set_zticks, 2)):
+        ticks = np.linspace(0, span[k], 3 if k else 5)
+        setter(ticks * scale[k])
+    ax.set_xticklabels([f"{v + lo[0]:.3g}" for v in np.linspace(0, span[0], 5)])
+    ax.set_yticklabels([f"{v + lo[1]:.3g}" for v in np.linspace(0, span[1], 3)])
+    ax.set_zticklabels([f"{v + lo[2]:.3g}" for v in np.linspace(0, span[2], 3)])
+    ax.view_init(elev=24, azim=-68)
+    ax.xaxis.labelpad = 12
+    ax.set_title(title or f"{structure.name or 'structure'}: {structure.n_nodes} nodes"
+                 + (f", {len(structure.members)} members" if structure.members is not None else ""), fontsize=9)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, 0.95))
+    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.02, top=0.95)
+    if path is not None:
+        save_figure(fig, path, tight=False)
     return fig

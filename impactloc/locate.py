@@ -117,8 +117,8 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
         if tuned.tuned_error < tuned.initial_error:
             best_cov = tuned.covariances
     t = time.perf_counter()
-    initial = reconstruct(structure, layout, Y, dt, res.identified, cov)
-    final = reconstruct(structure, layout, Y, dt, res.identified, best_cov) if best_cov is not cov else initial
+    initial = reconstruct(structure, layout, Y, dt, res.identified, cov, n_modes)
+    final = reconstruct(structure, layout, Y, dt, res.identified, best_cov, n_modes) if best_cov is not cov else initial
     seconds["reconstruction"] = time.perf_counter() - t
     seconds["total"] = sum(seconds.values())
     return LocateResult(res, tuned, final, initial, seconds)

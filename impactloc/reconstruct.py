@@ -55,9 +55,24 @@ class Reconstruction:
     summary: ForceSummary
 
 
-def reconstruct(structure, sensors, measurements, dt, location, covariances):
+#: above this many DOFs the reconstruction runs on the scan's reduced model (with its static
+#: correction) instead of the full one, whose steady-state gain would cost minutes
+FULL_MODEL_LIMIT = 500
+
+
+def reconstruct(structure, sensors, measurements, dt, location, covariances, n_modes=None):
     """Reconstruct the force history at ``location`` and the response everywhere with the
-    steady-state AKF fed by every installed sensor and the given :class:`Covariances`."""
+    steady-state AKF fed by every installed sensor and the given :class:`Covariances`.
+
+    ``n_modes`` (an int, ``"auto"`` or None): the filter modes of the scan; a structure of more
+    than :data:`FULL_MODEL_LIMIT` DOFs is then reduced to them with a static correction, a smaller
+    one is used whole (the papers' cases)."""
+    if n_modes is not None and structure.n > FULL_MODEL_LIMIT and not structure.is_reduced:
+        from core_akf.defaults import auto_modes
+
+        k = auto_modes(structure, dt, accelerations=True) if n_modes == "auto" else int(n_modes)
+        if k < structure.n:
+            structure = structure.reduce(k, static_correction=True)
     est = estimate(structure, sensors, [location], measurements, dt, model_error_cov=covariances.model_error,
                    force_increment_cov=covariances.force_increment, noise_cov=dict(covariances.noise), steady=True)
     force = est.forces[:, 0]

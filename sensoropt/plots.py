@@ -29,7 +29,15 @@ def plot_convergence(logbook, path=None, title="placement GA"):
 
 def plot_layout(encoding, layout, path=None, title="", forces=()):
     """The mesh (nodes as dots, clamped nodes grey), the sensors with kind markers and node ids,
-    and the force locations (red crosses)."""
+    and the force locations (red crosses); on any other structure than the plate grid the layout
+    drawn on the structure (3-D for 3-D coordinates, :func:`core_akf.figures.plot_structure`)."""
+    from .encoding import Encoding
+
+    if not isinstance(encoding, Encoding):
+        from core_akf.figures import plot_structure
+
+        return plot_structure(encoding.structure, path=path, title=title, numbers=encoding.structure.n_nodes <= 60,
+                              forces=forces, sensors=encoding.sensors(layout))
     s = encoding.structure
     xy = s.nodes
     fig, ax = subplots(figsize=(6, 5))

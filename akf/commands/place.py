@@ -20,7 +20,7 @@ from .common import print_written
 def _place(args):
     from sensoropt.ga import THESIS
 
-    from ..placement import example_problem, problem_from_job
+    from ..placement import example_problem, example_settings, problem_from_job
     from .common import check_job_or_example, print_examples
 
     if args.list_examples:
@@ -29,7 +29,7 @@ def _place(args):
     check_job_or_example(args, "place job file")
     check_scheduler(args.scheduler)          # before the problem is built
     if args.example:
-        problem, ga = example_problem(args.example, args.sensors), {}
+        problem, ga = example_problem(args.example, args.sensors), example_settings(args.example)
     else:
         problem, ga = problem_from_job(load_job(args.job, "place"))
         if args.sensors is not None:

@@ -16,6 +16,11 @@ error, 2 % noise, dt = 1/2000 s.
 
 IMP (Saleem & Jo 2019): impacts on the S17 truss and on a 5 x 5 cantilever plate (see
 :mod:`akf.examples.impact`).
+
+Footbridge (ours, not from the papers): the 3-D truss footbridge of
+:func:`core_akf.models.footbridge` -- two forces estimated from 4 strain gauges and 2
+accelerometers (``footbridge-walk``), the placement of those 6 sensors (``footbridge-place``) and
+an impact on the deck (``footbridge-impact``).
 """
 from __future__ import annotations
 
@@ -37,6 +42,7 @@ COMMAND_OF = {
     "th-case2": "estimate", "th-case3": "estimate",
     "th-case5": "place", "th-case6": "place", "th-multi": "place",
     "imp-truss-case1": "locate", "imp-truss-case2": "locate", "imp-plate": "locate",
+    "footbridge-walk": "estimate", "footbridge-place": "place", "footbridge-impact": "locate",
 }
 
 
