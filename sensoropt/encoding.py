@@ -42,6 +42,9 @@ def candidate_sensors(structure, kinds):
     free translational DOF (``"acc:z"`` only direction z; ``w`` on a plate)."""
     out = []
     for kind in kinds:
+        if kind in STRAIN_KINDS and structure.strain_kind != "node":
+            raise AKFInputError(f"unknown sensor kind {kind!r} on {structure.name!r}: {list(STRAIN_KINDS)} are a "
+                                "plate's strain components; its strain outputs are members or extensometers: use 'strain'")
         if kind == "strain" or kind in STRAIN_KINDS:
             out += [lab for lab in structure.strain_labels if kind == "strain" or lab.endswith(f":{kind}")]
         elif kind == "acc" or kind.startswith("acc:"):
@@ -60,6 +63,8 @@ def candidate_sensors(structure, kinds):
         else:
             raise AKFInputError(f"unknown sensor kind {kind!r}; use 'strain', 'acc', 'acc:DIR' (e.g. 'acc:z') or a "
                                 f"plate's strain components {list(STRAIN_KINDS)}")
+    if not out:
+        raise AKFInputError(f"no admissible sensor position for kinds {list(kinds)} on {structure.name!r}")
     return list(dict.fromkeys(out))
 
 
@@ -104,10 +109,7 @@ class CandidateSet:
         else:
             candidates, given = [str(c) for c in candidates], True
         layout = as_layout(candidates)
-        labels = [s.label for s in layout]
-        dup = sorted({lab for lab in labels if labels.count(lab) > 1})
-        if dup:
-            raise AKFInputError(f"duplicate candidate sensor(s) {dup}")
+        labels = [s.label for s in layout]                 # as_layout refuses duplicates
         S = selection_matrices(structure, layout)          # every candidate exists (a clear error names one)
         dead = zero_rows(S["strain"] + S["disp"] + S["vel"] + S["acc"])
         if given and dead.any():

@@ -39,9 +39,10 @@ def test_every_example_is_a_valid_job_file_of_its_command(name):
 
 
 def test_examples_are_listed_per_command():
-    assert example_names("estimate") == ["s17-case1", "s17-case2", "s17-case3", "s17-case4", "th-case2", "th-case3"]
-    assert example_names("place") == ["th-case5", "th-case6", "th-multi"]
-    assert example_names("locate") == ["imp-plate", "imp-truss-case1", "imp-truss-case2"]
+    assert example_names("estimate") == ["footbridge-walk", "s17-case1", "s17-case2", "s17-case3", "s17-case4",
+                                         "th-case2", "th-case3"]
+    assert example_names("place") == ["footbridge-place", "th-case5", "th-case6", "th-multi"]
+    assert example_names("locate") == ["footbridge-impact", "imp-plate", "imp-truss-case1", "imp-truss-case2"]
 
 
 @pytest.mark.parametrize("name", sorted(ESTIMATE_PINS))

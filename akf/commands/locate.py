@@ -96,7 +96,7 @@ def _run_locate(args, progress):
         scenario = example_scenario(args.example, impact_node=args.impact_node, noise=args.noise, seed=args.seed)
         result = locate(scenario.structure, scenario.sensors, scenario.measurements, scenario.dt, n_ad=scenario.n_ad,
                         ad_kinds=scenario.ad_kinds, direction=scenario.direction, tune=not args.no_tune,
-                        n_jobs=workers(args), seed=args.seed, progress=progress)
+                        n_jobs=workers(args), seed=args.seed, progress=progress, **(scenario.options or {}))
         return result, scenario, f"{args.example}-node{scenario.impact[0]}-{args.noise}"
     if args.impact_node is not None:
         raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")

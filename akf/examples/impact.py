@@ -36,6 +36,8 @@ class ImpactScenario:
     ad_kinds: tuple
     direction: str
     simulation: object = None
+    #: the job's further ``[locate]`` settings for :func:`impactloc.locate` (candidates, n_modes, ...)
+    options: dict = None
 
 
 def impact_job(name, impact_node=None, noise="abs", seed=0):
@@ -65,9 +67,12 @@ def example_scenario(name, impact_node=None, noise="abs", seed=0):
     job = impact_job(name, impact_node, noise, seed)
     structure, forces, sim = simulate_job(job)
     loc = job["locate"]
+    options = {k: loc[k] for k in ("candidates", "n_modes", "skip", "max_splits") if k in loc}
+    if options.get("n_modes") == "full":
+        options["n_modes"] = None
     return ImpactScenario(name, structure, list(job["sensors"]), float(job["dt"]), sim.measurements,
                           sim.loads[:, 0], forces[0], int(loc["n_ad"]), tuple(loc.get("ad_kinds", ["strain"])),
-                          loc["direction"], sim)
+                          loc["direction"], sim, options)
 
 
 #: the impact examples
