@@ -305,17 +305,22 @@ class CandidateSet:
             return self.repair(genes, rng)
         return child(), child()
 
-    def _same_place(self, g, others, rng):
+    def _flip(self, g, others, rng):
         """Another allowed kind at the place of candidate ``g`` (same type under a budget)."""
         here = np.flatnonzero(np.all(np.abs(self.position - self.position[g]) <= 1e-9 * self.spacing, axis=1))
         here = [int(h) for h in here if self.kind[h] != self.kind[g] and h not in others
                 and (not self.budget or self.type[h] == self.type[g])]
         return int(rng.choice(here)) if here else None
 
+    def _move(self, g, others, rng):
+        """One of the nearest candidates of the kind of ``g`` (its KD-tree neighbours), unused."""
+        near = [h for h in self.neighbours[g] if h not in others]
+        return int(rng.choice(near)) if near else None
+
     def mutate(self, layout, rng, indpb=None, p_move=0.5, p_jump=0.3):
         """Per-sensor mutation (each sensor with probability ``indpb``, default 1/n): a *move*
-        to one of the nearest candidates of the same kind, a *jump* anywhere, or a *kind flip*
-        (another kind at the same place)."""
+        to a neighbouring candidate of the same kind, a *jump* anywhere, or a *kind flip* (another
+        kind at the same place)."""
         genes = list(layout)
         indpb = 1.0 / len(genes) if indpb is None else indpb
         hit = rng.random(len(genes)) < indpb
@@ -326,14 +331,13 @@ class CandidateSet:
             others = set(genes) - {g}
             r = rng.random()
             if r < p_move:
-                near = [h for h in self.neighbours[g] if h not in others]
-                ng = int(rng.choice(near)) if near else None
+                ng = self._move(g, others, rng)
             elif r < p_move + p_jump:
                 pool = self._pool(self.type[g] if self.budget else None)
                 pool = pool[~np.isin(pool, list(others | {g}))]
                 ng = int(rng.choice(pool)) if pool.size else None
             else:
-                ng = self._same_place(g, others, rng)
+                ng = self._flip(g, others, rng)
             if ng is not None:
                 genes[j] = ng
         return self.repair(genes, rng)
@@ -488,38 +492,18 @@ class Encoding(CandidateSet):
             return self.repair(genes, rng)
         return child(), child()
 
-    def mutate(self, layout, rng, indpb=None, p_move=0.5, p_jump=0.3):
-        """Per-sensor mutation (each sensor with probability ``indpb``, default 1/n): a *move*
-        to a neighbouring grid point, a *jump* anywhere, or a *kind flip* (another allowed kind of
-        the same type -- or any allowed kind without a budget)."""
-        genes = list(layout)
-        indpb = 1.0 / len(genes) if indpb is None else indpb
-        hit = rng.random(len(genes)) < indpb
-        if not hit.any():
-            hit[rng.integers(len(genes))] = True
-        for j in np.flatnonzero(hit):
-            g = genes[j]
-            others = set(genes) - {g}
-            r = rng.random()
-            if r < p_move:
-                step = rng.choice([(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)])
-                ng = self._nearest(self.ix[g] + step[0], self.iy[g] + step[1], self.kind[g], others | {g}, rng)
-            elif r < p_move + p_jump:
-                pool = self._pool(self.type[g] if self.budget else None)
-                pool = pool[~np.isin(pool, list(others | {g}))]
-                ng = int(rng.choice(pool)) if pool.size else None
-            else:
-                kinds = [k for k in self.kinds if k != self.kind[g]
-                         and (not self.budget or sensor_type(k) == self.type[g])]
-                ng = None
-                if kinds:
-                    key = (int(self.ix[g]), int(self.iy[g]), str(rng.choice(kinds)))
-                    ng = self.index.get(key)
-                    if ng in others:
-                        ng = None
-            if ng is not None:
-                genes[j] = ng
-        return self.repair(genes, rng)
+    def _move(self, g, others, rng):
+        """The nearest admissible candidate of the same kind one grid step (of 8) away."""
+        step = rng.choice([(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)])
+        return self._nearest(self.ix[g] + step[0], self.iy[g] + step[1], self.kind[g], others | {g}, rng)
+
+    def _flip(self, g, others, rng):
+        """Another allowed kind at the grid point of ``g`` (of the same type under a budget)."""
+        kinds = [k for k in self.kinds if k != self.kind[g] and (not self.budget or sensor_type(k) == self.type[g])]
+        if not kinds:
+            return None
+        ng = self.index.get((int(self.ix[g]), int(self.iy[g]), str(rng.choice(kinds))))
+        return None if ng in others else ng
 
     def mutate_adaptive(self, layout, rng, scale):
         """The thesis' baseline: Gaussian steps of standard deviation ``scale`` (grid units,

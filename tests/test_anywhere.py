@@ -38,7 +38,7 @@ def test_candidate_set_on_a_truss_places_gauges_on_members_and_accelerometers_on
         for child in (*enc.crossover_set(x, y, rng), *enc.crossover_intermediate(x, y, rng),
                       enc.mutate(x, rng, indpb=1.0), enc.mutate_adaptive(x, rng, 2.0)):
             assert enc.is_valid(child) and enc.counts(child) == {"strain": 3, "acc": 2}
-    flip = enc._same_place(a, set(), rng)                                   # kind flip: y -> x at joint 8
+    flip = enc._flip(a, set(), rng)                                   # kind flip: y -> x at joint 8
     assert enc.labels[flip] == "acc:8:x"
     assert enc.distance(pop[0], pop[0]) == 0 and enc.distance(pop[0], pop[1]) > 0
     with pytest.raises(AKFInputError, match="unknown sensor kind"):
