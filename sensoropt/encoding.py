@@ -141,9 +141,9 @@ class CandidateSet:
             pool = np.flatnonzero(self.kind == kind)
             k = min(int(neighbours) + 1, pool.size)
             _, nb = cKDTree(self.position[pool]).query(self.position[pool], k=k)
-            nb = np.atleast_2d(nb.T).T if k > 1 else np.zeros((pool.size, 0), int)
+            nb = np.asarray(nb).reshape(pool.size, -1)        # (candidates, k), nearest first
             for row, g in enumerate(pool):
-                self.neighbours[int(g)] = [int(pool[j]) for j in np.atleast_1d(nb[row]) if pool[j] != g]
+                self.neighbours[int(g)] = [int(pool[j]) for j in nb[row] if pool[j] != g]
 
     def _positions(self, layout):
         """Where each candidate is (m): an accelerometer's node; a strain output's centroid of the
