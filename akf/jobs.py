@@ -192,6 +192,8 @@ class JobResult:
         frames = [pd.DataFrame({"time": est.time, "quantity": "strain", "channel": labels[i], "unit": "m/m",
                                 "estimated": strains[:, i], "reference": ref[:, i] if ref is not None else np.nan})
                   for i in idx]
+        if not frames:          # a model without strain outputs (point sensors on a model of one's own)
+            return pd.DataFrame(columns=["time", "quantity", "channel", "unit", "estimated", "reference"])
         return pd.concat(frames, ignore_index=True)
 
     def summary_frame(self):
@@ -304,10 +306,11 @@ def run_job(job: dict, allow_undetectable: bool | None = None, steady: bool | No
     if sim is not None:
         rf = rms_error(est.forces, sim.loads)
         metrics["rms_force"] = {f"{n}:{d}": float(v) for (n, d), v in zip(forces, rf)}
-        rs = rms_error(est.strains, sim.strains)
-        metrics["rms_strain"] = dict(zip(true_structure.strain_labels, map(float, rs)))
-        metrics["avg_strain_error"] = float(average_strain_error(est.strains, sim.strains))
-        metrics["avg_strain_error_microstrain"] = metrics["avg_strain_error"] / MICROSTRAIN
+        if true_structure.n_strain:       # a model of one's own may have no strain outputs
+            rs = rms_error(est.strains, sim.strains)
+            metrics["rms_strain"] = dict(zip(true_structure.strain_labels, map(float, rs)))
+            metrics["avg_strain_error"] = float(average_strain_error(est.strains, sim.strains))
+            metrics["avg_strain_error_microstrain"] = metrics["avg_strain_error"] / MICROSTRAIN
     metrics["forces"] = force_statistics(est)
     metrics["sensors"] = sensor_diagnostics(est)
     metrics["warnings"] = warnings_for(est, metrics["sensors"])

@@ -38,6 +38,7 @@ from core_akf.exceptions import AKFInputError
 from core_akf.outputs import write_csv
 
 from .schema import parse_job
+from .writers import draw
 
 
 def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None):
@@ -106,36 +107,53 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
     files = record_files(job["measurements"]["file"])
     rows, written = [], {}
     os.makedirs(out, exist_ok=True)
-    for i, path in enumerate(files):
-        one = copy.deepcopy(job)
-        one["measurements"]["file"] = path
-        name = os.path.splitext(os.path.basename(path))[0]
-        row = {"file": path}
-        try:
-            result = run_locate_job(one, n_jobs=n_jobs, seed=seed, progress=False, tune=tune)
-        except AKFInputError as exc:
-            rows.append(row | {"error": str(exc)})
-            if progress:
-                print(f"  [{i + 1}/{len(files)}] {name}: not located: {exc}")
-            continue
-        d = result.to_dict()
-        row |= {"node": d["identified"], "direction": d["direction"], "confidence": d["confidence"],
-                "margin": d["margin"], "peak_force": d["peak_force"], "time_of_peak": d["time_of_peak"],
-                "duration": d["duration"], "impulse": d["impulse"], "warnings": "; ".join(d["warnings"]), "error": ""}
-        rows.append(row)
-        write_outputs(result, os.path.join(out, "events", name), plot=False)
-        if progress:
-            print(f"  [{i + 1}/{len(files)}] {name}: node {row['node']} ({row['direction']}), confidence "
-                  f"{row['confidence']:.2f}, peak {row['peak_force'] / 1e3:.3f} kN at {row['time_of_peak']:.4f} s")
     columns = ["file", "node", "direction", "confidence", "margin", "peak_force", "time_of_peak", "duration", "impulse",
                "warnings", "error"]
+    written["events"] = os.path.join(out, "events.csv")
+    for i, path in enumerate(files):
+        shown = printable_path(path)
+        name = os.path.splitext(os.path.basename(shown))[0]
+        one = copy.deepcopy(job)
+        one["measurements"]["file"] = path
+        row = {"file": shown}
+        try:
+            result = run_locate_job(one, n_jobs=n_jobs, seed=seed, progress=False, tune=tune)
+            d = result.to_dict()
+            row |= {"node": d["identified"], "direction": d["direction"], "confidence": d["confidence"],
+                    "margin": d["margin"], "peak_force": d["peak_force"], "time_of_peak": d["time_of_peak"],
+                    "duration": d["duration"], "impulse": d["impulse"], "warnings": "; ".join(d["warnings"]),
+                    "error": ""}
+            write_outputs(result, os.path.join(out, "events", name), plot=False)
+        except Exception as exc:  # noqa: BLE001 -- one event that fails must not lose the others
+            message = str(exc) if isinstance(exc, AKFInputError) else f"{type(exc).__name__}: {exc}"
+            row = {"file": shown, "error": message}
+            if progress:
+                print(f"  [{i + 1}/{len(files)}] {name}: not located: {message}")
+        else:
+            if progress:
+                print(f"  [{i + 1}/{len(files)}] {name}: node {row['node']} ({row['direction']}), confidence "
+                      f"{row['confidence']:.2f}, peak {row['peak_force'] / 1e3:.3f} kN at {row['time_of_peak']:.4f} s")
+                for w in d["warnings"]:
+                    print(f"      WARNING: {w}")
+        rows.append(row)
+        frame = pd.DataFrame(rows, columns=columns)
+        write_csv(frame, written["events"])          # after every event: what is located is kept
     frame = pd.DataFrame(rows, columns=columns)
-    written["events"] = write_csv(frame, os.path.join(out, "events.csv"))
+    write_csv(frame, written["events"])
     written["event_folders"] = os.path.join(out, "events")
     if plot and frame["node"].notna().any():
-        written["events_figure"] = _plot_events(build_structure(job["structure"]), frame,
-                                                os.path.join(out, "events.png"), job.get("name", "impacts"))
+        notes = []
+        draw(written, "events_figure", notes, _plot_events, build_structure(job["structure"]), frame,
+             os.path.join(out, "events.png"), job.get("name", "impacts"))
+        if notes and progress:
+            print(f"  WARNING: {notes[0]}")
     return frame, written
+
+
+def printable_path(path):
+    """A path as text that any terminal and any UTF-8 file can hold: bytes of a file name that are
+    not valid UTF-8 are shown as ``\\xNN`` escapes."""
+    return os.fsencode(path).decode("utf-8", "backslashreplace")
 
 
 def _plot_events(structure, frame, path, title):
@@ -162,8 +180,9 @@ def _plot_events(structure, frame, path, title):
     return save_figure(fig, path)
 
 
-def write_outputs(result, out, scenario=None, plot=True):
-    """Write ranking.csv, scan.csv, force.csv, response.csv, tuning.csv and the figures; returns {name: path}."""
+def write_outputs(result, out, scenario=None, plot=True, notes=None):
+    """Write ranking.csv, scan.csv, force.csv, response.csv, tuning.csv and then the figures; a
+    figure that fails is a note in ``notes`` (default ``result.warnings``).  Returns {name: path}."""
     import pandas as pd
 
     from impactloc.locate import plot_locate
@@ -185,9 +204,13 @@ def write_outputs(result, out, scenario=None, plot=True):
     if result.tuning is not None:
         files["tuning"] = os.path.join(out, "tuning.csv")
         write_csv(result.tuning.logbook, files["tuning"])
-    if plot:
-        files.update(plot_locate(result, out, true_force=None if scenario is None else scenario.true_force,
-                                 true_strains=None if scenario is None else scenario.simulation.strains))
+    if plot:            # after the results: a figure that fails is a note
+        try:
+            files.update(plot_locate(result, out, true_force=None if scenario is None else scenario.true_force,
+                                     true_strains=None if scenario is None else scenario.simulation.strains))
+        except Exception as exc:  # noqa: BLE001 -- any failure of a figure is only a warning
+            (notes if notes is not None else result.warnings).append(
+                f"the locate figures were not drawn ({type(exc).__name__}: {exc}); the result files are complete")
     return files
 
 

@@ -20,7 +20,7 @@ import difflib
 import json
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, PlainValidator, ValidationError, WithJsonSchema
 
 from core_akf.defaults import DEFAULTS
 from core_akf.exceptions import AKFInputError
@@ -62,6 +62,17 @@ Count = Annotated[int, Field(ge=1)]
 Count0 = Annotated[int, Field(ge=0)]
 Text = Annotated[str, Field(min_length=1)]
 Texts = Annotated[list[Text], Field(min_length=1)]
+
+
+def _path_text(value):
+    """A path: a non-empty string, also one that holds bytes of a file name that are not valid
+    UTF-8 (as Python's file functions give them), which a plain pydantic string refuses."""
+    if not isinstance(value, str) or not value:
+        raise ValueError("a non-empty string")
+    return value
+
+
+PathText = Annotated[str, PlainValidator(_path_text), WithJsonSchema({"type": "string", "minLength": 1})]
 Covariance = NonNegative | Annotated[list[NonNegative], Field(min_length=1)] | Annotated[list[list[Finite]], Field(min_length=1)]
 Modes = Count | Literal["auto", "full"]
 
@@ -172,7 +183,7 @@ Bridge = Literal["quarter", "half", "full"]
 class Measurements(Section):
     """``[measurements]``: measured data: one file, or a record in many files, with a channel map."""
 
-    file: Text = key("a non-empty string", "a data file (CSV, Parquet, TDMS, UFF 58, HDF5), a folder or a glob pattern "
+    file: PathText = key("a non-empty string", "a data file (CSV, Parquet, TDMS, UFF 58, HDF5), a folder or a glob pattern "
                      "(\"run/*.tdms\"), relative to the job file; estimate: the pieces of one record, joined in time "
                      "order; locate: one impact per file", used_by=("estimate", "locate"))
     format: Text = key("a non-empty string", "the file format (csv, parquet, tdms, uff, hdf5 or a registered reader); "

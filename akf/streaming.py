@@ -27,6 +27,7 @@ from core_akf.sensors import as_layout, parse_force_locations, selection_matrice
 from core_akf.streaming import CheckpointError, Estimator
 
 from .schema import parse_job
+from .writers import draw
 
 #: steps per chunk at most, unless the job says ``[measurements] chunk`` (seconds)
 DEFAULT_CHUNK_STEPS = 65536
@@ -255,9 +256,9 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
             "check the channel map in [measurements]: units, invert (sign) and gauge_factor of the channels named above"]
     files = {"timeseries": writer.path, "summary": os.path.join(out, "summary.csv")}
     write_csv(summary_frame(metrics), files["summary"])
-    if plot:
-        files["figure"] = _plot(np.concatenate(kept["t"]), np.vstack(kept["f"]), forces, metrics,
-                                os.path.join(out, "estimate.png"), job.get("name", "AKF estimate"), decimate)
+    if plot:       # after the results: a figure that fails is a warning
+        draw(files, "figure", metrics["warnings"], _plot, np.concatenate(kept["t"]), np.vstack(kept["f"]), forces,
+             metrics, os.path.join(out, "estimate.png"), job.get("name", "AKF estimate"), decimate)
     if os.path.exists(checkpoint):
         os.remove(checkpoint)
     return StreamResult(job, metrics, files, record.describe(), notes, start)

@@ -26,16 +26,18 @@ def figure(figsize=None):
     return Figure(figsize=figsize)
 
 
-def save_figure(fig, path, dpi=110, tight=True):
+def save_figure(fig, path, dpi=110, tight=True, crop=False):
     """Lay out ``fig`` (``tight``: :meth:`~matplotlib.figure.Figure.tight_layout`) and write it to
-    ``path`` (creating the folder; complete or absent, also on Ctrl-C); returns ``path``."""
+    ``path`` (creating the folder; complete or absent, also on Ctrl-C); ``crop``: cut the empty
+    margins off the written image (3-D axes).  Returns ``path``."""
     from .outputs import atomic_path
 
     if tight:
         fig.tight_layout()
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format=os.path.splitext(path)[1].lstrip(".") or "png")
+        fig.savefig(tmp, dpi=dpi, format=os.path.splitext(path)[1].lstrip(".") or "png",
+                    **({"bbox_inches": "tight", "pad_inches": 0.15} if crop else {}))
     return path
 
 
@@ -44,6 +46,8 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
     supports (grey squares), and optionally force locations (red crosses, in the legend) and
     sensors (blue circles).  Returns the Figure; writes it to ``path`` if given."""
     import numpy as np
+
+    from .sensors import as_layout, strain_ends
 
     xy = structure.nodes
     if xy.shape[1] == 3:
@@ -70,14 +74,15 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
         small = structure.n_nodes > 60
         for i, (x, y) in zip(structure.user_node_ids, xy[:, :2]):
             ax.annotate(str(i), (x, y), textcoords="offset points", xytext=(3, 3), fontsize=5 if small else 8)
-    for j, (node, direction) in enumerate(forces):
+    for j, (node, direction) in enumerate(_force_pairs(forces)):
         x, y = xy[structure.node_rows(node)[0], :2]
         ax.plot(x, y, "x", color="red", ms=11, mew=2, zorder=4, label=f"load {j + 1}: node {node} ({direction})")
-    for s in sensors:
-        parts = str(s).split(":")
-        if len(parts) >= 3 or (parts[0] != "strain" and len(parts) >= 2):
-            node = int(parts[1])
-            ax.plot(*xy[structure.node_rows(node)[0], :2], "o", mfc="none", mec="tab:blue", ms=10, mew=1.5, zorder=4)
+    for s in (as_layout(list(sensors)) if len(sensors) else ()):
+        ends = strain_ends(structure, s.member) if s.kind == "strain" and s.member is not None else None
+        if ends is not None:
+            ax.plot(*xy[structure.node_rows(list(ends))][:, :2].T, "-", color="tab:blue", lw=3, zorder=4)
+        elif s.node is not None:
+            ax.plot(*xy[structure.node_rows(s.node)[0], :2], "o", mfc="none", mec="tab:blue", ms=10, mew=1.5, zorder=4)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -88,6 +93,17 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+def _force_pairs(forces):
+    """Force locations as ``(node, direction)`` pairs from pairs or ``"NODE:DIR"`` strings."""
+    pairs = []
+    for f in forces:
+        if isinstance(f, str):
+            node, _, direction = f.partition(":")
+            f = (int(node), direction)
+        pairs.append((f[0], f[1]))
+    return pairs
 
 
 #: sensor kind -> (marker, colour) in the layout figures
@@ -104,7 +120,7 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
     Returns the Figure; writes it to ``path`` if given."""
     import numpy as np
 
-    from .sensors import as_layout
+    from .sensors import as_layout, strain_ends
 
     xyz = structure.nodes
     lo, span = xyz.min(axis=0), np.maximum(np.ptp(xyz, axis=0), 1e-12)
@@ -127,12 +143,17 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
     arrow = 0.04 * span.max()
     dirs = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "w": (0, 0, 1)}
     labelled = set()
-    for s in as_layout(list(sensors)):
+    unplaced = []
+    for s in (as_layout(list(sensors)) if len(sensors) else ()):
         marker, colour = SENSOR_STYLE[s.kind]
+        ends = strain_ends(structure, s.member) if s.kind == "strain" and s.member is not None else None
+        if s.kind == "strain" and s.member is not None and ends is None:
+            unplaced.append(s.label)          # a row of a strain operator of one's own: no place to draw
+            continue
         label = None if s.kind in labelled else {"strain": "strain gauge", "acc": "accelerometer"}.get(s.kind, s.kind)
         labelled.add(s.kind)
-        if s.kind == "strain" and s.member is not None and structure.members is not None:
-            a, b = structure.node_rows(structure.members[s.member - 1])
+        if ends is not None:
+            a, b = structure.node_rows(list(ends))
             ax.plot(*P[[a, b]].T, "-", color=colour, lw=3)
             point = 0.5 * (P[a] + P[b])
             text = f"{s.member}"
@@ -143,6 +164,10 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
                 ax.quiver(*point, *(arrow * np.array(dirs[s.direction])), color=colour, lw=1.5)
         ax.scatter(*point, marker=marker, s=60, facecolors="none", edgecolors=colour, linewidths=2, label=label)
         ax.text(*(point + 0.02 * span.max() * np.array([0, 0, 1])), text, fontsize=7, color=colour)
+    if unplaced:
+        ax.text2D(0.01, 0.02, "not drawn (strain operator rows, no place): " + ", ".join(unplaced), fontsize=7,
+                  transform=ax.transAxes)
+    forces = _force_pairs(forces)
     for j, (node, direction) in enumerate(forces):
         point = P[structure.node_rows([node])[0]]
         d = np.array(dirs.get(direction, (0, 0, 1)), float)
@@ -166,5 +191,5 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, 0.95))
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.02, top=0.95)
     if path is not None:
-        save_figure(fig, path, tight=False)
+        save_figure(fig, path, tight=False, crop=True)
     return fig

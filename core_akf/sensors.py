@@ -158,3 +158,52 @@ def parse_force_locations(structure, forces):
     if not locs:
         raise AKFInputError("no force locations given")
     return locs
+
+
+def strain_ends(structure, member):
+    """The two node ids a member-addressed strain output ``member`` (1-based) spans: a truss
+    member or a virtual extensometer; ``None`` for a row of a strain operator of one's own, which
+    has no place of its own."""
+    if structure.members is not None and 1 <= member <= len(structure.members):
+        a, b = structure.members[member - 1]
+        return int(a), int(b)
+    ends = structure.meta.get("strain_ends", {}).get(int(member))
+    return None if ends is None else (int(ends[0]), int(ends[1]))
+
+
+def sensor_positions(structure, sensors):
+    """Where each sensor of a layout is, as a table for ``layout.csv`` and JSON.
+
+    Returns a :class:`pandas.DataFrame` with one row per sensor: ``sensor`` (label), ``kind``,
+    ``node`` (node id; the first end of a member or extensometer), ``node_b`` (its second end),
+    ``direction`` (point sensors) or ``component`` (plate strains), ``x``, ``y``, ``z`` (m; the
+    middle of a member or extensometer) and ``source`` (what the output is: ``dof``, ``member``,
+    ``extensometer``, ``operator row k`` or ``plate node``).  A strain row of an operator of one's
+    own has no place: its node and coordinates are empty.
+    """
+    import pandas as pd
+
+    rows = []
+    xyz = np.zeros((structure.n_nodes, 3))
+    xyz[:, : structure.nodes.shape[1]] = structure.nodes
+    for s in as_layout(sensors):
+        row = {"sensor": s.label, "kind": s.kind, "node": None, "node_b": None, "direction": s.direction,
+               "component": s.component, "x": np.nan, "y": np.nan, "z": np.nan, "source": "dof"}
+        if s.kind == "strain" and s.member is not None:
+            ends = strain_ends(structure, s.member)
+            if ends is None:
+                row["source"] = f"operator row {s.member}"
+            else:
+                row.update(node=ends[0], node_b=ends[1],
+                           source="member" if structure.members is not None else "extensometer")
+                row.update(zip("xyz", xyz[structure.node_rows(list(ends))].mean(axis=0)))
+        else:
+            row["node"] = int(s.node)
+            if s.kind == "strain":
+                row["source"] = "plate node"
+            row.update(zip("xyz", xyz[structure.node_rows([s.node])[0]]))
+        rows.append(row)
+    frame = pd.DataFrame(rows)
+    for col in ("node", "node_b"):
+        frame[col] = frame[col].astype("Int64")
+    return frame

@@ -9,6 +9,7 @@ from core_akf.exceptions import AKFInputError
 from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
+from ..writers import draw
 from .common import print_written
 
 #: above this many (channel x step) rows, "all" strain histories are not written to the CSV
@@ -146,38 +147,45 @@ def _write_estimate(args, job, result, name, out):
             wanted = []
             notes.append(f"strain histories not written ({est.structure.n_strain} channels x {est.forces.shape[0]} "
                          "steps); list the channels you want in [output] strains (summary.csv has all RMS errors)")
-    if wanted != []:
+    if wanted != [] and est.structure.n_strain:
         frames.append(result.strain_frame(wanted))
     files["timeseries"] = os.path.join(out, "timeseries.csv")
     write_csv(pd.concat(frames, ignore_index=True), files["timeseries"])
     files["summary"] = os.path.join(out, "summary.csv")
     write_csv(result.summary_frame(), files["summary"])
-    if not args.no_plot:
-        files["figure"] = _plot(result, os.path.join(out, "estimate.png"))
-        files["sensors_figure"] = _plot_sensors(result, os.path.join(out, "sensors.png"))
-
     m = result.metrics
+    if not args.json:       # the results first, then the figures
+        print(f"{name}: {job.get('description', '')}")
+        print(f"  {len(est.sensors)} sensors, {len(est.force_locations)} unknown forces, {m['n_steps']} steps, "
+              f"{'detectable' if m['detectable'] else 'NOT detectable (forced)'}")
+        if "rms_force" in m:
+            print("  RMS force error (N):")
+            for k, v in m["rms_force"].items():
+                print(f"    {k:>8s}  {v:10.2f}")
+            if "avg_strain_error" in m:
+                print(f"  average strain error: {m['avg_strain_error_microstrain']:.4f} µε over {est.structure.n_strain} "
+                      "strain outputs")
+            else:
+                print("  no strain outputs on this model (give extensometers or strain rows for strains everywhere)")
+        _print_diagnostics(m)
+        sys.stdout.flush()
+    figure_notes = []
+    if not args.no_plot:
+        draw(files, "figure", figure_notes, _plot, result, os.path.join(out, "estimate.png"))
+        draw(files, "sensors_figure", figure_notes, _plot_sensors, result, os.path.join(out, "sensors.png"))
     if args.json:
         print(json.dumps({"name": name, "detectable": m["detectable"], "n_steps": m["n_steps"],
                           "rms_force": m.get("rms_force"), "avg_strain_error": m.get("avg_strain_error"),
                           "avg_strain_error_microstrain": m.get("avg_strain_error_microstrain"),
-                          "forces": m["forces"], "sensors": m["sensors"], "warnings": m["warnings"],
+                          "forces": m["forces"], "sensors": m["sensors"], "warnings": m["warnings"] + figure_notes,
                           "units": m["units"], "files": files, "notes": notes}))
-        for w in m["warnings"]:
+        for w in m["warnings"] + figure_notes:
             print(f"akf: warning: {w}", file=sys.stderr)
         return 0
-    print(f"{name}: {job.get('description', '')}")
-    print(f"  {len(est.sensors)} sensors, {len(est.force_locations)} unknown forces, {m['n_steps']} steps, "
-          f"{'detectable' if m['detectable'] else 'NOT detectable (forced)'}")
-    if "rms_force" in m:
-        print("  RMS force error (N):")
-        for k, v in m["rms_force"].items():
-            print(f"    {k:>8s}  {v:10.2f}")
-        print(f"  average strain error: {m['avg_strain_error_microstrain']:.4f} µε over {est.structure.n_strain} strain outputs")
-    _print_diagnostics(m)
+    for w in figure_notes:
+        print(f"  WARNING: {w}")
     print_written(files, notes)
     return 0
-
 
 
 def register(sub):

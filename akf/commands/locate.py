@@ -28,20 +28,23 @@ def _locate(args):
 
         if is_event_folder(job):
             return _locate_events(args, job)
-    with scheduler(args.scheduler, resume="run the same command again: the scan has no randomness and the seed "
-                                          "repeats the tuning"):
-        result, scenario, name = _run_locate(args, progress=not args.json)
+    run, scenario, name = _prepare_locate(args, progress=not args.json)
     out = args.out or os.path.join("akf-out", "locate", name)
-    with OutputFolder(out, "--out"):
-        files = write_outputs(result, out, scenario, plot=not args.no_plot)
+    figure_notes = []
+    with OutputFolder(out, "--out"):          # checked and locked before the work starts
+        with scheduler(args.scheduler, resume="run the same command again: the scan has no randomness and the "
+                                              "seed repeats the tuning"):
+            result = run()
+        files = write_outputs(result, out, scenario, plot=not args.no_plot, notes=figure_notes)
     d = result.to_dict()
     if args.json:
         d["files"] = files
         if scenario is not None:
             d["true_node"] = int(scenario.impact[0])
             d["true_peak_force"] = float(scenario.true_force[np.argmax(np.abs(scenario.true_force))])
+        d["warnings"] = list(d["warnings"]) + figure_notes
         print(json.dumps(d))
-        for w in result.warnings:
+        for w in d["warnings"]:
             print(f"akf: warning: {w}", file=sys.stderr)
         return 0
     print(f"{name}: {len(result.scan.splits)} role splits x {len(result.scan.locations)} candidate locations")
@@ -57,7 +60,7 @@ def _locate(args):
         print(f"  covariance tuning: AD error {d['ad_error_before_tuning']:.4f} -> {d['ad_error_after_tuning']:.4f}")
     if scenario is not None:
         print(f"  truth: node {scenario.impact[0]}, peak {np.max(np.abs(scenario.true_force)) / 1e3:.3f} kN")
-    for w in result.warnings:
+    for w in list(result.warnings) + figure_notes:
         print(f"  WARNING: {w}")
     print("  time: " + ", ".join(f"{k} {v:.2f} s" for k, v in result.seconds.items()))
     print_written(files)
@@ -85,8 +88,9 @@ def _locate_events(args, job):
     return 0
 
 
-def _run_locate(args, progress):
-    """The identification: ``(LocateResult, scenario or None, output name)``."""
+def _prepare_locate(args, progress):
+    """What ``akf locate`` runs: ``(run, scenario or None, output name)``; ``run()`` does the
+    identification and returns the :class:`~impactloc.locate.LocateResult`."""
     from impactloc.locate import locate
 
     from ..examples.impact import example_scenario
@@ -94,16 +98,20 @@ def _run_locate(args, progress):
 
     if args.example:
         scenario = example_scenario(args.example, impact_node=args.impact_node, noise=args.noise, seed=args.seed)
-        result = locate(scenario.structure, scenario.sensors, scenario.measurements, scenario.dt, n_ad=scenario.n_ad,
-                        ad_kinds=scenario.ad_kinds, direction=scenario.direction, tune=not args.no_tune,
-                        n_jobs=workers(args), seed=args.seed, progress=progress, **(scenario.options or {}))
-        return result, scenario, f"{args.example}-node{scenario.impact[0]}-{args.noise}"
+
+        def run():
+            return locate(scenario.structure, scenario.sensors, scenario.measurements, scenario.dt, n_ad=scenario.n_ad,
+                          ad_kinds=scenario.ad_kinds, direction=scenario.direction, tune=not args.no_tune,
+                          n_jobs=workers(args), seed=args.seed, progress=progress, **(scenario.options or {}))
+        return run, scenario, f"{args.example}-node{scenario.impact[0]}-{args.noise}"
     if args.impact_node is not None:
         raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")
     job = load_job(args.job, "locate")
-    result = run_locate_job(job, n_jobs=workers(args), seed=args.seed, progress=progress,
-                            tune=False if args.no_tune else None)
-    return result, None, job.get("name", os.path.splitext(os.path.basename(args.job))[0])
+
+    def run():
+        return run_locate_job(job, n_jobs=workers(args), seed=args.seed, progress=progress,
+                              tune=False if args.no_tune else None)
+    return run, None, job.get("name", os.path.splitext(os.path.basename(args.job))[0])
 
 
 def register(sub):

@@ -51,11 +51,14 @@ def _place(args):
 
 
 def _run_place(args, problem, settings, out):
+    import pandas as pd
+
+    from core_akf.sensors import sensor_positions
     from sensoropt.ga import place
     from sensoropt.plots import plot_convergence, plot_layout
 
     from ..parallel import scheduler, workers
-    from ..writers import saved_plot
+    from ..writers import draw
 
     checkpoint = args.checkpoint or os.path.join(out, "checkpoint.json")
     notes = window_notes(problem)
@@ -72,33 +75,45 @@ def _run_place(args, problem, settings, out):
     error = problem.full_record_error(res.sensors)
     refs = {name: problem.full_record_error(s) for name, s in problem.reference_layouts.items()
             if len(s) == enc.n_sensors and not problem.budget}
-    files = {"logbook": os.path.join(out, "logbook.csv"), "checkpoint": checkpoint}
-    write_csv(res.logbook, files["logbook"])
-    if not args.no_plot:
-        files["convergence"] = saved_plot(plot_convergence, res.logbook, os.path.join(out, "convergence.png"),
-                                                f"{problem.name}: {enc.n_sensors} sensors, seed {args.seed}")
-        files["layout"] = saved_plot(plot_layout, enc, res.best, os.path.join(out, "layout.png"),
-                                      f"best layout: window error {res.best_error:.3f} µε, full record {error:.3f} µε",
-                                      forces=obj.model.forces)
-    if args.json:
-        print(json.dumps({"layout": res.layout, "sensors": res.sensors, "error": error,
-                          "window_error": res.best_error, "generations": int(res.logbook["generation"].iloc[-1]),
-                          "evaluations": res.evaluations, "cache_hits": res.cache_hits, "infeasible": res.infeasible,
-                          "stopped": res.stopped, "seconds": float(res.logbook["seconds"].iloc[-1]),
-                          "reference_errors": refs, "files": files, "notes": notes,
-                          "units": {"error": "µε (average RMS strain error, full record)", "window_error": "µε",
-                                    "reference_errors": "µε", "seconds": "s"}}))
-        return 0
-    print(f"{problem.name}: {enc.n_sensors} sensors from {len(enc.candidates)} admissible positions "
-          f"({', '.join(enc.kinds)}), seed {args.seed}")
-    print("  best layout:  " + ", ".join(res.sensors))
-    print(f"  average strain error: {error:.4f} µε over the {problem.loads.shape[0] * problem.dt:.3g} s record "
-          f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
-    for name, e in refs.items():
-        print(f"  {name}: {e:.4f} µε")
+    # the results first: the layout table and the logbook, then the printout, then the figures
+    positions = sensor_positions(problem.structure, res.sensors)
+    files = {"layout_table": write_csv(positions, os.path.join(out, "layout.csv")),
+             "logbook": write_csv(res.logbook, os.path.join(out, "logbook.csv")), "checkpoint": checkpoint}
     lb = res.logbook
-    print(f"  {int(lb['generation'].iloc[-1])} generations ({res.stopped}), {res.evaluations} evaluations, "
-          f"{res.cache_hits} cache hits, {res.infeasible} infeasible, {lb['seconds'].iloc[-1]:.1f} s")
+    summary = {"layout": res.layout, "sensors": res.sensors, "error": error, "window_error": res.best_error,
+               "positions": json.loads(positions.to_json(orient="records")),
+               "generations": int(lb["generation"].iloc[-1]), "evaluations": res.evaluations,
+               "cache_hits": res.cache_hits, "infeasible": res.infeasible, "stopped": res.stopped,
+               "seconds": float(lb["seconds"].iloc[-1]), "reference_errors": refs, "files": files, "notes": notes,
+               "units": {"error": "µε (average RMS strain error, full record)", "window_error": "µε",
+                         "reference_errors": "µε", "seconds": "s", "positions": "m"}}
+    if not args.json:
+        print(f"{problem.name}: {enc.n_sensors} sensors from {len(enc.candidates)} admissible positions "
+              f"({', '.join(enc.kinds)}), seed {args.seed}")
+        print("  best layout:  " + ", ".join(res.sensors))
+        for r in positions.itertuples():
+            where = f"node {r.node}" if pd.isna(r.node_b) else f"nodes {r.node}-{r.node_b}"
+            print(f"    {r.sensor:>16s}  {r.source:<14s} " + ("(no place: a strain operator row)" if pd.isna(r.node)
+                  else f"{where} at x {r.x:.4g}, y {r.y:.4g}, z {r.z:.4g} m"))
+        print(f"  average strain error: {error:.4f} µε over the {problem.loads.shape[0] * problem.dt:.3g} s record "
+              f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
+        for name, e in refs.items():
+            print(f"  {name}: {e:.4f} µε")
+        print(f"  {int(lb['generation'].iloc[-1])} generations ({res.stopped}), {res.evaluations} evaluations, "
+              f"{res.cache_hits} cache hits, {res.infeasible} infeasible, {lb['seconds'].iloc[-1]:.1f} s")
+        sys.stdout.flush()
+    figure_notes = []
+    if not args.no_plot:
+        draw(files, "convergence", figure_notes, plot_convergence, res.logbook, os.path.join(out, "convergence.png"),
+             f"{problem.name}: {enc.n_sensors} sensors, seed {args.seed}")
+        draw(files, "layout", figure_notes, plot_layout, enc, res.best, os.path.join(out, "layout.png"),
+             f"best layout: window error {res.best_error:.3f} µε, full record {error:.3f} µε", forces=obj.model.forces)
+    for note in figure_notes:
+        print(f"akf: warning: {note}", file=sys.stderr)
+    if args.json:
+        summary["warnings"] = figure_notes
+        print(json.dumps(summary))
+        return 0
     print_written(files, notes)
     return 0
 

@@ -21,7 +21,7 @@ from sensoropt.pareto import pareto
 from sensoropt.plots import plot_convergence, plot_layout, plot_pareto
 
 from ..placement import example_problem
-from ..writers import saved_plot
+from ..writers import draw
 from ._common import Progress, StudyResult, output_dir
 
 NAME = "th_placement"
@@ -61,7 +61,7 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
     ga = dict(THESIS)
     if quick:
         ga.update(population=16, generations=6)
-    files, rows = {}, []
+    files, rows, notes = {}, [], []
     n_runs = (2 if quick else 4) + (2 if quick else 4) + 5 + 2
     progress = Progress(NAME, n_runs)
 
@@ -73,10 +73,10 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
                      "generations": int(res.logbook["generation"].iloc[-1]), "evaluations": res.evaluations,
                      "cache_hits": res.cache_hits, "seconds": float(res.logbook["seconds"].iloc[-1])})
         key = f"{study}-{label}".replace(" ", "_")
-        files[f"{key}:layout"] = saved_plot(plot_layout, enc, res.best, os.path.join(out, f"{key}_layout.png"),
+        draw(files, f"{key}:layout", notes, plot_layout, enc, res.best, os.path.join(out, f"{key}_layout.png"),
                                              f"{study} {label}: full record {full:.3f} µε",
                                              forces=parse_force_locations(problem.structure, problem.forces))
-        files[f"{key}:convergence"] = saved_plot(plot_convergence, res.logbook, os.path.join(out, f"{key}_convergence.png"),
+        draw(files, f"{key}:convergence", notes, plot_convergence, res.logbook, os.path.join(out, f"{key}_convergence.png"),
                                                        f"{study} {label}")
         return full
 
@@ -127,7 +127,7 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
                    population=16 if quick else 60, generations=4 if quick else 40, seed=seed, n_jobs=n_jobs).front
     write_csv(front, os.path.join(out, "pareto_front.csv"))
     files["pareto_front"] = os.path.join(out, "pareto_front.csv")
-    files["pareto"] = saved_plot(plot_pareto, front, os.path.join(out, "pareto.png"))
+    draw(files, "pareto", notes, plot_pareto, front, os.path.join(out, "pareto.png"))
     progress.step("Pareto front (NSGA-II)")
     table = pd.DataFrame(rows)
     summary = _summary(table, case2)
@@ -146,6 +146,8 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
     print(ops.drop(columns=["sensors"]).round(4).to_string(index=False))
     print("Pareto front (NSGA-II, window error):")
     print(front.round(4).to_string(index=False))
+    for note in notes:
+        print(f"  WARNING: {note}")
     return StudyResult(NAME, table, summary, files, {"front": front, "agreement": agreement})
 
 

@@ -231,18 +231,20 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
             raise AKFInputError(f"fixed node {f} has no DOF in the DOF map")
     rows = np.flatnonzero(keep)
     free_dofs = np.array([row_of[dofs[r][0]] * len(dof_names) + dof_names.index(dofs[r][1]) for r in rows])
-    blocks, members = [], None
+    blocks, members, ends = [], None, {}
     if strain_rows is not None:
         blocks.append(_rows(strain_rows, n, keep_sparse=large)[:, rows])
     if extensometers is not None and len(extensometers):
         members = np.array([[_node_id(a), _node_id(b)] for a, b in extensometers], dtype=int)
         blocks.append(_extensometer_rows(members, coords, dofs, seen, rows, dof_names))
-        if strain_rows is not None:           # extensometer k is strain:(k_own + k); no member drawing then
+        if strain_rows is not None:           # extensometer k is strain:(k_own + k): its ends by output number
+            first = blocks[0].shape[0] + 1
+            ends = {first + k: (int(a), int(b)) for k, (a, b) in enumerate(members)}
             members = None
     strain = _stack(blocks)
     common = dict(nodes=np.array([coords[k] for k in ids]), dof_names=dof_names, free_dofs=free_dofs,
                   strain_matrix=strain, strain_kind="member", members=members, name=name, node_ids=ids)
-    meta = {"dof_map": [dofs[r] for r in rows]}
+    meta = {"dof_map": [dofs[r] for r in rows], "strain_ends": ends}
     try:
         if large:
             Kf, Mf = K[rows][:, rows], M[rows][:, rows]
