@@ -163,9 +163,17 @@ class CsvReader(Reader):
                                 "step") from None
         except (pd.errors.ParserError, UnicodeDecodeError) as exc:
             raise AKFInputError(f"{self.path}: not a readable CSV file ({exc})") from None
+        _check_unique_columns(self._header(), self.path)
         if time_column not in self._columns:
             raise AKFInputError(f"{self.path}: no time column {time_column!r}; found {self._columns}")
         self._timing = None
+
+    def _header(self):
+        """The column names as written in the header row (pandas renames a repeated name ``a.1``)."""
+        import csv
+
+        with open(self.path, newline="", encoding="utf-8", errors="replace") as fh:
+            return [c.strip() for c in next(csv.reader(fh), [])]
 
     def channels(self):
         return [c for c in self._columns if c != self.time_column]
@@ -195,6 +203,16 @@ class CsvReader(Reader):
             row += len(frame)
 
 
+def _check_unique_columns(names, path):
+    """Refuse a table that names a column twice: which of the two is the channel is not known."""
+    seen = {}
+    for i, name in enumerate(names):
+        if name in seen:
+            raise AKFInputError(f"{path}: column {name!r} appears twice (columns {seen[name] + 1} and {i + 1}); "
+                                "every channel needs a name of its own")
+        seen[name] = i
+
+
 def _numeric(column, path, name, row0):
     """A column as floats; a located error for a missing or non-numeric entry."""
     import pandas as pd
@@ -222,6 +240,7 @@ class ParquetReader(Reader):
         except Exception as exc:  # noqa: BLE001 -- pyarrow raises its own error types
             raise AKFInputError(f"{self.path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
         self._columns = [c for c in self._file.schema_arrow.names if not c.startswith("__index_level")]
+        _check_unique_columns(self._columns, self.path)
         if time_column not in self._columns:
             raise AKFInputError(f"{self.path}: no time column {time_column!r}; found {self._columns}")
         self._timing = None
@@ -277,6 +296,19 @@ class _SlicedReader(Reader):
                                 "sample of every channel per time step")
         return lengths.pop()
 
+    def _time_channel_grid(self, n, stated_dt=None, where=""):
+        """The time grid of the time channel, which must have one stamp per sample of the data and
+        agree with a time step the file states elsewhere (``stated_dt``, s, in ``where``)."""
+        t = self._series[self.time_column]
+        if len(t) != n:
+            raise AKFInputError(f"{self.path}: the time channel {self.time_column!r} has {len(t)} samples but the data "
+                                f"channels have {n}; a record needs one time stamp per sample")
+        timing = check_time_grid(t[:], self.path)
+        if stated_dt is not None and abs(float(stated_dt) - timing.dt) > TIME_GRID_RTOL * timing.dt:
+            raise AKFInputError(f"{self.path}: the time channel {self.time_column!r} steps by {timing.dt:.9g} s but "
+                                f"{where} says {float(stated_dt):.9g} s; which one is right?")
+        return timing
+
     def chunks(self, channels, size):
         self._check_channels(channels)
         n = self.timing().n_steps
@@ -317,7 +349,8 @@ class TdmsReader(_SlicedReader):
             n = self._length()
             data = [self._series[c] for c in self.channels()]
             if self.time_column in self._series:
-                self._timing = check_time_grid(self._series[self.time_column][:], self.path)
+                self._timing = self._time_channel_grid(n, data[0].properties.get("wf_increment"),
+                                                       f"the wf_increment of channel {data[0].name!r}")
             else:
                 props = data[0].properties
                 if "wf_increment" not in props:
@@ -333,6 +366,18 @@ class TdmsReader(_SlicedReader):
                     raise AKFInputError(f"{self.path}: wf_increment {dt!r} is not a positive time step")
                 self._timing = Timing(float(props.get("wf_start_offset", 0.0)), dt, int(n))
         return self._timing
+
+
+#: UFF 58 function types (record 6, field 1) other than a time response
+UFF_FUNCTION_TYPES = {0: "general or unknown function", 2: "auto spectrum", 3: "cross spectrum",
+                      4: "frequency response function (FRF)", 5: "transmissibility", 6: "coherence",
+                      7: "auto-correlation", 8: "cross-correlation", 9: "power spectral density (PSD)",
+                      10: "energy spectral density", 11: "probability density function", 12: "spectrum",
+                      13: "cumulative frequency distribution", 14: "peaks valley", 15: "stress/cycles",
+                      16: "strain/cycles", 17: "orbit", 18: "mode indicator function", 19: "force pattern",
+                      20: "partial power", 21: "partial coherence", 22: "eigenvalue", 23: "eigenvector",
+                      24: "shock response spectrum", 25: "finite impulse response filter",
+                      26: "multiple coherence", 27: "order function"}
 
 
 class Uff58Reader(Reader):
@@ -358,6 +403,14 @@ class Uff58Reader(Reader):
                 name = f"{int(s.get('rsp_node', 0))}:{int(s.get('rsp_dir', 0))}"
             if name in self._sets:
                 raise AKFInputError(f"{self.path}: two data sets named {name!r}")
+            func = int(s.get("func_type", 1))
+            if func != 1:
+                what = UFF_FUNCTION_TYPES.get(func, f"function type {func}")
+                raise AKFInputError(f"{self.path}: data set {name!r} is a {what}, not a time response (function type "
+                                    "1); a record holds measured time series")
+            if np.iscomplexobj(s.get("data")):
+                raise AKFInputError(f"{self.path}: data set {name!r} holds complex values; a record holds real time "
+                                    "series")
             if int(s.get("abscissa_spacing", 1)) != 1:
                 raise AKFInputError(f"{self.path}: data set {name!r} has uneven abscissa spacing; a record needs a "
                                     "uniform time step")
@@ -384,7 +437,7 @@ class Uff58Reader(Reader):
 
     def chunks(self, channels, size):
         self._check_channels(channels)
-        data = np.column_stack([np.real(np.asarray(self._sets[c]["data"])).astype(float) for c in channels])
+        data = np.column_stack([np.asarray(self._sets[c]["data"], dtype=float) for c in channels])
         for start in range(0, data.shape[0], size):
             yield data[start:start + size]
 
@@ -420,10 +473,10 @@ class Hdf5Reader(_SlicedReader):
     def timing(self):
         if self._timing is None:
             n = self._length()
+            a = self._group.attrs
             if self.time_column in self._series:
-                self._timing = check_time_grid(self._series[self.time_column][:], self.path)
+                self._timing = self._time_channel_grid(n, a.get("dt", a.get("wf_increment")), "the group's attribute dt")
             else:
-                a = self._group.attrs
                 dt = a.get("dt", a.get("wf_increment"))
                 if dt is None:
                     raise AKFInputError(f"{self.path}: no time: no dataset {self.time_column!r} and no attribute dt "
