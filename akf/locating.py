@@ -35,7 +35,7 @@ from __future__ import annotations
 import os
 
 from core_akf.exceptions import AKFInputError
-from core_akf.outputs import write_csv
+from core_akf.outputs import confined, write_csv
 
 from .schema import parse_job
 from .writers import draw
@@ -106,7 +106,7 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
 
     files = record_files(job["measurements"]["file"])
     rows, written = [], {}
-    os.makedirs(out, exist_ok=True)
+    os.makedirs(confined(out), exist_ok=True)
     columns = ["file", "node", "direction", "confidence", "margin", "peak_force", "time_of_peak", "duration", "impulse",
                "warnings", "error"]
     written["events"] = os.path.join(out, "events.csv")
@@ -187,7 +187,7 @@ def write_outputs(result, out, scenario=None, plot=True, notes=None):
 
     from impactloc.locate import plot_locate
 
-    os.makedirs(out, exist_ok=True)
+    os.makedirs(confined(out), exist_ok=True)
     files = {"ranking": os.path.join(out, "ranking.csv"), "scan": os.path.join(out, "scan.csv"),
              "force_history": os.path.join(out, "force.csv")}
     write_csv(result.scan.summary, files["ranking"])

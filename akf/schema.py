@@ -298,7 +298,8 @@ class Locate(Section):
 class Job(Section):
     """A job file: one structure, its sensors and unknown forces, and the sections of the command."""
 
-    name: Text = key("a non-empty string", "name of the job (output folder)")
+    name: Annotated[str, Field(pattern=r"^[^./\\\x00][^/\\\x00]*$")] = key(
+        "a plain name (no '/', no '\\', not starting with '.')", "name of the job (its output folder akf-out/NAME)")
     description: str = key("a string", "free text")
     dt: Positive = key("a positive number", "time step; must match measured data", unit="s")
     sensors: Texts = key("a non-empty list of strings", "sensors: \"strain:13\" (truss member), "
@@ -356,6 +357,8 @@ def _message(error, kind):
     if error["type"] == "extra_forbidden":
         known = list(model.model_fields) if isinstance(model, type) else []
         bad = loc[-1]
+        if path and bad in Job.model_fields:
+            return misplaced_key(bad, path[0])
         hint = difflib.get_close_matches(str(bad), known, n=1)
         return (f"unknown key {bad!r} in {_where(path)}"
                 + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(known)}"))
@@ -371,6 +374,18 @@ def _message(error, kind):
     expect = (field.json_schema_extra or {}).get("expect", error["msg"].lower())
     value = error.get("input")
     return f"{name} in {_where(path)} must be {expect}; got {_describe(value)}"
+
+
+#: top-level job keys that no model function takes as an argument (a ``[structure]`` table passes
+#: its other keys to the model)
+TOP_LEVEL_ONLY = ("dt", "sensors", "forces", "description")
+
+
+def misplaced_key(name, table):
+    """The message for a top-level key written after a ``[table]`` header (TOML puts it into that
+    table)."""
+    return (f"{name!r} sits in [{table}], but it is a top-level key: in TOML every key after a [table] header "
+            f"belongs to that table; move {name} above the first [table]")
 
 
 def _is_type_tag(p):
@@ -408,6 +423,11 @@ def parse_job(data: dict, command: str, source: str | None = None) -> Job:
     kind = {"estimate": "job", "place": "place job", "locate": "locate job"}[command]
     if not isinstance(data, dict):
         raise JobError([f"a {kind} is a table of settings (a dict), got {type(data).__name__}"], source)
+    structure = data.get("structure")
+    if isinstance(structure, dict):       # its extra keys go to the model function: catch a misplaced job key first
+        misplaced = [misplaced_key(k, "structure") for k in structure if k in TOP_LEVEL_ONLY]
+        if misplaced:
+            raise JobError(misplaced, source)
     try:
         job = Job.model_validate(data)
     except ValidationError as exc:

@@ -11,7 +11,6 @@ and its files; a resumed run cuts the output back to the checkpoint and goes on 
 from __future__ import annotations
 
 import copy
-import hashlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -22,7 +21,7 @@ from core_akf.defaults import default
 from core_akf.diagnostics import CONSISTENCY_LIMIT, RunningDiagnostics, scale_check, warnings_for
 from core_akf.exceptions import AKFInputError
 from core_akf.io import Record
-from core_akf.outputs import atomic_path, write_csv
+from core_akf.outputs import atomic_path, confined, write_csv
 from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
 from core_akf.streaming import CheckpointError, Estimator
 
@@ -78,7 +77,9 @@ class _Writer:
         self.position = 0        # CSV: bytes written; Parquet: parts written
 
     def start(self, position=0):
-        """Begin anew (0) or cut the output back to a checkpoint's ``position``."""
+        """Begin anew (0) or cut the output back to a checkpoint's ``position``.  Nothing is
+        written or deleted through a symbolic link that leads out of the output folder."""
+        confined(self.path)
         if self.fmt == "csv":
             if position == 0:
                 with open(self.path, "w") as fh:
@@ -101,6 +102,7 @@ class _Writer:
         self.position = position
 
     def write(self, frame):
+        confined(self.path)
         if self.fmt == "csv":
             with open(self.path, "a") as fh:
                 frame.to_csv(fh, header=False, index=False, float_format="%.17g")
@@ -113,12 +115,58 @@ class _Writer:
             self.position += 1
 
 
-def _fingerprint(job, record):
-    """The job (without output-only keys) and its files (names, sizes, times of change)."""
+def _fingerprint(job, record, options):
+    """What shapes a run's outputs, for its checkpoint: ``(spec, files)`` as canonical JSON -- the
+    job without its free-text description plus the command's ``options`` (filter form, ...),
+    and the record's files (names, sizes, times of change)."""
     spec = copy.deepcopy(job)
-    spec.pop("output", None)
-    files = [(os.path.abspath(f), os.path.getsize(f), os.path.getmtime(f)) for f in record.files]
-    return hashlib.sha256(json.dumps([spec, files], sort_keys=True, default=str).encode()).hexdigest()
+    spec.pop("description", None)
+    spec["command-line options"] = options
+    files = [[os.path.abspath(f), os.path.getsize(f), os.path.getmtime(f)] for f in record.files]
+    return json.dumps(spec, sort_keys=True, default=str), json.dumps(files, default=str)
+
+
+def _flat(value, prefix=()):
+    """A nested dict as ``{(table, ..., key): value}``."""
+    if isinstance(value, dict):
+        out = {}
+        for k, v in value.items():
+            out.update(_flat(v, prefix + (str(k),)))
+        return out
+    return {prefix: value}
+
+
+def _changed_keys(old, new):
+    """The job keys that differ between two canonical JSON specs, as ``[table] key`` strings."""
+    a, b = _flat(json.loads(old)), _flat(json.loads(new))
+    keys = sorted(k for k in set(a) | set(b) if a.get(k, "<absent>") != b.get(k, "<absent>"))
+    return [(f"[{'.'.join(k[:-1])}] " if len(k) > 1 else "") + k[-1] for k in keys]
+
+
+#: what a checkpoint of :func:`stream_job` holds besides the filter's and the diagnostics' state
+_CHECKPOINT_KEYS = ("job", "files", "next_step", "position", "chunk", "plot_t", "plot_f")
+
+
+def _load_checkpoint(path):
+    """A checkpoint's arrays, or a :class:`CheckpointError` that says what is wrong with the file:
+    truncated, not a checkpoint of ``akf estimate``, or holding values that are not finite."""
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            saved = {k: data[k] for k in data.files}
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
+        raise CheckpointError(f"the checkpoint {path} is truncated or not a checkpoint of akf estimate "
+                              f"({type(exc).__name__}: {exc}); start anew with --overwrite") from None
+    missing = [k for k in _CHECKPOINT_KEYS if k not in saved]
+    if missing:
+        raise CheckpointError(f"{path} is not a checkpoint of akf estimate (it lacks {', '.join(missing)}); start "
+                              "anew with --overwrite")
+    for k, v in saved.items():
+        if v.dtype.kind == "f" and k not in ("z",) and not np.all(np.isfinite(v)):
+            raise CheckpointError(f"the checkpoint {path} holds NaN or infinite values in {k!r}: it cannot be "
+                                  "continued; start anew with --overwrite")
+    return saved
 
 
 def _frame(est, strain_index, strain_labels, strain_rows):
@@ -143,11 +191,14 @@ def _frame(est, strain_index, strain_labels, strain_rows):
                          "estimated": values.T.reshape(-1), "reference": np.full(n * len(channels), np.nan)})
 
 
-def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, plot=True, progress=False,
-               stop_after=None):
+def stream_job(job, out, *, resume=False, overwrite=False, allow_undetectable=None, steady=None, plot=True,
+               progress=False, stop_after=None):
     """Estimate forces and strains for a job with ``[measurements]``, chunk by chunk, into ``out``.
 
-    ``resume``: continue an interrupted run from its checkpoint in ``out``.  ``stop_after``: stop
+    ``resume``: continue an interrupted run from its checkpoint in ``out``; it must have been
+    written for the same job, options and data files (else a :class:`CheckpointError` names
+    what changed).  Without it, an interrupted run's checkpoint in ``out`` is refused unless
+    ``overwrite`` (start anew; a finished run leaves no checkpoint).  ``stop_after``: stop
     after this many chunks (as if interrupted; for tests and for splitting work).  Returns a
     :class:`StreamResult`; its metrics have the keys of :attr:`akf.jobs.JobResult.metrics`.
     """
@@ -193,23 +244,32 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
     strain_rows = model.strain_operator[strain_index]
     chunk = default_chunk(estimator.setup.A_a.shape[0], len(sensors), len(forces) + len(strain_index)) \
         if spec.measurements.chunk is None else max(1, int(round(spec.measurements.chunk / dt)))
-    os.makedirs(out, exist_ok=True)
+    os.makedirs(confined(out), exist_ok=True)
     writer = _Writer(out, (spec.output.format if spec.output is not None else None) or "csv")
     diag = RunningDiagnostics(n_total)
-    fingerprint = _fingerprint(job, record)
+    spec, data_files = _fingerprint(job, record, {"steady": steady, "allow_undetectable": allow_undetectable})
     checkpoint = os.path.join(out, CHECKPOINT)
     start = 0
     decimate = max(1, -(-n_total // _PLOT_POINTS))
     kept = {"t": [], "f": []}
+    if resume and overwrite:
+        raise AKFInputError("--resume continues a run and --overwrite starts anew: give one of them")
+    if not resume and os.path.lexists(checkpoint) and not overwrite:
+        raise AKFInputError(f"{out} holds an interrupted run (its checkpoint {CHECKPOINT} and partial output): "
+                            "continue it with --resume, or start anew with --overwrite")
     if resume:
         if not os.path.exists(checkpoint):
             raise AKFInputError(f"nothing to resume in {out}: no checkpoint {CHECKPOINT} (run without --resume)")
-        saved = dict(np.load(checkpoint, allow_pickle=False))
-        if str(saved["job"]) != fingerprint:
-            raise CheckpointError(f"the checkpoint in {out} was written for another job or other data files; run "
-                                  "without --resume to start anew")
+        saved = _load_checkpoint(checkpoint)
+        if str(saved["job"]) != spec:
+            raise CheckpointError(f"the job changed since the checkpoint in {out} was written ("
+                                  + ", ".join(_changed_keys(str(saved["job"]), spec)) + "); resuming would mix two "
+                                  "runs in one output: start anew with --overwrite, or undo the change")
+        if str(saved["files"]) != data_files:
+            raise CheckpointError(f"the data files changed since the checkpoint in {out} was written (names, sizes or "
+                                  "times of change); start anew with --overwrite")
         if int(saved["chunk"]) != chunk:
-            raise CheckpointError("the checkpoint was written with another chunk length; run without --resume")
+            raise CheckpointError("the checkpoint was written with another chunk length; start anew with --overwrite")
         estimator.restore(saved)
         start = int(saved["next_step"])
         writer.start(int(saved["position"]))
@@ -222,7 +282,11 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
     for step, Y in record.chunks(chunk, start):
         est = estimator.update(Y)
         if last is None and resume:
-            diag.restore(saved, est)
+            try:
+                diag.restore(saved, est)
+            except (KeyError, ValueError) as exc:
+                raise CheckpointError(f"the checkpoint {checkpoint} lacks the running diagnostics ({exc}); start anew "
+                                      "with --overwrite") from None
         diag.update(est)
         last = est
         writer.write(_frame(est, strain_index, labels, strain_rows))
@@ -234,7 +298,7 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
         if step + Y.shape[0] < n_total:      # after the last chunk the summary follows: a resume redoes that chunk
             state = estimator.state() | diag.state() | {
                 "next_step": np.array(step + Y.shape[0]), "position": np.array(writer.position),
-                "job": np.array(fingerprint), "chunk": np.array(chunk), "plot_t": np.concatenate(kept["t"]),
+                "job": np.array(spec), "files": np.array(data_files), "chunk": np.array(chunk), "plot_t": np.concatenate(kept["t"]),
                 "plot_f": np.vstack(kept["f"])}
             with atomic_path(checkpoint) as tmp:
                 with open(tmp, "wb") as fh:
@@ -260,7 +324,7 @@ def stream_job(job, out, *, resume=False, allow_undetectable=None, steady=None, 
         draw(files, "figure", metrics["warnings"], _plot, np.concatenate(kept["t"]), np.vstack(kept["f"]), forces,
              metrics, os.path.join(out, "estimate.png"), job.get("name", "AKF estimate"), decimate)
     if os.path.exists(checkpoint):
-        os.remove(checkpoint)
+        os.remove(checkpoint)        # a link is removed, never what it points to
     return StreamResult(job, metrics, files, record.describe(), notes, start)
 
 

@@ -233,9 +233,16 @@ class GeneticAlgorithm:
 
         alg, Ind = self.algorithm, self.algorithm.individual
         if self.checkpoint and not self.resume and os.path.exists(self.checkpoint):
-            raise AKFInputError(f"a checkpoint of an earlier run exists at {self.checkpoint!r}; pass resume=True "
-                                "(CLI: --resume) to continue it, or remove it / choose another output folder to "
-                                "start afresh")
+            try:
+                earlier = load_checkpoint(self.checkpoint)
+            except AKFInputError:
+                earlier = {}
+            if not earlier.get("finished"):      # a finished run's checkpoint is simply replaced
+                done = f" (generation {earlier['generation']} of {earlier['settings'].get('generations')})" \
+                    if "generation" in earlier else ""
+                raise AKFInputError(f"{self.checkpoint!r} holds the checkpoint of an interrupted run{done}; pass "
+                                    "resume=True (CLI: --resume) to continue it, or remove it (CLI: --overwrite) to "
+                                    "start afresh")
         if self.resume:
             ck = load_checkpoint(self.checkpoint)
             if ck["settings"] != self.settings:
@@ -285,14 +292,17 @@ class GeneticAlgorithm:
         finally:
             if bar is not None:
                 bar.close()
+        if self.checkpoint and rows:
+            self._save(pop, rows, rows[-1]["generation"], rng, pyrng, finished=True)
         ranked = sorted(self._hof.items(), key=lambda kv: (kv[1], kv[0]))
         ev = self.evaluator
         return GAResult(pop, pd.DataFrame(rows), ranked[:self.n_hall] if self.n_hall else ranked, ev.evaluations,
                         ev.hits, ev.infeasible, stopped, ev, self.seed, self.settings)
 
-    def _save(self, pop, rows, gen, rng, pyrng):
+    def _save(self, pop, rows, gen, rng, pyrng, finished=False):
         ev = self.evaluator
-        data = dict(format=CHECKPOINT_FORMAT, settings=self.settings, generation=gen, rng=rng.bit_generator.state,
+        data = dict(format=CHECKPOINT_FORMAT, settings=self.settings, generation=gen, finished=finished,
+                    rng=rng.bit_generator.state,
                     pyrng=pyrng.getstate(), population=[list(i) for i in pop],
                     fitness=[list(i.fitness.values) for i in pop], rows=rows,
                     hof=[[list(k), list(v)] for k, v in self._hof.items()],

@@ -17,6 +17,38 @@ import time
 from .exceptions import AKFInputError
 
 LOCK_NAME = ".akf-run.lock"
+#: the output folders in use by this process: (path as given, made absolute; its real path)
+_ACTIVE: list = []
+
+
+def _umask():
+    """The process' file-creation mask: read from ``/proc`` where there is one (no change to the
+    process, safe beside threads), else set and set back."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def confined(path):
+    """``path``, after checking that no symbolic link inside an output folder in use
+    (:class:`OutputFolder`) leads it outside that folder: a write or a delete through such a link
+    would change a file elsewhere.  Paths outside every folder in use are returned unchecked."""
+    absolute = os.path.abspath(path)
+    for root, real_root in _ACTIVE:
+        if absolute != root and not absolute.startswith(root + os.sep):
+            continue
+        real = os.path.realpath(absolute)
+        if real != real_root and not real.startswith(real_root + os.sep):
+            raise AKFInputError(f"{path} leads outside the output folder {root} (through a symbolic link to {real}); "
+                                "remove the link or write to another folder")
+    return path
 
 
 def _pid_alive(pid):
@@ -71,6 +103,7 @@ class OutputFolder:
             with os.fdopen(fd, "w") as fh:
                 fh.write(f"{os.getpid()} {socket.gethostname()} {time.strftime('%Y-%m-%d %H:%M:%S')}\n")
             self._held = True
+            _ACTIVE.append((self.path, os.path.realpath(self.path)))
             return self
         raise AKFInputError(f"cannot lock {self.what} {self.path!r}")
 
@@ -102,19 +135,26 @@ class OutputFolder:
             with contextlib.suppress(FileNotFoundError):
                 os.remove(self._lock)
             self._held = False
+            with contextlib.suppress(ValueError):
+                _ACTIVE.remove((self.path, os.path.realpath(self.path)))
         return False
 
 
 @contextlib.contextmanager
 def atomic_path(path):
     """Yield a temporary path next to ``path``; on success rename it to ``path`` (atomic on one
-    file system), on any error or interruption remove it, leaving ``path`` as it was."""
+    file system), on any error or interruption remove it, leaving ``path`` as it was.  The file
+    gets the permissions of a plain ``open`` (0666 less the umask), not the 0600 of a temporary
+    file; a path that a symbolic link leads out of the output folder in use is refused
+    (:func:`confined`)."""
+    confined(path)
     folder = os.path.dirname(os.path.abspath(path)) or "."
     base, ext = os.path.splitext(os.path.basename(path))
     fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
     os.close(fd)
     try:
         yield tmp
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

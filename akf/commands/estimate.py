@@ -94,7 +94,7 @@ def _stream(args, job, name, out, steady):
     """A job with measured data: read, filtered and written chunk by chunk (:mod:`akf.streaming`)."""
     from ..streaming import stream_job
 
-    res = stream_job(job, out, resume=args.resume, allow_undetectable=args.allow_undetectable or None, steady=steady,
+    res = stream_job(job, out, resume=args.resume, overwrite=args.overwrite, allow_undetectable=args.allow_undetectable or None, steady=steady,
                      plot=not args.no_plot, progress=not args.json and sys.stderr.isatty())
     m = res.metrics
     if args.json:
@@ -203,4 +203,6 @@ def register(sub):
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
     p.add_argument("--resume", action="store_true", help="measured data: continue an interrupted run in --out from its "
                    "last written chunk")
+    p.add_argument("--overwrite", action="store_true", help="measured data: start anew in --out, replacing an "
+                   "interrupted run's checkpoint and partial output")
     p.set_defaults(func=_estimate)

@@ -61,6 +61,12 @@ def _run_place(args, problem, settings, out):
     from ..writers import draw
 
     checkpoint = args.checkpoint or os.path.join(out, "checkpoint.json")
+    if args.overwrite and args.resume:
+        raise AKFInputError("--overwrite starts anew and --resume continues: give one of them")
+    if args.overwrite:
+        for path in (checkpoint, f"{checkpoint}.bak"):
+            if os.path.lexists(path):
+                os.remove(path)
     notes = window_notes(problem)
     if notes and not args.json:
         for note in notes:
@@ -149,6 +155,7 @@ def register(sub):
     add_scheduler_option(p)
     p.add_argument("--checkpoint", help="checkpoint file (default OUT/checkpoint.json)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint")
+    p.add_argument("--overwrite", action="store_true", help="start anew, replacing an interrupted run's checkpoint")
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bar)")
     p.add_argument("--out", help="output folder (default akf-out/place/NAME-N-seedS)")
     p.add_argument("--no-plot", action="store_true", help="do not write PNG figures")
