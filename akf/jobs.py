@@ -90,10 +90,36 @@ def load_job_file(path: str | os.PathLike) -> dict:
     if os.path.isdir(path):
         raise AKFInputError(f"job file {path!r} is a folder; give the TOML file")
     with open(path, "rb") as fh:
-        try:
-            return tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise AKFInputError(f"{path}: not valid TOML: {exc}") from None
+        raw = fh.read()
+    try:
+        return tomllib.loads(job_text(raw, path))
+    except tomllib.TOMLDecodeError as exc:
+        raise AKFInputError(f"{path}: not valid TOML: {exc}") from None
+
+
+def job_text(raw: bytes, path) -> str:
+    """The text of a job file: UTF-8, with or without a byte-order mark; any other encoding is an
+    error that names it (UTF-16 from a Windows editor, Latin-1 / Windows-1252, or not text)."""
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]                               # UTF-8 with a BOM (Windows Notepad): the same text
+    for bom, name in ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"), (b"\xff\xfe", "UTF-16"),
+                      (b"\xfe\xff", "UTF-16")):
+        if raw.startswith(bom):
+            raise AKFInputError(f"{path}: the job file is {name} text; TOML job files are UTF-8: save it as UTF-8 "
+                                "(in Notepad: Save as, Encoding UTF-8)")
+    if b"\x00" in raw:
+        odd, even = raw[1::2].count(0), raw[0::2].count(0)
+        if max(odd, even) > len(raw) // 4:
+            raise AKFInputError(f"{path}: the job file looks like UTF-16 text without a byte-order mark; TOML job files "
+                                "are UTF-8: save it as UTF-8")
+        raise AKFInputError(f"{path}: not a text file (it holds NUL bytes); a job file is TOML text in UTF-8")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        guess = raw.decode("cp1252", errors="replace").splitlines()[line - 1] if line else ""
+        raise AKFInputError(f"{path}: line {line} is not UTF-8 (byte 0x{raw[exc.start]:02x}); the file looks like "
+                            f"Latin-1 / Windows-1252 text ({guess.strip()[:60]!r}): save it as UTF-8") from None
 
 
 def build_structure(spec):

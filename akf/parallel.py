@@ -53,8 +53,9 @@ def scheduler(spec=None, resume=None):
                                                       dashboard_address=":0"))   # any free port
             client = stack.enter_context(Client(cluster))
         else:
+            probe_scheduler(spec)
             try:
-                client = stack.enter_context(Client(spec, timeout="10s"))
+                client = stack.enter_context(Client(spec, timeout=f"{CONNECT_TIMEOUT:g}s"))
             except (OSError, TimeoutError) as exc:
                 raise AKFInputError(f"cannot reach the dask scheduler at {spec!r}: {exc}") from None
         stack.enter_context(parallel_config(backend=_dask_backend()))
@@ -121,6 +122,72 @@ def _lost_work(exc):
     return None
 
 
+#: seconds to connect to a scheduler and hear it answer
+CONNECT_TIMEOUT = 10.0
+#: the address schemes of dask's comms
+SCHEMES = ("tcp", "tls", "inproc", "ucx", "ws", "wss")
+
+
+def check_address(spec):
+    """A scheduler address checked before any connection: ``[tcp://]HOST:PORT`` or another dask
+    scheme; a dashboard URL (http), a missing port or ``tls://`` without certificates are clear
+    errors."""
+    scheme, sep, rest = spec.partition("://")
+    if not sep:
+        scheme, rest = "tcp", spec
+    if scheme in ("http", "https"):
+        raise AKFInputError(f"--scheduler {spec!r} is a web address (the dashboard?); the scheduler's own address is "
+                            "tcp://HOST:PORT (port 8786 by default; the dashboard shows it under Info)")
+    if scheme not in SCHEMES:
+        raise AKFInputError(f"--scheduler {spec!r}: unknown address scheme {scheme!r}; give tcp://HOST:PORT (or "
+                            f"{', '.join(s + '://' for s in SCHEMES[1:])})")
+    if scheme in ("tcp", "tls", "ws", "wss"):
+        host, colon, port = rest.rstrip("/").rpartition(":")
+        if not colon or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise AKFInputError(f"--scheduler {spec!r} needs a host and a port: {scheme}://HOST:PORT (the dask "
+                                "scheduler listens on 8786 by default)")
+    if scheme in ("tls", "wss"):
+        import dask
+
+        if not dask.config.get("distributed.comm.tls.client.cert", None):
+            raise AKFInputError(f"--scheduler {spec!r} is a TLS address but no client certificate is configured: set "
+                                "distributed.comm.tls.ca-file, .client.cert and .client.key in the dask configuration "
+                                "(or DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT, ...)")
+
+
+def probe_scheduler(spec, timeout=CONNECT_TIMEOUT):
+    """Ask the process at ``spec`` who it is, within ``timeout`` seconds: a port that does not
+    answer like a dask scheduler (another server, a dask worker) is a clear error, never a hang
+    (a dask Client waits for ever on a port that accepts and says nothing)."""
+    import asyncio
+    import concurrent.futures
+
+    from distributed.core import rpc
+
+    async def identity():
+        r = rpc(spec, timeout=timeout)
+        try:
+            return await asyncio.wait_for(r.identity(), timeout)
+        finally:
+            await r.close_rpc()
+
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:       # its own event loop, also under Jupyter's
+        try:
+            who = pool.submit(asyncio.run, identity()).result()
+        except (TimeoutError, asyncio.TimeoutError):
+            raise AKFInputError(f"--scheduler {spec!r}: something listens there but did not answer as a dask "
+                                f"scheduler within {timeout:g} s (another server, or the dashboard's port?)") from None
+        except OSError as exc:
+            raise AKFInputError(f"cannot reach the dask scheduler at {spec!r}: {exc}") from None
+        except Exception as exc:  # noqa: BLE001 -- a reply that is not dask's protocol
+            raise AKFInputError(f"--scheduler {spec!r} does not speak dask's protocol ({type(exc).__name__}: {exc})") \
+                from None
+    kind = who.get("type") if isinstance(who, dict) else None
+    if kind != "Scheduler":
+        raise AKFInputError(f"--scheduler {spec!r} is a dask {kind or 'process'}, not the scheduler; give the "
+                            "scheduler's address (tcp://HOST:8786 by default)")
+
+
 def check_scheduler(spec):
     """Check a scheduler before any work starts: dask.distributed is installed and ``spec`` is
     None, ``"local:N"`` (N >= 1), an address or a ``Client``.  Returns N for ``"local:N"``, else 0."""
@@ -139,6 +206,7 @@ def check_scheduler(spec):
         if not n.isdigit() or int(n) < 1:
             raise AKFInputError(f"--scheduler local:N needs a number of workers N >= 1, got {spec!r}")
         return int(n)
+    check_address(spec)
     return 0
 
 

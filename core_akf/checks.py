@@ -129,11 +129,11 @@ def available_memory():
         return None
 
 
-def check_memory(n_steps, floats_per_step, what, fix):
-    """Refuse, before allocating, a record of ``n_steps`` time steps that needs more than 80 % of
-    the available memory at ``floats_per_step`` float64 values per step."""
+def check_memory(n_steps, floats_per_step, what, fix, items="time steps"):
+    """Refuse, before allocating, a record of ``n_steps`` time steps (or other ``items``) that
+    needs more than 80 % of the available memory at ``floats_per_step`` float64 values each."""
     need = 8.0 * float(n_steps) * float(floats_per_step)
     have = available_memory()
     if have is not None and need > 0.8 * have:
-        raise AKFInputError(f"{what}: {n_steps:.4g} time steps need about {need / 2 ** 30:.3g} GiB, but this machine "
+        raise AKFInputError(f"{what}: {n_steps:.4g} {items} need about {need / 2 ** 30:.3g} GiB, but this machine "
                             f"has {have / 2 ** 30:.3g} GiB available; {fix}")

@@ -24,6 +24,14 @@ from .exceptions import AKFInputError, ModelError
 STRAIN_COMPONENTS = ("ex", "ey", "gxy")
 
 
+#: a modal damping ratio above this is warned about (a percentage typed for a ratio?)
+DAMPING_WARN = 0.3
+
+
+class DampingWarning(UserWarning):
+    """A damping ratio that a structure hardly has (above :data:`DAMPING_WARN`)."""
+
+
 def _damping_matrix(M, K, damping, modes):
     """Damping matrix from a damping spec (see :class:`Structure`); ``modes()`` gives
     ``(omega, Phi)`` and is only called for modal damping."""
@@ -44,6 +52,14 @@ def _damping_matrix(M, K, damping, modes):
         )
     if np.any(zeta < 0) or np.any(~np.isfinite(zeta)):
         raise AKFInputError(f"damping ratios must be finite and >= 0, got {damping!r}")
+    if np.any(zeta >= 1.0):
+        raise AKFInputError(f"damping ratio {float(np.max(zeta)):g} is critical or overdamped: damping is a ratio, not a "
+                            "percentage (2 % is 0.02)")
+    if np.any(zeta > DAMPING_WARN):
+        import warnings
+
+        warnings.warn(f"damping ratio {float(np.max(zeta)):g} is above {DAMPING_WARN:g}: structures damp a few percent "
+                      "(a ratio of 0.02 is 2 %); is it a percentage?", DampingWarning)
     # C = M Phi diag(2 zeta omega) Phi^T M with mass-normalised Phi
     mphi = M @ phi
     C = (mphi * (2.0 * zeta * omega)) @ mphi.T
@@ -302,7 +318,15 @@ class Structure:
         for name, v in (("stiffness_factor", stiffness_factor), ("mass_factor", mass_factor)):
             if not np.isfinite(v) or v <= 0:
                 raise AKFInputError(f"{name} must be a positive number, got {v!r}")
-        changes = dict(K=self.K * stiffness_factor, M=self.M * mass_factor)
+        with np.errstate(over="ignore"):
+            changes = dict(K=self.K * stiffness_factor, M=self.M * mass_factor)
+        for name, v, A in (("stiffness_factor", stiffness_factor, changes["K"]), ("mass_factor", mass_factor, changes["M"])):
+            with np.errstate(over="ignore"):
+                big = float(np.max(np.abs(A)))
+            if not np.isfinite(big) or big == 0.0:
+                raise AKFInputError(f"{name} {v!r} makes the {'stiffness' if name[0] == 's' else 'mass'} matrix "
+                                    f"{'overflow' if not np.isfinite(big) else 'vanish'} in float64; a factor near 1 "
+                                    "(1.05: 5 % stiffer) is what it is for")
         if self.static is not None:
             changes["static"] = self.static.scaled(stiffness_factor, mass_factor)
         if self.damping is None and np.any(self.C):
@@ -319,7 +343,9 @@ class Structure:
         (:class:`~core_akf.residual.StaticCorrection` from a Cholesky factor of K): every strain
         and displacement output then has the full model's static response.
         """
-        n_modes = int(n_modes)
+        from .models.sparse import check_n_modes
+
+        n_modes = check_n_modes(n_modes)
         if not 1 <= n_modes <= self.n:
             raise AKFInputError(f"n_modes must be between 1 and {self.n}, got {n_modes}")
         omega, phi = self._eig

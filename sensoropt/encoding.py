@@ -368,15 +368,24 @@ class CandidateSet:
         return float(C[r, c].sum())
 
     def diversity(self, layouts):
-        """Mean distance of each layout to its nearest *other* individual (TH's diversity)."""
+        """Mean distance of each layout to its nearest *other* individual (TH's diversity); above
+        :data:`DIVERSITY_SAMPLE` layouts, of that many spread evenly over the population (the
+        pairs grow as n^2: a population of a million would need 7 TiB and days)."""
         n = len(layouts)
         if n < 2:
             return 0.0
+        if n > DIVERSITY_SAMPLE:
+            layouts = [layouts[i] for i in np.linspace(0, n - 1, DIVERSITY_SAMPLE).astype(int)]
+            n = DIVERSITY_SAMPLE
         D = np.full((n, n), np.inf)
         for i in range(n):
             for j in range(i + 1, n):
                 D[i, j] = D[j, i] = self.distance(layouts[i], layouts[j])
         return float(np.mean(D.min(axis=1)))
+
+
+#: the diversity of a larger population is measured on this many of its layouts
+DIVERSITY_SAMPLE = 500
 
 
 class Encoding(CandidateSet):

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core_akf.checks import check_memory
 from core_akf.defaults import default
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, Individual, best, tournament
 from core_akf.evolution import load_checkpoint as evolution_load_checkpoint
@@ -124,6 +125,9 @@ def place(objective, encoding: Encoding, *, population: int = 50, generations: i
     """
     if population < 2 or generations < 0 or not 0 <= elite < population:
         raise AKFInputError("need population >= 2, generations >= 0 and 0 <= elite < population")
+    # every evaluated layout is kept (the cache, the checkpoint): about 40 float64 each
+    check_memory(population * (generations + 1), 40, f"a GA of population {population} over {generations} generations",
+                 "use a smaller population (the thesis used 50) or fewer generations", items="evaluated layouts")
     if operators not in ("set", "thesis"):
         raise AKFInputError(f"operators must be 'set' or 'thesis', got {operators!r}")
     if getattr(objective, "n_objectives", 1) != 1:

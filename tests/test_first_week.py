@@ -282,10 +282,9 @@ def test_outputs_are_created_with_the_users_umask(tmp_path, capsys):
 
 
 def test_resume_after_the_output_strains_or_the_format_or_the_filter_changed(tmp_path, capsys):
+    from akf.jobs import load_job
     from akf.streaming import stream_job
     from core_akf.streaming import CheckpointError
-
-    from akf.jobs import load_job
     job = load_job(str(_measured_job(tmp_path)), "estimate")
     out = str(tmp_path / "o")
     stream_job(job, out, plot=False, stop_after=2)
@@ -302,9 +301,8 @@ def test_resume_after_the_output_strains_or_the_format_or_the_filter_changed(tmp
 
 
 def test_plain_rerun_into_an_interrupted_runs_folder(tmp_path, capsys):
-    from akf.streaming import stream_job
-
     from akf.jobs import load_job
+    from akf.streaming import stream_job
     path = _measured_job(tmp_path)
     out = tmp_path / "o"
     stream_job(load_job(str(path), "estimate"), str(out), plot=False, stop_after=2)
@@ -318,9 +316,8 @@ def test_plain_rerun_into_an_interrupted_runs_folder(tmp_path, capsys):
 
 @pytest.mark.parametrize("damage", ["truncated", "foreign", "nan"])
 def test_resume_from_a_damaged_checkpoint(tmp_path, capsys, damage):
-    from akf.streaming import stream_job
-
     from akf.jobs import load_job
+    from akf.streaming import stream_job
     path = _measured_job(tmp_path)
     out = tmp_path / "o"
     stream_job(load_job(str(path), "estimate"), str(out), plot=False, stop_after=2)
@@ -356,3 +353,172 @@ def test_place_rerun_into_a_finished_runs_folder_runs_and_an_interrupted_one_ask
     assert main(args) == 2
     assert "interrupted run (generation 2 of 2)" in capsys.readouterr().err
     assert main(args + ["--overwrite"]) == 0
+
+
+# ----------------------------------------------------------------- plausibility of a model of one's own
+def _two_dof(**changes):
+    from core_akf.models import from_matrices
+
+    kw = dict(K=np.array([[2.0, -1.0], [-1.0, 1.0]]) * 1e6, M=np.eye(2) * 10.0, dofs=[(1, "x"), (2, "x")],
+              nodes={1: (1.0, 0.0), 2: (2.0, 0.0)}) | changes
+    return from_matrices(**kw)
+
+
+def test_node_coordinates_in_mm_against_si_matrices():
+    from core_akf.models.matrices import ModelWarning
+
+    with pytest.warns(ModelWarning, match="are the coordinates in mm"):
+        _two_dof(nodes={1: (1000.0, 0.0), 2: (2000.0, 0.0)}, extensometers=[(1, 2)])
+
+
+def test_node_coordinates_in_m_give_no_unit_warning(recwarn):
+    _two_dof(nodes={1: (1.0, 0.0), 2: (3.5, 0.0)})
+    assert not [w for w in recwarn if "in mm" in str(w.message)]
+
+
+def test_a_node_listed_twice(tmp_path):
+    from core_akf.models.matrices import read_nodes
+
+    with pytest.raises(ValueError, match="node 1 is listed twice"):
+        _two_dof(nodes=[(1, (1.0, 0.0)), (2, (2.0, 0.0)), (1, (3.0, 0.0))])
+    (tmp_path / "nodes.csv").write_text("node,x,y\n1,0,0\n2,1,0\n1,2,0\n")
+    with pytest.raises(ValueError, match="node 1 is listed twice \\(data rows 1 and 3\\)"):
+        read_nodes(tmp_path / "nodes.csv")
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_a_complex_stiffness_matrix(sparse):
+    K = np.array([[2.0, -1.0], [-1.0, 1.0]]) * 1e6 * (1 + 0.04j)
+    with pytest.raises(ValueError, match="K is complex"):
+        _two_dof(K=scipy.sparse.csr_matrix(K) if sparse else K)
+
+
+def test_damping_typed_as_a_percentage():
+    from core_akf.structure import DampingWarning
+
+    with pytest.raises(ValueError, match="damping is a ratio, not a percentage"):
+        _two_dof(damping=2.0)
+    with pytest.warns(DampingWarning, match="is it a percentage"):
+        _two_dof(damping=0.5)
+
+
+@pytest.mark.parametrize("n_modes", [2.5, "all", True, 0])
+def test_n_modes_that_is_not_a_number_of_modes(n_modes):
+    with pytest.raises(ValueError, match="n_modes must be a whole number of modes >= 1"):
+        _two_dof(n_modes=n_modes)
+
+
+def test_a_stiffness_factor_that_overflows(tmp_path, capsys):
+    job = tmp_path / "j.toml"
+    text = open(os.path.join(ROOT, "akf", "examples", "jobs", "s17-case4.toml")).read()
+    job.write_text(text.replace("stiffness_factor = 1.05", "stiffness_factor = 1e308"))
+    assert "1e308" in job.read_text()
+    assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert "stiffness_factor 1e+308 makes the stiffness matrix overflow" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------- inputs a user types
+CASE4 = os.path.join(ROOT, "akf", "examples", "jobs", "s17-case4.toml")
+
+
+@pytest.mark.parametrize("encoding, message", [
+    ("utf-16", "is UTF-16 text"), ("utf-16-le", "looks like UTF-16 text without a byte-order mark"),
+    ("latin-1", "looks like Latin-1 / Windows-1252 text"), ("binary", "not a text file")])
+def test_job_file_in_another_encoding(tmp_path, capsys, encoding, message):
+    text = open(CASE4, encoding="utf-8").read().replace('name = "s17-case4"', 'name = "s17-café"')
+    job = tmp_path / "job.toml"
+    if encoding == "binary":
+        job.write_bytes(bytes(range(256)))
+    else:
+        job.write_bytes(text.encode(encoding))
+    assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_job_file_with_a_utf8_byte_order_mark_is_read(tmp_path):
+    from akf.jobs import load_job_file
+
+    job = tmp_path / "job.toml"
+    job.write_bytes(b"\xef\xbb\xbf" + open(CASE4, "rb").read())
+    assert load_job_file(job)["name"] == "s17-case4"
+
+
+@pytest.mark.parametrize("table", ["structure", "filter", "simulation"])
+def test_a_top_level_key_after_a_table_header(tmp_path, capsys, table):
+    text = open(CASE4).read()
+    lines = [line for line in text.splitlines() if not line.startswith("dt =")]
+    at = lines.index(f"[{table}]") + 1
+    job = tmp_path / "job.toml"
+    job.write_text("\n".join(lines[:at] + ["dt = 0.000244140625"] + lines[at:]) + "\n")
+    assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert f"'dt' sits in [{table}], but it is a top-level key" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("unit, gauge_factor, message", [
+    ("mV", 2.1, "is a voltage in 'mV', not a bridge ratio"),
+    ("rad", None, "'rad' is an angle, not a strain"),
+    ("deg", None, "'deg' is an angle, not a strain")])
+def test_strain_units_that_are_not_strain(unit, gauge_factor, message):
+    from core_akf.io.units import conversion
+
+    with pytest.raises(ValueError, match=message):
+        conversion(unit, "strain", "SG1", gauge_factor=gauge_factor)
+
+
+@pytest.mark.parametrize("unit, scale", [("uE", 1e-6), ("µE", 1e-6), ("ue", 1e-6), ("με", 1e-6), ("mm/m", 1e-3)])
+def test_common_strain_abbreviations(unit, scale):
+    from core_akf.io.units import conversion
+
+    assert conversion(unit, "strain", "SG1")(np.array([2.0]))[0] == pytest.approx(2 * scale)
+
+
+def test_v_per_v_is_a_bridge_output():
+    from core_akf.io.units import conversion
+
+    c = conversion("V/V", "strain", "SG1", gauge_factor=2.0, bridge="full")
+    assert c(np.array([1e-3]))[0] == pytest.approx(0.5e-3)
+
+
+@pytest.mark.parametrize("address, message", [
+    ("http://127.0.0.1:8787/status", "is a web address"), ("tcp://scheduler-host", "needs a host and a port"),
+    ("tls://scheduler-host:8786", "no client certificate is configured"), ("ftp://h:21", "unknown address scheme")])
+def test_scheduler_addresses_that_cannot_be_one(address, message):
+    pytest.importorskip("distributed")
+    from akf.parallel import check_scheduler
+
+    with pytest.raises(ValueError, match=message):
+        check_scheduler(address)
+
+
+def test_scheduler_port_that_accepts_and_says_nothing_is_not_a_hang():
+    pytest.importorskip("distributed")
+    import socket
+    import time
+
+    from akf.parallel import probe_scheduler
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    t0 = time.perf_counter()
+    try:
+        with pytest.raises(ValueError, match="did not answer as a dask scheduler within 1 s"):
+            probe_scheduler(f"tcp://127.0.0.1:{server.getsockname()[1]}", timeout=1.0)
+    finally:
+        server.close()
+    assert time.perf_counter() - t0 < 30
+
+
+def test_population_that_does_not_fit_in_memory(tmp_path, capsys):
+    assert main(["place", "--example", "th-case5", "--population", "1000000000", "--out", str(tmp_path)]) == 2
+    assert "a GA of population 1000000000 over 100 generations" in capsys.readouterr().err
+
+
+def test_diversity_of_a_large_population_is_sampled():
+    from sensoropt.encoding import DIVERSITY_SAMPLE, make_encoding
+
+    enc = make_encoding(s17_truss(), kinds=("strain",), n_sensors=3)
+    rng = np.random.default_rng(0)
+    pop = [enc.random_layout(rng) for _ in range(DIVERSITY_SAMPLE + 300)]
+    assert enc.diversity(pop) == pytest.approx(enc.diversity([pop[i] for i in np.linspace(
+        0, len(pop) - 1, DIVERSITY_SAMPLE).astype(int)]))

@@ -94,7 +94,8 @@ def _stream(args, job, name, out, steady):
     """A job with measured data: read, filtered and written chunk by chunk (:mod:`akf.streaming`)."""
     from ..streaming import stream_job
 
-    res = stream_job(job, out, resume=args.resume, overwrite=args.overwrite, allow_undetectable=args.allow_undetectable or None, steady=steady,
+    res = stream_job(job, out, resume=args.resume, overwrite=args.overwrite,
+                     allow_undetectable=args.allow_undetectable or None, steady=steady,
                      plot=not args.no_plot, progress=not args.json and sys.stderr.isatty())
     m = res.metrics
     if args.json:

@@ -27,6 +27,10 @@ BRIDGES = {"quarter": 4.0, "half": 2.0, "full": 1.0}
 
 #: acceleration in multiples of standard gravity, as DAQ systems write it
 _GRAVITY = {"g": "gravity", "mg": "milligravity", "ug": "microgravity", "µg": "microgravity"}
+#: strain as DAQ systems and gauge catalogues abbreviate it (compared case-blind)
+_STRAIN_NAMES = {"ue": "microstrain", "µe": "microstrain", "μe": "microstrain", "ustrain": "microstrain",
+                 "µstrain": "microstrain", "me": "millistrain", "mstrain": "millistrain", "e": "strain",
+                 "ε": "strain", "eps": "strain"}
 
 
 @lru_cache(maxsize=1)
@@ -73,6 +77,8 @@ def conversion(unit, kind, channel, gauge_factor=None, bridge=None):
         return Conversion(SI_UNITS[kind] if is_unset(text) else text, 1.0)
     if kind == "acc" and text in _GRAVITY:
         text = _GRAVITY[text]
+    if kind == "strain" and text.lower() in _STRAIN_NAMES:
+        text = _STRAIN_NAMES[text.lower()]
     import pint
 
     ureg = registry()
@@ -82,6 +88,12 @@ def conversion(unit, kind, channel, gauge_factor=None, bridge=None):
             ValueError, AssertionError) as exc:
         raise AKFInputError(f"channel {channel!r}: unknown unit {unit!r} ({exc}); give a unit such as "
                             f"{_examples(kind)}") from None
+    if kind == "strain" and _has_dimension(parsed, "V") and not _has_dimension(parsed, "", whole=True):
+        raise AKFInputError(f"channel {channel!r} is a voltage in {unit!r}, not a bridge ratio: give it in mV/V (the "
+                            "bridge output divided by its excitation voltage) with a gauge_factor, or in microstrain")
+    if kind == "strain" and any(_has_dimension(ureg.parse_units(u), "radian") for u in parsed._units):
+        raise AKFInputError(f"channel {channel!r}: {unit!r} is an angle, not a strain; give the strain in 'microstrain' "
+                            "or 'm/m' (a rotation sensor is a 'disp' sensor of a rotational DOF, in rad)")
     if kind == "strain" and is_bridge_unit(text):
         if gauge_factor is None:
             raise AKFInputError(f"channel {channel!r} is a bridge output in {unit!r}: give its gauge_factor (and "
@@ -104,10 +116,24 @@ def conversion(unit, kind, channel, gauge_factor=None, bridge=None):
     return Conversion(str(unit), float(scale))
 
 
+def _has_dimension(parsed, unit, whole=False):
+    """Whether parsed units have the dimensionality of ``unit`` (``whole``: as a whole), or
+    contain a unit of it; angles are told apart by name, since pint counts them dimensionless."""
+    ureg = registry()
+    if unit == "radian":
+        return any(str(u) in ("radian", "degree", "arcminute", "arcsecond", "turn", "gradian") or
+                   str(u).endswith(("radian", "degree")) for u in parsed._units)
+    if whole:
+        return ureg.get_dimensionality(parsed) == ureg.get_dimensionality(unit)
+    return any(ureg.get_dimensionality(u) == ureg.get_dimensionality(unit) for u in parsed._units)
+
+
 def is_bridge_unit(unit):
     """Whether ``unit`` is a bridge output (a voltage over a voltage: mV/V, V/V, µV/V)."""
     if is_unset(unit) or str(unit).strip() in _GRAVITY:
         return False
+    if re.fullmatch(r"[a-zA-Zµμ]?V\s*/\s*V", str(unit).strip()):      # V/V itself parses to a plain number
+        return True
     try:
         parsed = registry().parse_units(str(unit).strip())
     except Exception:  # noqa: BLE001 -- an unparseable unit is reported where it is converted

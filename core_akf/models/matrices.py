@@ -25,7 +25,16 @@ import numpy as np
 
 from ..exceptions import AKFInputError, ModelError
 from ..structure import Structure
-from .sparse import DEFAULT_MODES, DENSE_LIMIT, RIGID_BODY_RTOL, as_sparse, check_symmetric, modal_parts
+from .sparse import (
+    DEFAULT_MODES,
+    DENSE_LIMIT,
+    RIGID_BODY_RTOL,
+    as_sparse,
+    check_n_modes,
+    check_symmetric,
+    modal_parts,
+    refuse_complex,
+)
 
 DIRECTIONS = ("x", "y", "z", "rx", "ry", "rz")
 #: the first natural frequencies of a structural model in SI units lie in this band (Hz);
@@ -96,6 +105,12 @@ def read_nodes(path):
     if np.any(ids != np.round(ids)):
         r = int(np.flatnonzero(ids != np.round(ids))[0])
         raise AKFInputError(f"{path}: node {table['node'].iloc[r]!r} in data row {r + 1} is not an integer id")
+    first = {}
+    for r, n in enumerate(ids):
+        if n in first:
+            raise AKFInputError(f"{path}: node {int(n)} is listed twice (data rows {first[n] + 1} and {r + 1}); every "
+                                "node needs one place")
+        first[n] = r
     return {int(n): tuple(row) for n, row in zip(ids, values[cols[1:]].to_numpy(dtype=float))}
 
 
@@ -132,6 +147,7 @@ def _read_table(path, columns):
 def _dense(A, name):
     import scipy.sparse
 
+    refuse_complex(A, name)
     if scipy.sparse.issparse(A):
         A = A.toarray()
     A = np.asarray(A, dtype=float)
@@ -184,6 +200,8 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
     without enough constraints).  The first frequencies outside :data:`FREQUENCY_RANGE` give a
     :class:`ModelWarning` (units that look wrong).
     """
+    if n_modes is not None:
+        n_modes = check_n_modes(n_modes)
     large = n_modes is not None or max(np.shape(K)[0], np.shape(M)[0]) > DENSE_LIMIT
     if large:
         K, M = as_sparse(K, "K"), as_sparse(M, "M")
@@ -208,7 +226,12 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
         if d in seen:
             raise AKFInputError(f"DOF {d[0]}:{d[1]} appears twice in the DOF map (rows {seen[d] + 1} and {r + 1})")
         seen[d] = r
-    coords = {_node_id(k): np.asarray(v, dtype=float) for k, v in dict(nodes).items()}
+    pairs = list(nodes.items()) if isinstance(nodes, dict) else list(nodes)
+    coords = {}
+    for k, v in pairs:
+        if _node_id(k) in coords:
+            raise AKFInputError(f"node {_node_id(k)} is listed twice in the node coordinates; every node needs one place")
+        coords[_node_id(k)] = np.asarray(v, dtype=float)
     dims = {c.size for c in coords.values()}
     if not coords or dims - {2, 3} or len(dims) != 1:
         raise AKFInputError(f"node coordinates must all be (x, y) or all (x, y, z); got sizes {sorted(dims)}")
@@ -241,6 +264,7 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
             first = blocks[0].shape[0] + 1
             ends = {first + k: (int(a), int(b)) for k, (a, b) in enumerate(members)}
             members = None
+    _check_coordinate_units(coords, name)
     strain = _stack(blocks)
     common = dict(nodes=np.array([coords[k] for k in ids]), dof_names=dof_names, free_dofs=free_dofs,
                   strain_matrix=strain, strain_kind="member", members=members, name=name, node_ids=ids)
@@ -349,6 +373,28 @@ def _extensometer_rows(members, coords, dofs, seen, rows, dof_names):
                 if r in col:                  # a constrained DOF does not move
                     out[k, col[r]] += sign * e[j] / L
     return out
+
+
+#: median distance (m) from a node to its nearest neighbour above which coordinates look like mm
+NODE_SPACING_LIMIT = 25.0
+
+
+def _check_coordinate_units(coords, name):
+    """A :class:`ModelWarning` when the nodes lie so far apart that the coordinates are probably in
+    mm against SI matrices: every extensometer strain would be 1000 times too small, and forces
+    estimated from strain gauges that much too large."""
+    from scipy.spatial import cKDTree
+
+    if len(coords) < 2:
+        return
+    xyz = np.array(list(coords.values()))
+    d, _ = cKDTree(xyz).query(xyz, k=2)
+    spacing = float(np.median(d[:, 1]))
+    if spacing > NODE_SPACING_LIMIT:
+        warnings.warn(f"{name}: neighbouring nodes lie {spacing:.4g} m apart (median), the whole model spans "
+                      f"{float(np.ptp(xyz, axis=0).max()):.4g} m: are the coordinates in mm? They must be in m (SI) like "
+                      "K and M; in mm every extensometer strain is 1000x too small and forces estimated from strain "
+                      "gauges 1000x too large", ModelWarning)
 
 
 def _check_modes(structure):

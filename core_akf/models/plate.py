@@ -20,7 +20,7 @@ import numpy as np
 
 from ..exceptions import ModelError
 from ..structure import Structure
-from .sparse import DEFAULT_MODES, DENSE_LIMIT, modal_parts
+from .sparse import DEFAULT_MODES, DENSE_LIMIT, check_n_modes, modal_parts
 
 _GAUSS2 = np.array([-1.0, 1.0]) / np.sqrt(3.0)
 _CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -127,6 +127,8 @@ def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01
         :data:`~core_akf.models.sparse.DENSE_LIMIT` DOFs is always built this way (default
         :data:`~core_akf.models.sparse.DEFAULT_MODES` modes).
     """
+    if n_modes is not None:
+        n_modes = check_n_modes(n_modes)
     large = n_modes is not None or 3 * (int(nx) + 1) * (int(ny) + 1) > DENSE_LIMIT
     K, M, S, nodes, free = _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges, large)
     nx, ny = int(nx), int(ny)

@@ -22,10 +22,28 @@ RIGID_BODY_RTOL = 1e-12
 DEFAULT_MODES = 100
 
 
+def refuse_complex(A, name):
+    """A complex matrix (hysteretic or structural damping as ``K (1 + i eta)``) is refused: the
+    models here are real, their damping a ratio, Rayleigh coefficients or ``C``."""
+    if np.iscomplexobj(A.data if hasattr(A, "tocsr") and hasattr(A, "data") else A):
+        raise AKFInputError(f"{name} is complex; the state-space models here are real: give the real part as {name} "
+                            "and the damping as a modal ratio (damping = 0.02), Rayleigh coefficients or a damping "
+                            "matrix C (a loss factor eta is about twice the damping ratio)")
+
+
+def check_n_modes(n_modes, name="n_modes"):
+    """``n_modes`` as an int >= 1; ``2.5``, ``"all"`` or ``True`` are clear errors."""
+    if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise AKFInputError(f"{name} must be a whole number of modes >= 1, got {n_modes!r} (leave it out for the full "
+                            "model up to the size where it is reduced anyway)")
+    return int(n_modes)
+
+
 def as_sparse(A, name):
     """``A`` as a CSR matrix of floats, checked square and finite."""
     import scipy.sparse
 
+    refuse_complex(A, name)
     A = scipy.sparse.csr_matrix(A, dtype=float)
     if A.shape[0] != A.shape[1]:
         raise AKFInputError(f"{name} must be a square matrix, got shape {A.shape}")
