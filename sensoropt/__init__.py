@@ -6,13 +6,13 @@
 >>> res = place(obj, enc, seed=0, n_jobs=2)                                       # doctest: +SKIP
 >>> res.layout, res.best_error                                                    # doctest: +SKIP
 """
-from .encoding import KINDS, STRAIN_KINDS, Encoding
+from .encoding import KINDS, STRAIN_KINDS, CandidateSet, Encoding, make_encoding
 from .ga import THESIS, PlacementResult, independent_runs, place
 from .objective import FunctionObjective, StrainErrorObjective
 from .pareto import ParetoResult, pareto
 from .plots import plot_convergence, plot_layout, plot_pareto
 from .problem import PlacementProblem
 
-__all__ = ["KINDS", "STRAIN_KINDS", "Encoding", "THESIS", "PlacementResult", "independent_runs", "place",
+__all__ = ["KINDS", "STRAIN_KINDS", "CandidateSet", "Encoding", "make_encoding", "THESIS", "PlacementResult", "independent_runs", "place",
            "FunctionObjective", "StrainErrorObjective", "ParetoResult", "pareto", "plot_convergence", "plot_layout",
            "plot_pareto", "PlacementProblem"]

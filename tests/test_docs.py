@@ -74,6 +74,13 @@ def test_json_schema_file_is_current():
         "regenerate with: python -m akf.schema --json > akf/job.schema.json"
 
 
+def test_committed_job_reference_is_current():
+    from akf.schema import reference_markdown
+
+    assert (ROOT / "docs" / "reference" / "jobs.md").read_text(encoding="utf-8") == reference_markdown(), \
+        "regenerate with: python -m akf.schema > docs/reference/jobs.md"
+
+
 def test_reference_lists_every_key():
     from akf.schema import Job, reference_markdown
 

@@ -13,7 +13,9 @@ def _opensees():
     try:
         import openseespy.opensees as ops
     except Exception as exc:  # noqa: BLE001 -- a missing system BLAS is an OSError-like ImportError
-        pytest.skip(f"openseespy is not usable here: {exc}")
+        pytest.skip(f"openseespy is not usable here: {exc}; OpenSeesPy loads the system's BLAS and LAPACK "
+                    "(libblas.so.3, liblapack.so.3): on Debian/Ubuntu `apt-get install libblas3 liblapack3`, "
+                    "on Fedora/RHEL `dnf install blas lapack`")
     return ops
 
 

@@ -30,6 +30,10 @@ def _ops():
     try:
         import openseespy.opensees as ops
     except ImportError as exc:
+        if ".so" in str(exc) or "DLL" in str(exc):       # installed, but a system library is missing
+            raise AKFInputError(f"openseespy is installed but cannot load ({exc}): it needs the system's BLAS and LAPACK "
+                                "(on Debian/Ubuntu `apt-get install libblas3 liblapack3`, on Fedora/RHEL `dnf install "
+                                "blas lapack`)") from None
         raise AKFInputError("reading an OpenSees model needs the package 'openseespy': pip install "
                             f"\"akf-toolkit[opensees]\" ({exc})") from None
     return ops
