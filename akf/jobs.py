@@ -67,6 +67,12 @@ def load_job(path: str | os.PathLike, command: str) -> dict:
     to the job file's folder: the one place where job-relative paths are resolved."""
     job = load_job_file(path)
     parse_job(job, command, source=path)
+    return resolve_paths(job, path)
+
+
+def resolve_paths(job: dict, path: str | os.PathLike) -> dict:
+    """The data paths of a job (its record, its model's files) made relative to the job file at
+    ``path`` (in place; returns ``job``)."""
     here = os.path.dirname(os.path.abspath(path))
     meas = job.get("measurements")
     if isinstance(meas, dict) and isinstance(meas.get("file"), str) and not os.path.isabs(meas["file"]):

@@ -522,3 +522,43 @@ def test_diversity_of_a_large_population_is_sampled():
     pop = [enc.random_layout(rng) for _ in range(DIVERSITY_SAMPLE + 300)]
     assert enc.diversity(pop) == pytest.approx(enc.diversity([pop[i] for i in np.linspace(
         0, len(pop) - 1, DIVERSITY_SAMPLE).astype(int)]))
+
+
+# ----------------------------------------------------------------- the first week's frictions
+def test_show_a_job_file_with_a_model_of_ones_own(frame3d, tmp_path, capsys):
+    d, structure = frame3d
+    job = d / "show.toml"
+    job.write_text('name = "mine"\nsensors = ["strain:35", "acc:108:y"]\n' + structure
+                   + 'strains = "S.mtx"\nextensometers = [[101, 118]]\n')
+    assert main(["show", str(job), "--out", str(tmp_path), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["node_ids"] == [101, 118] and info["strain_outputs"] == 35 and info["dofs"] == 33
+    assert info["strains"][0] == {"output": "strain:1", "is": "strain operator row", "nodes": None, "row": 1}
+    assert info["strains"][34] == {"output": "strain:35", "is": "extensometer", "nodes": [101, 118], "row": None}
+    assert info["frequencies_hz"][0] == pytest.approx(s17_truss().frequencies(1)[0], rel=1e-10)
+    assert (tmp_path / "mine.png").stat().st_size > 0
+    assert main(["show", str(job), "--no-plot"]) == 0
+    assert "strain:35  extensometer 101-118" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command, example", [("estimate", "s17-case4"), ("place", "th-case5"),
+                                              ("locate", "imp-truss-case1")])
+def test_print_job_gives_a_template_that_runs(tmp_path, capsys, command, example):
+    from akf.jobs import load_job
+
+    assert main([command, "--example", example, "--print-job"]) == 0
+    text = capsys.readouterr().out
+    (tmp_path / "mine.toml").write_text(text)
+    assert load_job(str(tmp_path / "mine.toml"), command)["name"] == example
+    assert text.startswith(f"# {example}")
+
+
+def test_print_job_without_an_example(capsys):
+    assert main(["estimate", "--print-job"]) == 2
+    assert "give --example NAME" in capsys.readouterr().err
+
+
+def test_candidate_set_is_exported():
+    import sensoropt
+
+    assert sensoropt.CandidateSet is sensoropt.encoding.CandidateSet and "CandidateSet" in sensoropt.__all__

@@ -29,3 +29,20 @@ def check_job_or_example(args, kind="job file"):
         raise AKFInputError(f"give a {kind} or --example NAME (see --list-examples)")
     if getattr(args, "n_jobs", 1) == 0:
         raise AKFInputError("--n-jobs must be a positive number of workers, or negative (-1: all cores), not 0")
+
+
+def add_print_job(parser):
+    """``--print-job`` for a sub-command with built-in examples."""
+    parser.add_argument("--print-job", action="store_true", help="print the --example's job file (TOML, with its "
+                        "comments) and exit: a template to start a job of your own from (> my_job.toml)")
+
+
+def print_job(args):
+    """Print the job file of ``args.example`` as it is written; returns the exit code."""
+    from ..examples import example_path
+
+    if not args.example:
+        raise AKFInputError("--print-job prints a built-in example's job file: give --example NAME (see --list-examples)")
+    with open(example_path(args.example), encoding="utf-8") as fh:
+        print(fh.read(), end="")
+    return 0

@@ -10,7 +10,7 @@ from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
 from ..writers import draw
-from .common import print_written
+from .common import add_print_job, print_job, print_written
 
 #: above this many (channel x step) rows, "all" strain histories are not written to the CSV
 _MAX_STRAIN_ROWS = 2_000_000
@@ -69,6 +69,8 @@ def _estimate(args):
     if args.list_examples:
         print_examples("estimate")
         return 0
+    if args.print_job:
+        return print_job(args)
     check_job_or_example(args)
     job = example_job(args.example) if args.example else load_job(args.job, "estimate")
     if args.duration is not None:
@@ -206,4 +208,5 @@ def register(sub):
                    "last written chunk")
     p.add_argument("--overwrite", action="store_true", help="measured data: start anew in --out, replacing an "
                    "interrupted run's checkpoint and partial output")
+    add_print_job(p)
     p.set_defaults(func=_estimate)

@@ -12,6 +12,7 @@ from core_akf.outputs import OutputFolder
 
 from ..jobs import load_job
 from ..parallel import add_scheduler_option, scheduler, workers
+from .common import add_print_job, print_job
 
 
 def _locate(args):
@@ -21,6 +22,8 @@ def _locate(args):
     if args.list_examples:
         print_examples("locate")
         return 0
+    if args.print_job:
+        return print_job(args)
     check_job_or_example(args, "locate job file")
     if args.job is not None:
         job = load_job(args.job, "locate")
@@ -131,4 +134,5 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bars)")
     p.add_argument("--out", help="output folder (default akf-out/locate/NAME)")
     p.add_argument("--no-plot", action="store_true", help="do not write PNG figures")
+    add_print_job(p)
     p.set_defaults(func=_locate)

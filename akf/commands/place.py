@@ -14,7 +14,7 @@ from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
 from ..parallel import add_scheduler_option, check_scheduler
-from .common import print_written
+from .common import add_print_job, print_job, print_written
 
 
 def _place(args):
@@ -26,6 +26,8 @@ def _place(args):
     if args.list_examples:
         print_examples("place")
         return 0
+    if args.print_job:
+        return print_job(args)
     check_job_or_example(args, "place job file")
     check_scheduler(args.scheduler)          # before the problem is built
     if args.example:
@@ -159,4 +161,5 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bar)")
     p.add_argument("--out", help="output folder (default akf-out/place/NAME-N-seedS)")
     p.add_argument("--no-plot", action="store_true", help="do not write PNG figures")
+    add_print_job(p)
     p.set_defaults(func=_place)

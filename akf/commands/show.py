@@ -1,48 +1,115 @@
-"""``akf show MODEL``: a built-in structure with its node and member numbers (PNG) and its
-first natural frequencies, to write sensors and forces (``strain:13``, ``acc:8:y``, ``8:y``)."""
+"""``akf show MODEL`` or ``akf show JOB.toml``: a built-in structure, or the structure of a job
+file (a model of one's own included), with its node and member numbers (PNG), its first natural
+frequencies and what each strain output is, to write sensors and forces (``strain:13``,
+``acc:8:y``, ``8:y``)."""
 from __future__ import annotations
 
 import json
 import os
+import sys
 
+from core_akf.exceptions import AKFInputError
 from core_akf.outputs import OutputFolder
 
 from ..jobs import MODELS, build_structure
 
 
+def _structure_of(target):
+    """``(structure, name, sensors, forces)`` of a built-in model name or a job file."""
+    if target in MODELS and target != "matrices":
+        return build_structure({"model": target}), target, [], []
+    if not os.path.isfile(target):
+        raise AKFInputError(f"{target!r} is neither a built-in structure ({', '.join(sorted(set(MODELS) - {'matrices'}))}) "
+                            "nor a job file")
+    from ..jobs import load_job_file, resolve_paths
+
+    job = resolve_paths(load_job_file(target), target)
+    if not isinstance(job.get("structure"), dict):
+        raise AKFInputError(f"{target}: the job file has no [structure] table")
+    name = job.get("name") or os.path.splitext(os.path.basename(target))[0]
+    return build_structure(job["structure"]), str(name), list(job.get("sensors") or []), list(job.get("forces") or [])
+
+
+def strain_outputs(structure):
+    """What every strain output is: ``[{"output": "strain:k", "is": ...}]`` -- a truss member or
+    an extensometer (its two nodes), a row of a strain operator of one's own, or a plate node's
+    component."""
+    from core_akf.sensors import strain_ends
+
+    rows = []
+    for k, label in enumerate(structure.strain_labels, start=1):
+        if structure.strain_kind != "member":
+            rows.append({"output": label, "is": "surface strain at a plate node"})
+            continue
+        ends = strain_ends(structure, k)
+        what = ("member" if structure.members is not None else "extensometer") if ends else "strain operator row"
+        rows.append({"output": label, "is": what, "nodes": list(ends) if ends else None,
+                     "row": None if ends else k})
+    return rows
+
+
 def _show(args):
     from core_akf.figures import plot_structure
 
-    structure = build_structure({"model": args.model})
-    f = structure.frequencies()[: args.modes]
-    info = {"model": args.model, "nodes": structure.n_nodes, "dofs": structure.n,
-            "dof_directions": list(structure.dof_names),
-            "strain_outputs": structure.n_strain, "first_strain_output": structure.strain_labels[0],
-            "last_strain_output": structure.strain_labels[-1], "frequencies_hz": [float(x) for x in f]}
+    structure, name, sensors, forces = _structure_of(args.model)
+    f = structure.frequencies(min(args.modes, structure.n))
+    info = {"model": name, "nodes": structure.n_nodes, "dofs": structure.n,
+            "dof_directions": list(structure.dof_names), "node_ids": [int(structure.user_node_ids.min()),
+                                                                       int(structure.user_node_ids.max())],
+            "strain_outputs": structure.n_strain, "frequencies_hz": [float(x) for x in f]}
+    if structure.n_strain:
+        info["first_strain_output"] = structure.strain_labels[0]
+        info["last_strain_output"] = structure.strain_labels[-1]
+        info["strains"] = strain_outputs(structure)
     if structure.members is not None:
         info["members"] = int(len(structure.members))
-    files = {}
+    files, notes = {}, []
+    if not args.json:
+        _print(info, structure)
+        sys.stdout.flush()
     if not args.no_plot:
+        from ..writers import draw
+
         out = args.out or os.path.join("akf-out", "show")
         with OutputFolder(out, "--out"):
-            files["figure"] = os.path.join(out, f"{args.model}.png")
-            plot_structure(structure, files["figure"])
+            draw(files, "figure", notes, plot_structure, structure, os.path.join(out, f"{name}.png"),
+                 sensors=sensors, forces=forces, numbers=structure.n_nodes <= 200)
     if args.json:
-        print(json.dumps(dict(info, files=files)))
+        print(json.dumps(dict(info, files=files, warnings=notes)))
         return 0
-    print(f"{args.model}: {structure.n_nodes} nodes, {structure.n} free DOFs ({'/'.join(structure.dof_names)} per node)"
-          + (f", {info['members']} members" if "members" in info else ""))
-    print(f"  strain outputs: {structure.n_strain} ({info['first_strain_output']} ... {info['last_strain_output']})")
-    print("  first natural frequencies (Hz): " + ", ".join(f"{x:.4g}" for x in f))
     for k, v in files.items():
         print(f"  wrote {k}: {v}")
+    for note in notes:
+        print(f"  WARNING: {note}")
     return 0
+
+
+def _print(info, structure):
+    print(f"{info['model']}: {structure.n_nodes} nodes (ids {info['node_ids'][0]}..{info['node_ids'][1]}), "
+          f"{structure.n} {'modal coordinates' if structure.is_reduced else 'free DOFs'} "
+          f"({'/'.join(structure.dof_names)} per node)" + (f", {info['members']} members" if "members" in info else ""))
+    if not structure.n_strain:
+        print("  strain outputs: none (give extensometers or strain rows for strains)")
+    else:
+        print(f"  strain outputs: {structure.n_strain} ({info['first_strain_output']} ... {info['last_strain_output']})")
+        rows = info["strains"]
+        if rows[0]["is"] in ("extensometer", "strain operator row"):
+            shown = rows if len(rows) <= 12 else rows[:6] + [None] + rows[-6:]
+            for r in shown:
+                if r is None:
+                    print("    ...")
+                elif r["nodes"]:
+                    print(f"    {r['output']:>12s}  {r['is']} {r['nodes'][0]}-{r['nodes'][1]}")
+                else:
+                    print(f"    {r['output']:>12s}  row {r['row']} of the strain operator")
+    print("  first natural frequencies (Hz): " + ", ".join(f"{x:.4g}" for x in info["frequencies_hz"]))
 
 
 def register(sub):
     """Add ``show`` to the ``akf`` sub-command parser."""
-    p = sub.add_parser("show", help="draw a built-in structure with its node and member numbers")
-    p.add_argument("model", choices=sorted(MODELS), help="built-in structure")
+    p = sub.add_parser("show", help="draw a structure (built-in or a job file's) with its node and member numbers")
+    p.add_argument("model", metavar="MODEL_OR_JOB", help="a built-in structure (" + ", ".join(sorted(set(MODELS) - {
+        "matrices"})) + ") or a job file (TOML) whose [structure] to show, with its sensors and forces")
     p.add_argument("--modes", type=int, default=6, help="natural frequencies to print (default 6)")
     p.add_argument("--out", help="output folder (default akf-out/show)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
