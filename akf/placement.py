@@ -58,4 +58,22 @@ def problem_from_job(job):
                                force_increment_cov=default("force_increment_cov", f.force_increment_cov),
                                n_modes=None if p.n_modes == "full" else (p.n_modes or "auto"),
                                seed=sim.seed or 0)
+    if f.force_increment_cov is None:
+        problem.notes = force_increment_notes(loads)
     return problem, {k: getattr(p, k) for k in GA_KEYS if getattr(p, k) is not None}
+
+
+def force_increment_notes(loads, band=10.0):
+    """A note when the default S (``force_increment_cov``, 1 N^2 per step) is far from the
+    variance of the loads' own increments per step (more than ``band`` times off): on kN loads a
+    layout's error is then reported several times too large, and the GA may rank layouts by the
+    filter's lag rather than by where the sensors are."""
+    import numpy as np
+
+    s_default = default("force_increment_cov")
+    own = float(np.mean(np.var(np.diff(loads, axis=0), axis=0))) if loads.shape[0] > 2 else s_default
+    if own > 0 and not s_default / band <= own <= s_default * band:
+        return [f"[filter] force_increment_cov is not set: S = {s_default:g} N^2 per step (the default), but the "
+                f"loads change by {own:.3g} N^2 per step (variance of their increments); set force_increment_cov = "
+                f"{own:.3g} (or your own estimate of how fast the forces change) for errors that mean something"]
+    return []

@@ -43,6 +43,8 @@ class PlacementProblem:
     reference_layouts: dict = field(default_factory=dict)
     candidates: list = None
     targets: list = None
+    #: what a user should know about the settings (shown with the result)
+    notes: list = field(default_factory=list)
 
     def encoding(self):
         return make_encoding(self.structure, kinds=self.kinds, n_sensors=self.n_sensors, budget=self.budget,

@@ -69,7 +69,7 @@ def _run_place(args, problem, settings, out):
         for path in (checkpoint, f"{checkpoint}.bak"):
             if os.path.lexists(path):
                 os.remove(path)
-    notes = window_notes(problem)
+    notes = window_notes(problem) + list(problem.notes)
     if notes and not args.json:
         for note in notes:
             print(f"akf: note: {note}", file=sys.stderr)
