@@ -25,6 +25,7 @@ from core_akf.outputs import atomic_path, confined, write_csv
 from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
 from core_akf.streaming import CheckpointError, Estimator
 
+from .plots import plot_estimate, plot_sensors
 from .schema import parse_job
 from .writers import draw
 
@@ -144,7 +145,7 @@ def _changed_keys(old, new):
 
 
 #: what a checkpoint of :func:`stream_job` holds besides the filter's and the diagnostics' state
-_CHECKPOINT_KEYS = ("job", "files", "next_step", "position", "chunk", "plot_t", "plot_f")
+_CHECKPOINT_KEYS = ("job", "files", "next_step", "position", "chunk", "plot_t", "plot_f", "plot_y", "plot_p")
 
 
 def _load_checkpoint(path):
@@ -251,7 +252,7 @@ def stream_job(job, out, *, resume=False, overwrite=False, allow_undetectable=No
     checkpoint = os.path.join(out, CHECKPOINT)
     start = 0
     decimate = max(1, -(-n_total // _PLOT_POINTS))
-    kept = {"t": [], "f": []}
+    kept = {"t": [], "f": [], "y": [], "p": []}      # the record decimated for the figures
     if resume and overwrite:
         raise AKFInputError("--resume continues a run and --overwrite starts anew: give one of them")
     if not resume and os.path.lexists(checkpoint) and not overwrite:
@@ -273,7 +274,7 @@ def stream_job(job, out, *, resume=False, overwrite=False, allow_undetectable=No
         estimator.restore(saved)
         start = int(saved["next_step"])
         writer.start(int(saved["position"]))
-        kept = {"t": [saved["plot_t"]], "f": [saved["plot_f"]]}
+        kept = {k: [saved[f"plot_{k}"]] for k in kept}
     else:
         writer.start(0)
     last = None
@@ -293,13 +294,15 @@ def stream_job(job, out, *, resume=False, overwrite=False, allow_undetectable=No
         sel = np.arange((-step) % decimate, est.forces.shape[0], decimate)
         kept["t"].append(est.time[sel])
         kept["f"].append(est.forces[sel])
+        kept["y"].append(est.measurements[sel])
+        kept["p"].append(est.predicted[sel])
         done += 1
         progress_bar(Y.shape[0])
         if step + Y.shape[0] < n_total:      # after the last chunk the summary follows: a resume redoes that chunk
             state = estimator.state() | diag.state() | {
                 "next_step": np.array(step + Y.shape[0]), "position": np.array(writer.position),
-                "job": np.array(spec), "files": np.array(data_files), "chunk": np.array(chunk), "plot_t": np.concatenate(kept["t"]),
-                "plot_f": np.vstack(kept["f"])}
+                "job": np.array(spec), "files": np.array(data_files), "chunk": np.array(chunk)} | {
+                f"plot_{k}": np.concatenate(v) if k == "t" else np.vstack(v) for k, v in kept.items()}
             with atomic_path(checkpoint) as tmp:
                 with open(tmp, "wb") as fh:
                     np.savez(fh, **state)
@@ -321,8 +324,14 @@ def stream_job(job, out, *, resume=False, overwrite=False, allow_undetectable=No
     files = {"timeseries": writer.path, "summary": os.path.join(out, "summary.csv")}
     write_csv(summary_frame(metrics), files["summary"])
     if plot:       # after the results: a figure that fails is a warning
-        draw(files, "figure", metrics["warnings"], _plot, np.concatenate(kept["t"]), np.vstack(kept["f"]), forces,
-             metrics, os.path.join(out, "estimate.png"), job.get("name", "AKF estimate"), decimate)
+        t = np.concatenate(kept["t"])
+        title = job.get("name", "AKF estimate")
+        draw(files, "figure", metrics["warnings"], plot_estimate, t, np.vstack(kept["f"]),
+             [f"{n}:{d}" for n, d in forces], os.path.join(out, "estimate.png"), f"{title}: estimated forces (streamed)",
+             consistency={d["channel"]: d["consistency"] for d in metrics["sensors"]},
+             note=f"; every {decimate}th step drawn" if decimate > 1 else "")
+        draw(files, "sensors_figure", metrics["warnings"], plot_sensors, t, np.vstack(kept["y"]), np.vstack(kept["p"]),
+             sensors, os.path.join(out, "sensors.png"), f"{title}: measured vs. predicted at the sensors")
     if os.path.exists(checkpoint):
         os.remove(checkpoint)        # a link is removed, never what it points to
     return StreamResult(job, metrics, files, record.describe(), notes, start)
@@ -335,22 +344,3 @@ def _progress(on, total, start):
 
     bar = tqdm(total=total, initial=start, unit="step", unit_scale=True, desc="estimate", leave=False)
     return bar.update
-
-
-def _plot(t, f, forces, metrics, path, title, decimate):
-    from core_akf.figures import save_figure, subplots
-
-    nf = f.shape[1]
-    fig, axes = subplots(nf + 1, 1, figsize=(9, 2.2 * (nf + 1)), squeeze=False)
-    for j, (node, d) in enumerate(forces):
-        axes[j, 0].plot(t, f[:, j] / 1e3, "r-", lw=0.6)
-        axes[j, 0].set_ylabel(f"force {node}:{d}\n(kN)")
-    axes[-2, 0].set_xlabel("time (s)" + (f"; every {decimate}th step drawn" if decimate > 1 else ""))
-    ax = axes[-1, 0]
-    sens = metrics["sensors"]
-    ax.bar(range(len(sens)), [d["consistency"] for d in sens], color="tab:blue")
-    ax.axhline(1.0, color="k", lw=0.6, ls=":")
-    ax.set_xticks(range(len(sens)), [d["channel"] for d in sens], rotation=45, fontsize=7)
-    ax.set_ylabel("innovation /\npredicted")
-    fig.suptitle(f"{title}: estimated forces (streamed)")
-    return save_figure(fig, path)

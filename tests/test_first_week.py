@@ -562,3 +562,40 @@ def test_candidate_set_is_exported():
     import sensoropt
 
     assert sensoropt.CandidateSet is sensoropt.encoding.CandidateSet and "CandidateSet" in sensoropt.__all__
+
+
+def test_figures_of_a_measured_record_include_every_sensor_in_microstrain(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["estimate", str(_measured_job(tmp_path)), "--out", str(out), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert {"figure", "sensors_figure"} <= set(res["files"]) and (out / "sensors.png").stat().st_size > 0
+
+
+def test_sensor_figure_labels_strain_in_microstrain_and_draws_every_sensor(tmp_path):
+    from akf.plots import plot_sensors
+    from core_akf.sensors import as_layout
+
+    sensors = as_layout([f"strain:{m}" for m in range(1, 15)] + ["acc:4:y"])
+    t = np.arange(50) * 1e-3
+    y = np.ones((50, 15)) * 1e-6
+    plot_sensors(t, y, y, sensors, str(tmp_path / "s.png"), "t")
+    import matplotlib.image
+
+    assert matplotlib.image.imread(tmp_path / "s.png").shape[0] > 500
+
+
+def test_error_panel_at_a_thousand_outputs_ranks_the_worst(tmp_path, monkeypatch):
+    import akf.plots as plots
+
+    seen = {}
+    original = plots._strain_error_panel
+
+    def spy(ax, errors):
+        original(ax, errors)
+        seen["labels"] = [t.get_text() for t in ax.get_yticklabels()]
+        seen["bars"] = len(ax.patches)
+    monkeypatch.setattr(plots, "_strain_error_panel", spy)
+    errors = {f"strain:{k}": k * 1e-9 for k in range(1, 1101)}
+    plots.plot_estimate(np.arange(10.0), np.zeros((10, 1)), ["8:y"], str(tmp_path / "e.png"), "t",
+                        reference=np.ones((10, 1)), strain_errors=errors)
+    assert seen["bars"] == plots.WORST and seen["labels"][-1] == "strain:1100"

@@ -17,48 +17,20 @@ _MAX_STRAIN_ROWS = 2_000_000
 
 
 def _plot(result, path):
-    from core_akf.figures import save_figure, subplots
+    from ..plots import plot_estimate
 
     est, sim = result.estimate, result.simulation
-    nf = est.forces.shape[1]
-    fig, axes = subplots(nf + 1, 1, figsize=(9, 2.2 * (nf + 1)), squeeze=False)
-    for j, (node, d) in enumerate(est.force_locations):
-        ax = axes[j, 0]
-        if sim is not None:
-            ax.plot(est.time, sim.loads[:, j] / 1e3, "k:", lw=1, label="reference")
-        ax.plot(est.time, est.forces[:, j] / 1e3, "r-", lw=0.8, label="AKF estimate")
-        ax.set_ylabel(f"force {node}:{d}\n(kN)")
-        ax.legend(loc="upper right", fontsize=7)
-    ax = axes[-1, 0]
-    if result.metrics.get("rms_strain"):
-        vals = list(result.metrics["rms_strain"].values())
-        ax.bar(range(1, len(vals) + 1), [v * 1e6 for v in vals], color="tab:blue")
-        ax.set_xlabel("strain component / member")
-        ax.set_ylabel("RMS strain\nerror (µε)")
-    axes[-2, 0].set_xlabel("time (s)")
-    fig.suptitle(result.job.get("name", "AKF estimate"))
-    return save_figure(fig, path)
+    return plot_estimate(est.time, est.forces, [f"{n}:{d}" for n, d in est.force_locations], path,
+                         result.job.get("name", "AKF estimate"), reference=None if sim is None else sim.loads,
+                         strain_errors=result.metrics.get("rms_strain"))
 
 
-def _plot_sensors(result, path, max_channels=8):
-    """Measured against one-step predicted signal at (up to ``max_channels``) sensors."""
-    from core_akf.figures import save_figure, subplots
-    from core_akf.sensors import UNITS
+def _plot_sensors(result, path):
+    from ..plots import plot_sensors
 
     est = result.estimate
-    k = min(len(est.sensors), max_channels)
-    fig, axes = subplots(k, 1, figsize=(9, 1.8 * k + 0.6), squeeze=False, sharex=True)
-    pred = est.predicted
-    for j in range(k):
-        ax = axes[j, 0]
-        ax.plot(est.time, est.measurements[:, j], "k-", lw=0.6, label="measured")
-        ax.plot(est.time, pred[:, j], "r-", lw=0.6, alpha=0.8, label="predicted (one step)")
-        ax.set_ylabel(f"{est.sensors[j].label}\n({UNITS[est.sensors[j].kind]})", fontsize=8)
-        ax.legend(loc="upper right", fontsize=7)
-    axes[-1, 0].set_xlabel("time (s)")
-    shown = "" if k == len(est.sensors) else f" (first {k} of {len(est.sensors)})"
-    fig.suptitle(f"{result.job.get('name', 'AKF estimate')}: measured vs. predicted at the sensors{shown}")
-    return save_figure(fig, path)
+    return plot_sensors(est.time, est.measurements, est.predicted, est.sensors, path,
+                        f"{result.job.get('name', 'AKF estimate')}: measured vs. predicted at the sensors")
 
 
 def _estimate(args):

@@ -1,0 +1,84 @@
+"""The figures of ``akf estimate`` (simulated and measured jobs alike): the estimated forces (with
+the reference when there is one) and the strain errors, and every sensor's measured signal against
+its one-step prediction.  Each takes plain arrays, writes ``path`` and returns it."""
+from __future__ import annotations
+
+import numpy as np
+
+#: above this many strain outputs, the error panel ranks the worst :data:`WORST` instead of a bar each
+MANY_OUTPUTS = 40
+WORST = 25
+
+
+def plot_estimate(time, forces, force_labels, path, title, reference=None, strain_errors=None, consistency=None,
+                  note=""):
+    """Estimated forces (kN) against time, the reference (dashed, drawn on top) if given, the RMS
+    strain error per output (µε; the worst :data:`WORST` ranked when there are many) and the
+    consistency per sensor (``{channel: innovation RMS / predicted}``) if given."""
+    from core_akf.figures import save_figure, subplots
+
+    nf = forces.shape[1]
+    panels = nf + (1 if strain_errors else 0) + (1 if consistency else 0)
+    fig, axes = subplots(panels, 1, figsize=(9, 2.2 * panels + (1.5 if strain_errors and len(strain_errors) > MANY_OUTPUTS
+                                                                 else 0)), squeeze=False)
+    for j, label in enumerate(force_labels):
+        ax = axes[j, 0]
+        ax.plot(time, forces[:, j] / 1e3, "-", color="tab:red", lw=0.9, label="AKF estimate", zorder=2)
+        if reference is not None:
+            ax.plot(time, reference[:, j] / 1e3, "--", color="k", lw=0.9, label="reference", zorder=3)
+        ax.set_ylabel(f"force {label}\n(kN)")
+        ax.legend(loc="upper right", fontsize=7)
+    axes[nf - 1, 0].set_xlabel("time (s)" + note)
+    if strain_errors:
+        _strain_error_panel(axes[nf, 0], strain_errors)
+    if consistency:
+        ax = axes[-1, 0]
+        ax.bar(range(len(consistency)), list(consistency.values()), color="tab:blue")
+        ax.axhline(1.0, color="k", lw=0.8, ls="--")
+        ax.set_xticks(range(len(consistency)), list(consistency), rotation=45, fontsize=7)
+        ax.set_ylabel("innovation /\npredicted")
+    fig.suptitle(title)
+    return save_figure(fig, path)
+
+
+def _strain_error_panel(ax, errors):
+    labels, values = list(errors), np.array(list(errors.values())) * 1e6
+    if len(values) <= MANY_OUTPUTS:
+        ax.bar(range(len(values)), values, color="tab:blue")
+        ax.set_xticks(range(len(values)), [lab.replace("strain:", "") for lab in labels], rotation=90, fontsize=6)
+        ax.set_xlabel("strain output")
+    else:
+        order = np.argsort(values)[::-1][:WORST]
+        ax.barh(range(len(order)), values[order][::-1], color="tab:blue")
+        ax.set_yticks(range(len(order)), [labels[i] for i in order][::-1], fontsize=6)
+        ax.set_xlabel(f"RMS strain error (µε): the {len(order)} worst of {len(values)} outputs; mean "
+                      f"{values.mean():.3g}, median {np.median(values):.3g} µε (all in summary.csv)")
+        return
+    ax.set_ylabel("RMS strain\nerror (µε)")
+
+
+def plot_sensors(time, measured, predicted, sensors, path, title):
+    """Every sensor's measured signal against its one-step prediction, in readable units (strain
+    in µε); several columns for many sensors."""
+    from core_akf.figures import save_figure, subplots
+    from core_akf.sensors import UNITS
+
+    k = len(sensors)
+    ncols = 1 if k <= 10 else 2 if k <= 24 else 3
+    nrows = -(-k // ncols)
+    fig, axes = subplots(nrows, ncols, figsize=(9 * min(ncols, 2), 1.5 * nrows + 0.8), squeeze=False, sharex=True)
+    for j, s in enumerate(sensors):
+        ax = axes[j % nrows, j // nrows]
+        scale, unit = (1e6, "µε") if s.kind == "strain" else (1.0, UNITS[s.kind])
+        ax.plot(time, measured[:, j] * scale, "-", color="k", lw=0.6, label="measured")
+        ax.plot(time, predicted[:, j] * scale, "-", color="tab:red", lw=0.6, alpha=0.8, label="predicted (one step)")
+        ax.set_ylabel(f"{s.label}\n({unit})", fontsize=7)
+        ax.tick_params(labelsize=7)
+        if j == 0:
+            ax.legend(loc="upper right", fontsize=7)
+    for j in range(k, nrows * ncols):
+        axes[j % nrows, j // nrows].set_visible(False)
+    for c in range(ncols):
+        axes[nrows - 1, c].set_xlabel("time (s)")
+    fig.suptitle(title)
+    return save_figure(fig, path)
