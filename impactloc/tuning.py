@@ -22,6 +22,11 @@ from .scan import Covariances, ImpactModel, check_measurements, location_errors
 _TASK = 4
 
 
+#: a tuned level on a search bound is settled (not a warning) when moving it 3 decades further changes
+#: the AD error by less than this fraction
+BOUND_INSENSITIVE = 0.005
+
+
 @dataclass
 class TuningResult:
     """Outcome of :func:`tune_covariances`.
@@ -33,7 +38,11 @@ class TuningResult:
     logbook : DataFrame, one row per generation (best, mean, std, evaluations, seconds)
     genes : names of the tuned log10 levels
     at_bound : {gene: "lower"|"upper"} for tuned levels on (within 1 % of the range of) a search
-        bound: the optimum may lie beyond it; widen ``decades`` or move the starting levels
+        bound where a level 3 decades further out changes the error: the optimum may lie beyond
+        it; widen ``decades`` or move the starting levels
+    settled : {gene: "lower"|"upper"} for levels on a bound beyond which the error no longer
+        changes (within :data:`BOUND_INSENSITIVE`): e.g. no model error at all when the filter's
+        model is exact.  Not a warning: any level past the bound gives the same estimate.
     """
 
     covariances: Covariances
@@ -42,6 +51,7 @@ class TuningResult:
     logbook: object
     genes: list = field(default_factory=list)
     at_bound: dict = field(default_factory=dict)
+    settled: dict = field(default_factory=dict)
 
     @property
     def warnings(self):
@@ -158,5 +168,14 @@ def tune_covariances(structure, sensors, measurements, dt, location, splits, *, 
     edge = 0.01 * (hi - lo)
     at_bound = {g: ("lower" if v <= l + e else "upper") for g, v, l, h, e in zip(names, best_x, lo, hi, edge)
                 if v <= l + e or v >= h - e}
+    # a level at a bound matters only if moving it further changes the error: probe once, 3 decades out
+    settled = {}
+    for g, side in list(at_bound.items()):
+        probe = list(best_x)
+        probe[names.index(g)] += -3.0 if side == "lower" else 3.0
+        beyond = evaluator([tuple(probe)])[0][0]
+        if abs(beyond - best_f) <= BOUND_INSENSITIVE * abs(best_f):
+            settled[g] = side
+            del at_bound[g]
     return TuningResult(_to_covariances(list(best_x), names, start), float(initial_error), float(best_f),
-                        res.logbook, names, at_bound)
+                        res.logbook, names, at_bound, settled)

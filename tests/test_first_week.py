@@ -599,3 +599,12 @@ def test_error_panel_at_a_thousand_outputs_ranks_the_worst(tmp_path, monkeypatch
     plots.plot_estimate(np.arange(10.0), np.zeros((10, 1)), ["8:y"], str(tmp_path / "e.png"), "t",
                         reference=np.ones((10, 1)), strain_errors=errors)
     assert seen["bars"] == plots.WORST and seen["labels"][-1] == "strain:1100"
+
+
+def test_flagship_locate_example_does_not_warn_about_a_bound_that_does_not_matter(tmp_path, capsys):
+    """imp-truss-case1 tunes the model error to its lower bound: its filter model is exact, and a
+    level 3 decades lower gives the same AD error, so it is settled, not a warning."""
+    assert main(["locate", "--example", "imp-truss-case1", "--json", "--no-plot", "--out", str(tmp_path)]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["identified"] == 14 and not any("search bound" in w for w in d["warnings"])
+

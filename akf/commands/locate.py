@@ -61,6 +61,9 @@ def _locate(args):
           f"impulse {d['impulse']:.2f} N s")
     if result.tuning is not None:
         print(f"  covariance tuning: AD error {d['ad_error_before_tuning']:.4f} -> {d['ad_error_after_tuning']:.4f}")
+        for gene, side in result.tuning.settled.items():
+            print(f"    {gene} tuned to its {side} search bound, beyond which the error no longer changes "
+                  f"({'the data need no more of it' if side == 'lower' else 'any larger level does the same'})")
     if scenario is not None:
         print(f"  truth: node {scenario.impact[0]}, peak {np.max(np.abs(scenario.true_force)) / 1e3:.3f} kN")
     for w in list(result.warnings) + figure_notes:
