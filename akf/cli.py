@@ -9,6 +9,7 @@ Exit codes: 0 done, 2 bad input, 3 undetectable sensor set, 4 the dask cluster l
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 from importlib.metadata import entry_points
@@ -44,12 +45,55 @@ def build_parser():
             print(f"akf: warning: the sub-command {name!r} ({ep.value}) could not be loaded: {exc}", file=sys.stderr)
             continue
         register(sub)
+    for p in [parser, *sub.choices.values()]:        # before or after the sub-command: akf -q estimate, akf estimate -q
+        _add_verbosity(p, top=p is parser)
     return parser
+
+
+def _add_verbosity(p, top):
+    default = None if not top else 0      # a sub-command's own flag only overrides when given
+    group = p.add_mutually_exclusive_group()
+    try:
+        group.add_argument("-v", "--verbose", dest="verbosity" if top else "sub_verbosity", action="store_const",
+                           const=1, default=default, help="more detail: debug messages (figure errors in full, ...)")
+        group.add_argument("-q", "--quiet", dest="verbosity" if top else "sub_verbosity", action="store_const",
+                           const=-1, default=default, help="results and warnings only: no progress bars or notes")
+    except argparse.ArgumentError:        # a plugin that has its own -v or -q keeps it
+        pass
+
+
+class _Handler(logging.StreamHandler):
+    """The ``akf`` logger's messages on the current ``sys.stdout`` (warnings on ``sys.stderr``)."""
+
+    def emit(self, record):
+        self.stream = sys.stderr if record.levelno >= logging.WARNING else sys.stdout
+        super().emit(record)
+
+
+def configure_logging(verbosity=0):
+    """Show the ``akf`` logger's messages on the terminal: INFO and up (``verbosity`` 0), WARNING
+    and up (-1, ``--quiet``: progress bars off as well), DEBUG and up (1, ``--verbose``).  Used
+    as a library, nothing is configured: the messages go where the caller's logging sends them."""
+    logger = logging.getLogger("akf")
+    for h in [h for h in logger.handlers if isinstance(h, _Handler)]:
+        logger.removeHandler(h)
+    handler = _Handler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    logger.addHandler(handler)
+    logger.setLevel({-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}[verbosity])
+    logger.propagate = False
+    if verbosity < 0:
+        os.environ["TQDM_DISABLE"] = "1"          # tqdm's own switch: every progress bar off
+    elif os.environ.get("TQDM_DISABLE") == "1" and logger.__dict__.pop("_akf_quiet", False):
+        del os.environ["TQDM_DISABLE"]            # a later run in the same process that is not quiet
+    logger._akf_quiet = verbosity < 0
 
 
 def main(argv=None):
     """Run ``akf`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     args = build_parser().parse_args(argv)
+    verbosity = getattr(args, "sub_verbosity", None)
+    configure_logging(verbosity if verbosity is not None else (args.verbosity or 0))
     try:
         return args.func(args)
     except UndetectableError as exc:

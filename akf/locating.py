@@ -32,6 +32,7 @@ A locate job (TOML)::
 """
 from __future__ import annotations
 
+import logging
 import os
 
 from core_akf.exceptions import AKFInputError
@@ -40,6 +41,7 @@ from core_akf.outputs import confined, write_csv
 from .schema import parse_job
 from .writers import draw
 
+log = logging.getLogger("akf")
 
 def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None):
     """Run a locate job (a dict from TOML, see :mod:`akf.schema`; a relative data path is taken
@@ -128,13 +130,13 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
             message = str(exc) if isinstance(exc, AKFInputError) else f"{type(exc).__name__}: {exc}"
             row = {"file": shown, "error": message}
             if progress:
-                print(f"  [{i + 1}/{len(files)}] {name}: not located: {message}")
+                log.info(f"  [{i + 1}/{len(files)}] {name}: not located: {message}")
         else:
             if progress:
-                print(f"  [{i + 1}/{len(files)}] {name}: node {row['node']} ({row['direction']}), confidence "
+                log.info(f"  [{i + 1}/{len(files)}] {name}: node {row['node']} ({row['direction']}), confidence "
                       f"{row['confidence']:.2f}, peak {row['peak_force'] / 1e3:.3f} kN at {row['time_of_peak']:.4f} s")
                 for w in d["warnings"]:
-                    print(f"      WARNING: {w}")
+                    log.warning(f"      WARNING: {w}")
         rows.append(row)
         frame = pd.DataFrame(rows, columns=columns)
         write_csv(frame, written["events"])          # after every event: what is located is kept
@@ -146,7 +148,7 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
         draw(written, "events_figure", notes, _plot_events, build_structure(job["structure"]), frame,
              os.path.join(out, "events.png"), job.get("name", "impacts"))
         if notes and progress:
-            print(f"  WARNING: {notes[0]}")
+            log.warning(f"  WARNING: {notes[0]}")
     return frame, written
 
 

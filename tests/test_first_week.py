@@ -608,3 +608,31 @@ def test_flagship_locate_example_does_not_warn_about_a_bound_that_does_not_matte
     d = json.loads(capsys.readouterr().out)
     assert d["identified"] == 14 and not any("search bound" in w for w in d["warnings"])
 
+
+
+def test_quiet_and_verbose_before_or_after_the_command(tmp_path, capsys):
+    import logging
+
+    assert main(["-q", "show", "s17_truss", "--no-plot"]) == 0
+    assert logging.getLogger("akf").level == logging.WARNING
+    assert main(["show", "s17_truss", "--no-plot", "-v"]) == 0
+    assert logging.getLogger("akf").level == logging.DEBUG
+    assert main(["show", "s17_truss", "--no-plot"]) == 0
+    assert logging.getLogger("akf").level == logging.INFO and "TQDM_DISABLE" not in os.environ
+
+
+def test_locate_events_log_instead_of_printing(tmp_path, caplog, capsys):
+    """Used from Python, locate_events reports through the `akf` logger, not print."""
+    import logging
+
+    from akf.jobs import load_job
+    from akf.locating import locate_events
+
+    for name in ("impact-0001.tdms", "truss-impacts.toml"):
+        shutil.copy(os.path.join(ROOT, "examples", "impacts", name), tmp_path)
+    job = load_job(str(tmp_path / "truss-impacts.toml"), "locate")
+    logger = logging.getLogger("akf")
+    logger.propagate = True
+    with caplog.at_level(logging.INFO, logger="akf"):
+        locate_events(job, str(tmp_path / "o"), tune=False, plot=False, progress=True)
+    assert any("impact-0001: node 14" in r.getMessage() for r in caplog.records)

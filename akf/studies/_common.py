@@ -53,8 +53,9 @@ def drift_ratio(error):
 
 
 class Progress:
-    """One line per step of a long study on stderr (``[th_placement 3/17] case 6: 4 gauges, 41 s
-    so far``), so a run of minutes is never silent; ``quiet`` switches it off."""
+    """One line per step of a long study, logged at INFO on the ``akf`` logger
+    (``[th_placement 3/17] case 6: 4 gauges, 41 s so far``), so a run of minutes is never silent
+    on the command line; ``quiet`` switches it off."""
 
     def __init__(self, name, total, quiet=False):
         import time
@@ -63,10 +64,10 @@ class Progress:
         self.done, self.t0 = 0, time.perf_counter()
 
     def step(self, label):
-        import sys
+        import logging
         import time
 
         self.done += 1
         if not self.quiet:
-            print(f"[{self.name} {self.done}/{self.total}] {label} ({time.perf_counter() - self.t0:.0f} s so far)",
-                  file=sys.stderr, flush=True)
+            logging.getLogger("akf").info(f"[{self.name} {self.done}/{self.total}] {label} "
+                                          f"({time.perf_counter() - self.t0:.0f} s so far)")

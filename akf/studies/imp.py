@@ -9,6 +9,7 @@
 """
 from __future__ import annotations
 
+import logging
 import os
 
 import numpy as np
@@ -22,6 +23,8 @@ from ..examples import load_example
 from ..examples.impact import EXAMPLES, example_scenario
 from ..locating import write_outputs
 from ._common import Progress, StudyResult, output_dir
+
+log = logging.getLogger("akf")
 
 SETTINGS = [("imp-truss-case1", "abs"), ("imp-truss-case1", "rel10"), ("imp-truss-case2", "abs"),
             ("imp-truss-case2", "rel10"), ("imp-plate", "abs"), ("imp-plate", "rel10")]
@@ -73,10 +76,10 @@ def run_cases(out=None, quick=False, seed=0, n_jobs=1):
                .reset_index())
     files["summary"] = os.path.join(out, "imp_cases_summary.csv")
     write_csv(summary, files["summary"])
-    print("IMP: impact localisation, paper settings (AD error: mean relative RMS error at the AD sensors)")
-    print(table.drop(columns=["n_locations"]).round(4).to_string(index=False))
-    print("summary per example:")
-    print(summary.round(4).to_string(index=False))
+    log.info("IMP: impact localisation, paper settings (AD error: mean relative RMS error at the AD sensors)")
+    log.info(table.drop(columns=["n_locations"]).round(4).to_string(index=False))
+    log.info("summary per example:")
+    log.info(summary.round(4).to_string(index=False))
     return StudyResult("imp_cases", table, summary, files, data)
 
 
@@ -111,12 +114,12 @@ def run_hit_rate(out=None, quick=False, seed=0, examples=None, seeds=None, n_job
     files = {"table": os.path.join(out, "imp_hit_rate.csv"), "summary": os.path.join(out, "imp_hit_rate_summary.csv")}
     write_csv(table, files["table"])
     write_csv(summary, files["summary"])
-    print("IMP: impacts at every candidate node, located without tuning")
-    print(summary.round(3).to_string(index=False))
+    log.info("IMP: impacts at every candidate node, located without tuning")
+    log.info(summary.round(3).to_string(index=False))
     misses = table[~table["hit"]]
     if len(misses):
-        print("misses (true -> identified, confidence, margin):")
-        print(misses[["example", "seed", "true_node", "identified", "confidence", "margin"]].round(3).to_string(index=False))
+        log.info("misses (true -> identified, confidence, margin):")
+        log.info(misses[["example", "seed", "true_node", "identified", "confidence", "margin"]].round(3).to_string(index=False))
     return StudyResult("imp_hit_rate", table, summary, files)
 
 

@@ -33,6 +33,7 @@ Configurations of Fig. 20 (the paper shows them only as a drawing; ours follow i
 """
 from __future__ import annotations
 
+import logging
 import os
 
 import numpy as np
@@ -43,6 +44,8 @@ from core_akf.outputs import write_csv
 from ..examples import S17_ACC_ONLY, S17_MULTI, S17_STRAIN_ONLY, s17_job
 from ..jobs import run_job
 from ._common import Progress, StudyResult, drift_ratio, output_dir, psd, save
+
+log = logging.getLogger("akf")
 
 NAME = "s17_truss"
 DESCRIPTION = "S17 truss: force RMS error per case and load, Fig. 19-21 configurations, force spectra"
@@ -106,15 +109,15 @@ def run(out=None, quick=False, seed=0, cases=None):
     write_csv(table, files["table"])
     write_csv(summary, files["summary"])
     _figures(results, table, out, files)
-    _print(table, summary)
+    _report(table, summary)
     return StudyResult(NAME, table, summary, files, results)
 
 
-def _print(table, summary):
+def _report(table, summary):
     wide = table.pivot(index="case", columns="load", values="rms_error_N").reindex(summary["case"])
-    print("S17 truss: RMS force error (N) per case and load (eq. 38)")
-    print(wide.round(1).to_string())
-    print(summary.round(3).to_string(index=False))
+    log.info("S17 truss: RMS force error (N) per case and load (eq. 38)")
+    log.info(wide.round(1).to_string())
+    log.info(summary.round(3).to_string(index=False))
 
 
 def _figures(results, table, out, files):

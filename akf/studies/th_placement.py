@@ -12,6 +12,7 @@ multi-metric placement TH names as future work, plus the NSGA-II "how many senso
 """
 from __future__ import annotations
 
+import logging
 import os
 
 from core_akf.outputs import write_csv
@@ -23,6 +24,8 @@ from sensoropt.plots import plot_convergence, plot_layout, plot_pareto
 from ..placement import example_problem
 from ..writers import draw
 from ._common import Progress, StudyResult, output_dir
+
+log = logging.getLogger("akf")
 
 NAME = "th_placement"
 DESCRIPTION = "TH placement GA: case 5 (3 gauges, 4 runs), case 6 (3/4/5/8 gauges), multi-metric, Pareto front"
@@ -135,19 +138,19 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
     write_csv(summary, files["summary"])
     files["table"] = os.path.join(out, f"{NAME}.csv")
     write_csv(table, files["table"])
-    print("TH placement: average strain error (µε) of the GA layouts; full record = 6 s, window = 0.1 s fitness")
-    print(table[["study", "label", "sensors", "window_error_ue", "full_record_error_ue", "generations",
+    log.info("TH placement: average strain error (µε) of the GA layouts; full record = 6 s, window = 0.1 s fitness")
+    log.info(table[["study", "label", "sensors", "window_error_ue", "full_record_error_ue", "generations",
                  "evaluations", "seconds"]].round(4).to_string(index=False))
-    print("summary (best layout per part, against TH case 2 and the thesis' numbers):")
-    print(summary.round(4).to_string(index=False))
-    print("case 5 agreement across runs:")
-    print(agreement.round(4).to_string(index=False))
-    print("set-based vs thesis operators (case 5):")
-    print(ops.drop(columns=["sensors"]).round(4).to_string(index=False))
-    print("Pareto front (NSGA-II, window error):")
-    print(front.round(4).to_string(index=False))
+    log.info("summary (best layout per part, against TH case 2 and the thesis' numbers):")
+    log.info(summary.round(4).to_string(index=False))
+    log.info("case 5 agreement across runs:")
+    log.info(agreement.round(4).to_string(index=False))
+    log.info("set-based vs thesis operators (case 5):")
+    log.info(ops.drop(columns=["sensors"]).round(4).to_string(index=False))
+    log.info("Pareto front (NSGA-II, window error):")
+    log.info(front.round(4).to_string(index=False))
     for note in notes:
-        print(f"  WARNING: {note}")
+        log.warning(f"  WARNING: {note}")
     return StudyResult(NAME, table, summary, files, {"front": front, "agreement": agreement})
 
 

@@ -32,6 +32,7 @@ Undetectable sets (cases 1 and 5c) run the time-varying filter, forced.
 """
 from __future__ import annotations
 
+import logging
 import os
 
 import numpy as np
@@ -42,6 +43,8 @@ from core_akf.outputs import write_csv
 from ..examples import TH_CASE1, TH_CASE2, TH_CASE3, TH_CASE4, TH_FLEXIBLE_PLATE, th_job
 from ..jobs import run_job
 from ._common import Progress, StudyResult, drift_ratio, output_dir, psd, save
+
+log = logging.getLogger("akf")
 
 NAME = "th_plate"
 DESCRIPTION = "TH plate: average strain error over all 363 components, cases 1, 2, 3a-d, 4, 5a-d"
@@ -120,8 +123,8 @@ def run(out=None, quick=False, seed=0, cases=None):
     write_csv(table, files["table"])
     write_csv(summary, files["summary"])
     _figures(results, table, out, files)
-    print("TH plate: average strain error over all strain components (µε; thesis values in 'µ-strain')")
-    print(summary[["case", "description", "detectable", "avg_strain_error_ue", "worst_component",
+    log.info("TH plate: average strain error over all strain components (µε; thesis values in 'µ-strain')")
+    log.info(summary[["case", "description", "detectable", "avg_strain_error_ue", "worst_component",
                    "median_drift_ratio", "published_avg_error"]].round(4).to_string(index=False))
     return StudyResult(NAME, table, summary, files, results)
 
