@@ -143,7 +143,7 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
     arrow = 0.04 * span.max()
     dirs = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "w": (0, 0, 1)}
     labelled = set()
-    unplaced = []
+    unplaced, placed = [], []
     for s in (as_layout(list(sensors)) if len(sensors) else ()):
         marker, colour = SENSOR_STYLE[s.kind]
         ends = strain_ends(structure, s.member) if s.kind == "strain" and s.member is not None else None
@@ -163,7 +163,12 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
             if s.direction in dirs:
                 ax.quiver(*point, *(arrow * np.array(dirs[s.direction])), color=colour, lw=1.5)
         ax.scatter(*point, marker=marker, s=60, facecolors="none", edgecolors=colour, linewidths=2, label=label)
-        ax.text(*(point + 0.02 * span.max() * np.array([0, 0, 1])), text, fontsize=7, color=colour)
+        placed.append((point, text, colour))
+    # labels lifted in three tiers by their order along x, so that neighbours do not overlap
+    for rank, i in enumerate(np.argsort([p[0][0] for p in placed], kind="stable")):
+        point, text, colour = placed[i]
+        ax.text(*(point + (0.02 + 0.035 * (rank % 3)) * span.max() * np.array([0, 0, 1])), text, fontsize=7,
+                color=colour)
     if unplaced:
         ax.text2D(0.01, 0.02, "not drawn (strain operator rows, no place): " + ", ".join(unplaced), fontsize=7,
                   transform=ax.transAxes)

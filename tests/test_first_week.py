@@ -636,3 +636,26 @@ def test_locate_events_log_instead_of_printing(tmp_path, caplog, capsys):
     with caplog.at_level(logging.INFO, logger="akf"):
         locate_events(job, str(tmp_path / "o"), tune=False, plot=False, progress=True)
     assert any("impact-0001: node 14" in r.getMessage() for r in caplog.records)
+
+
+def test_place_notes_a_default_force_increment_far_from_kilonewton_loads():
+    from akf.placement import force_increment_notes
+
+    t = np.arange(2000) * 1e-3
+    kn = np.column_stack([5e3 * np.sin(2 * np.pi * 3 * t)])
+    assert "set force_increment_cov = 4.4" in force_increment_notes(kn)[0]
+    thesis_like = np.column_stack([50 * np.sin(2 * np.pi * 3 * t) + np.random.default_rng(0).normal(0, 0.7, t.size)])
+    assert force_increment_notes(thesis_like) == []
+
+
+def test_citation_and_license_agree_with_the_package():
+    yaml = pytest.importorskip("yaml")
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python < 3.11
+        import tomli as tomllib
+
+    meta = tomllib.loads(open(os.path.join(ROOT, "pyproject.toml")).read())["project"]
+    cff = yaml.safe_load(open(os.path.join(ROOT, "CITATION.cff")))
+    assert cff["version"] == meta["version"] and cff["license"] == meta["license"]["text"] == "MIT"
+    assert open(os.path.join(ROOT, "LICENSE")).read().startswith("MIT License")
