@@ -3,8 +3,8 @@
 ``set_defaults(func=...)``); this distribution registers ``estimate``, ``place``, ``locate``,
 ``study`` and ``show`` in its ``pyproject.toml``, and another installed package can add its own.
 
-Exit codes: 0 done, 2 bad input, 3 undetectable sensor set, 4 the dask cluster lost the work,
-130 interrupted.
+Exit codes: 0 done, 1 an internal error (a fault of akf: one line, the traceback with -v), 2 bad
+input, 3 undetectable sensor set, 4 the dask cluster lost the work, 130 interrupted.
 """
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import argparse
 import logging
 import os
 import sys
+import traceback
 from importlib.metadata import entry_points
 
 from core_akf.exceptions import AKFInputError, UndetectableError
@@ -115,6 +116,14 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("akf: interrupted; files already written are complete, the others were not written", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 -- a bug of ours: one clear line, the traceback with -v
+        if logging.getLogger("akf").isEnabledFor(logging.DEBUG):
+            traceback.print_exc()
+        where = "" if exc.__traceback__ is None else f" in {traceback.extract_tb(exc.__traceback__)[-1].name}"
+        print(f"akf: internal error{where}: {type(exc).__name__}: {exc}\n  the input was not refused with a message, "
+              "so this is a fault of akf: please report it with the command and its input (run again with -v for "
+              "the traceback)", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -659,3 +659,16 @@ def test_citation_and_license_agree_with_the_package():
     cff = yaml.safe_load(open(os.path.join(ROOT, "CITATION.cff")))
     assert cff["version"] == meta["version"] and cff["license"] == meta["license"]["text"] == "MIT"
     assert open(os.path.join(ROOT, "LICENSE")).read().startswith("MIT License")
+
+
+def test_an_unexpected_error_is_one_line_not_a_traceback(tmp_path, capsys, monkeypatch):
+    import akf.commands.show as show
+
+    def broken(target):
+        raise ZeroDivisionError("division by zero")
+    monkeypatch.setattr(show, "_structure_of", broken)
+    assert main(["show", "s17_truss", "--no-plot"]) == 1
+    err = capsys.readouterr().err
+    assert "internal error in broken: ZeroDivisionError" in err and "Traceback" not in err
+    assert main(["show", "s17_truss", "--no-plot", "-v"]) == 1
+    assert "Traceback" in capsys.readouterr().err
