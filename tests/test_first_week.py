@@ -672,3 +672,22 @@ def test_an_unexpected_error_is_one_line_not_a_traceback(tmp_path, capsys, monke
     assert "internal error in broken: ZeroDivisionError" in err and "Traceback" not in err
     assert main(["show", "s17_truss", "--no-plot", "-v"]) == 1
     assert "Traceback" in capsys.readouterr().err
+
+
+def test_a_model_whose_every_dof_is_fixed():
+    with pytest.raises(ValueError, match="every DOF of the model is fixed"):
+        _two_dof(fixed=[1, 2])
+
+
+def test_an_extensometer_that_is_not_a_pair():
+    with pytest.raises(ValueError, match="extensometer 1 is .*: an extensometer is a pair of node ids"):
+        _two_dof(extensometers=[(1, 2, 1)])
+
+
+def test_locate_over_a_folder_where_no_file_can_be_located(tmp_path, capsys):
+    shutil.copy(os.path.join(ROOT, "examples", "impacts", "impact-0001.tdms"), tmp_path)
+    text = open(os.path.join(ROOT, "examples", "impacts", "truss-impacts.toml")).read()
+    (tmp_path / "job.toml").write_text(text.replace("n_ad = 4", "n_ad = 40"))
+    assert main(["locate", str(tmp_path / "job.toml"), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert "no impact located in any of the 1 file(s)" in capsys.readouterr().err
+    assert (tmp_path / "o" / "events.csv").exists()

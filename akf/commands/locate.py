@@ -85,12 +85,16 @@ def _locate_events(args, job):
             print(f"{name}: locating the impact of every file of {job['measurements']['file']}")
         frame, files = locate_events(job, out, n_jobs=workers(args), seed=args.seed, progress=not args.json,
                                      tune=False if args.no_tune else None, plot=not args.no_plot)
+    located = frame["node"].notna().sum()
     if args.json:
         print(json.dumps({"name": name, "events": json.loads(frame.to_json(orient="records")), "files": files}))
-        return 0
-    located = frame["node"].notna().sum()
-    print(f"  {located} of {len(frame)} impacts located")
-    print_written(files)
+    else:
+        print(f"  {located} of {len(frame)} impacts located")
+        print_written(files)
+    if len(frame) and not located:        # the files are written; the exit code says nothing was found
+        errors = frame["error"].dropna().unique()
+        raise AKFInputError(f"no impact located in any of the {len(frame)} file(s) (events.csv has each error); "
+                            + (f"every file: {errors[0]}" if len(errors) == 1 else f"the first: {errors[0]}"))
     return 0
 
 

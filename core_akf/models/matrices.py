@@ -253,11 +253,18 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
         if not targets:
             raise AKFInputError(f"fixed node {f} has no DOF in the DOF map")
     rows = np.flatnonzero(keep)
+    if rows.size == 0:
+        raise AKFInputError(f"every DOF of the model is fixed ({len(dofs)} of {len(dofs)}): nothing can move; fix only "
+                            "the supports")
     free_dofs = np.array([row_of[dofs[r][0]] * len(dof_names) + dof_names.index(dofs[r][1]) for r in rows])
     blocks, members, ends = [], None, {}
     if strain_rows is not None:
         blocks.append(_rows(strain_rows, n, keep_sparse=large)[:, rows])
     if extensometers is not None and len(extensometers):
+        bad = [k for k, e in enumerate(extensometers, start=1) if np.ndim(e) != 1 or len(e) != 2]
+        if bad:
+            raise AKFInputError(f"extensometer {bad[0]} is {list(extensometers)[bad[0] - 1]!r}: an extensometer is a pair "
+                                "of node ids [a, b]")
         members = np.array([[_node_id(a), _node_id(b)] for a, b in extensometers], dtype=int)
         blocks.append(_extensometer_rows(members, coords, dofs, seen, rows, dof_names))
         if strain_rows is not None:           # extensometer k is strain:(k_own + k): its ends by output number
