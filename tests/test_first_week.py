@@ -691,3 +691,35 @@ def test_locate_over_a_folder_where_no_file_can_be_located(tmp_path, capsys):
     assert main(["locate", str(tmp_path / "job.toml"), "--no-plot", "--out", str(tmp_path / "o")]) == 2
     assert "no impact located in any of the 1 file(s)" in capsys.readouterr().err
     assert (tmp_path / "o" / "events.csv").exists()
+
+
+def test_hdf5_channels_that_do_not_hold_numbers_or_are_not_1d(tmp_path):
+    h5py = pytest.importorskip("h5py")
+    with h5py.File(tmp_path / "s.h5", "w") as f:
+        f.create_dataset("time", data=np.arange(20) * 1e-3)
+        f.create_dataset("acc:4:y", data=np.array([b"x"] * 20))
+        f.create_dataset("acc:6:y", data=np.zeros(20))
+    with pytest.raises(ValueError, match="channel 'acc:4:y' does not hold numbers"):
+        _read(tmp_path / "s.h5")
+    with h5py.File(tmp_path / "m.h5", "w") as f:
+        f.attrs["dt"] = 1e-3
+        f.create_dataset("acc:4:y", data=np.zeros((20, 2)))
+    with pytest.raises(ValueError, match="a channel is a 1-D dataset"):
+        _read(tmp_path / "m.h5")
+
+
+def test_tdms_channel_with_a_nan_sample(tmp_path):
+    nptdms = pytest.importorskip("nptdms")
+    y = np.zeros(50)
+    y[17] = np.nan
+    with nptdms.TdmsWriter(tmp_path / "r.tdms") as w:
+        w.write_segment([nptdms.ChannelObject("g", "acc:4:y", y, properties={"wf_increment": 1e-3}),
+                         nptdms.ChannelObject("g", "acc:6:y", np.zeros(50), properties={"wf_increment": 1e-3})])
+    with pytest.raises(ValueError, match="channel 'acc:4:y' has a missing/NaN or infinite sample at sample 18"):
+        _read(tmp_path / "r.tdms")
+
+
+def test_csv_separated_by_semicolons(tmp_path):
+    (tmp_path / "r.csv").write_text("time;acc:4:y\n0;1\n0,001;2\n")
+    with pytest.raises(ValueError, match="the header looks ';'-separated"):
+        _read(tmp_path / "r.csv", sensors=("acc:4:y",))

@@ -165,7 +165,11 @@ class CsvReader(Reader):
             raise AKFInputError(f"{self.path}: not a readable CSV file ({exc})") from None
         _check_unique_columns(self._header(), self.path)
         if time_column not in self._columns:
-            raise AKFInputError(f"{self.path}: no time column {time_column!r}; found {self._columns}")
+            sep = next((c for c in ";\t|" if len(self._columns) == 1 and c in self._columns[0]), None)
+            hint = (f"; the header looks {'tab' if sep == chr(9) else repr(sep)}-separated: CSV files here are "
+                    "comma-separated with a decimal point (save as CSV, or convert with pandas: "
+                    "pd.read_csv(path, sep=..., decimal=...).to_csv(new, index=False))") if sep else ""
+            raise AKFInputError(f"{self.path}: no time column {time_column!r}; found {self._columns}{hint}")
         self._timing = None
 
     def _header(self):
@@ -314,7 +318,19 @@ class _SlicedReader(Reader):
         n = self.timing().n_steps
         for start in range(0, n, size):
             stop = min(start + size, n)
-            yield np.column_stack([np.asarray(self._series[c][start:stop], float) for c in channels])
+            columns = []
+            for c in channels:
+                try:
+                    values = np.asarray(self._series[c][start:stop], float)
+                except (TypeError, ValueError):
+                    raise AKFInputError(f"{self.path}: channel {c!r} does not hold numbers (it holds "
+                                        f"{np.asarray(self._series[c][start:start + 1]).dtype} values)") from None
+                bad = np.flatnonzero(~np.isfinite(values))
+                if bad.size:
+                    raise AKFInputError(f"{self.path}: channel {c!r} has a missing/NaN or infinite sample at sample "
+                                        f"{start + int(bad[0]) + 1}")
+                columns.append(values)
+            yield np.column_stack(columns)
 
 
 class TdmsReader(_SlicedReader):
@@ -458,7 +474,14 @@ class Hdf5Reader(_SlicedReader):
         except KeyError:
             raise AKFInputError(f"{self.path}: no group {group!r}; the file has {list(self._file)}") from None
         self._series = {k: v for k, v in self._group.items() if isinstance(v, self.lib.Dataset) and v.ndim == 1}
+        self._skipped = [f"{k} {v.shape}" for k, v in self._group.items() if isinstance(v, self.lib.Dataset) and v.ndim != 1]
         self._timing = None
+
+    def _length(self):
+        if not self.channels() and self._skipped:
+            raise AKFInputError(f"{self.path}: no data channels: a channel is a 1-D dataset, and the datasets here are "
+                                f"not 1-D ({', '.join(self._skipped[:5])}); store one 1-D dataset per channel")
+        return super()._length()
 
     def units(self):
         out = {}
