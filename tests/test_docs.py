@@ -48,7 +48,7 @@ def _command_lines():
     lines = []
     for param in _blocks("bash"):
         for line in param.values[0].splitlines():
-            line = line.split(" # ")[0].split("  #")[0].strip()
+            line = line.split(" # ")[0].split("  #")[0].split(" > ")[0].split(" | ")[0].strip()   # no shell
             if line.startswith("akf "):
                 lines.append(pytest.param(line, id=line[:60]))
     return lines
