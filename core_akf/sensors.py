@@ -194,8 +194,10 @@ def sensor_positions(structure, sensors):
             if ends is None:
                 row["source"] = f"operator row {s.member}"
             else:
-                row.update(node=ends[0], node_b=ends[1],
-                           source="member" if structure.members is not None else "extensometer")
+                own = structure.meta.get("strain_ends") or {}
+                k = s.member - (min(own) - 1) if own else s.member      # after the operator rows, if any
+                kind = "extensometer" if structure.meta.get("extensometers") else "member"
+                row.update(node=ends[0], node_b=ends[1], source=f"{kind} {k}")
                 row.update(zip("xyz", xyz[structure.node_rows(list(ends))].mean(axis=0)))
         else:
             row["node"] = int(s.node)

@@ -82,8 +82,9 @@ def test_place_on_a_3d_model_of_ones_own_with_operator_rows_and_extensometers(fr
     assert list(table["sensor"]) == res["sensors"] and len(res["positions"]) == 3
     by = {r["sensor"]: r for r in res["positions"]}
     for label, row in by.items():
-        if label in ("strain:35", "strain:36"):           # extensometers after the 34 operator rows
-            assert row["source"] == "extensometer" and row["node"] in (101, 103) and row["z"] == 0.0
+        if label in ("strain:35", "strain:36"):           # extensometers 1 and 2 after the 34 operator rows
+            assert row["source"] == f"extensometer {int(label[7:]) - 34}" and row["node"] in (101, 103)
+            assert row["z"] == 0.0
         elif label.startswith("strain:"):
             assert row["source"] == f"operator row {label[7:]}" and row["node"] is None
         else:

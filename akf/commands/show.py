@@ -42,7 +42,7 @@ def strain_outputs(structure):
             rows.append({"output": label, "is": "surface strain at a plate node"})
             continue
         ends = strain_ends(structure, k)
-        what = ("member" if structure.members is not None else "extensometer") if ends else "strain operator row"
+        what = ("extensometer" if structure.meta.get("extensometers") else "member") if ends else "strain operator row"
         rows.append({"output": label, "is": what, "nodes": list(ends) if ends else None,
                      "row": None if ends else k})
     return rows

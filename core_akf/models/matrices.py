@@ -275,7 +275,8 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
     strain = _stack(blocks)
     common = dict(nodes=np.array([coords[k] for k in ids]), dof_names=dof_names, free_dofs=free_dofs,
                   strain_matrix=strain, strain_kind="member", members=members, name=name, node_ids=ids)
-    meta = {"dof_map": [dofs[r] for r in rows], "strain_ends": ends}
+    meta = {"dof_map": [dofs[r] for r in rows], "strain_ends": ends,
+            "extensometers": 0 if extensometers is None else len(extensometers)}
     try:
         if large:
             Kf, Mf = K[rows][:, rows], M[rows][:, rows]
