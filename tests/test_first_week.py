@@ -473,6 +473,13 @@ def test_common_strain_abbreviations(unit, scale):
     assert conversion(unit, "strain", "SG1")(np.array([2.0]))[0] == pytest.approx(2 * scale)
 
 
+@pytest.mark.parametrize("unit", ["g", "G", "gn"])
+def test_gravity_as_daq_systems_write_it(unit):
+    from core_akf.io.units import conversion
+
+    assert conversion(unit, "acc", "ACC1")(np.array([1.0]))[0] == pytest.approx(9.80665)
+
+
 def test_v_per_v_is_a_bridge_output():
     from core_akf.io.units import conversion
 

@@ -26,7 +26,8 @@ _SI_PINT = {"strain": "dimensionless", "acc": "m/s^2", "vel": "m/s", "disp": "m"
 BRIDGES = {"quarter": 4.0, "half": 2.0, "full": 1.0}
 
 #: acceleration in multiples of standard gravity, as DAQ systems write it
-_GRAVITY = {"g": "gravity", "mg": "milligravity", "ug": "microgravity", "µg": "microgravity"}
+_GRAVITY = {"g": "gravity", "G": "gravity", "mg": "milligravity", "ug": "microgravity", "µg": "microgravity",
+            "μg": "microgravity", "g0": "gravity", "gn": "gravity", "g_n": "gravity"}
 #: strain as DAQ systems and gauge catalogues abbreviate it (compared case-blind)
 _STRAIN_NAMES = {"ue": "microstrain", "µe": "microstrain", "μe": "microstrain", "ustrain": "microstrain",
                  "µstrain": "microstrain", "me": "millistrain", "mstrain": "millistrain", "e": "strain",
