@@ -191,6 +191,17 @@ def read_measurements(path, sensors, dt, time_column="time", **channel_map):
     return record.read()[1]
 
 
+def open_record(meas, sensors):
+    """The :class:`core_akf.io.Record` of a job's ``[measurements]`` (a :class:`akf.schema.Measurements`)."""
+    from core_akf.io import Record
+
+    if meas.file is None:
+        raise AKFInputError("[measurements] needs file = 'data.csv' (a file, a folder or a glob pattern)")
+    return Record(meas.file, sensors, channels=meas.channels, units=meas.units, gauge_factor=meas.gauge_factor,
+                  bridge=meas.bridge, invert=meas.invert or (), remove_offset=meas.remove_offset or False,
+                  format=meas.format, time_column=meas.time_column or "time", group=meas.group)
+
+
 @dataclass
 class JobResult:
     """Outcome of :func:`run_job`: the estimate, the simulation (if any) and metrics."""
@@ -314,8 +325,6 @@ def run_job(job: dict, allow_undetectable: bool | None = None, steady: bool | No
     per_step = 4 * n_a + 2 * 2 * true_structure.n + 3 * true_structure.n_strain + 4 * len(sensors)
     sim = None
     if spec.measurements is not None:
-        from .streaming import open_record
-
         record = open_record(spec.measurements, sensors)
         record.check_dt(dt)
         check_memory(record.n_steps, per_step, f"the record of {record.n_steps} steps",

@@ -51,8 +51,7 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None):
     from impactloc.locate import locate
     from impactloc.scan import Covariances
 
-    from .jobs import build_structure, simulate_job
-    from .streaming import open_record
+    from .jobs import build_structure, open_record, simulate_job
 
     spec = parse_job(job, "locate")
     structure = build_structure(job["structure"])

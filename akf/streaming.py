@@ -20,11 +20,11 @@ import numpy as np
 from core_akf.defaults import default
 from core_akf.diagnostics import CONSISTENCY_LIMIT, RunningDiagnostics, scale_check, warnings_for
 from core_akf.exceptions import AKFInputError
-from core_akf.io import Record
 from core_akf.outputs import atomic_path, confined, write_csv
 from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
 from core_akf.streaming import CheckpointError, Estimator
 
+from .jobs import METRIC_UNITS, build_structure, open_record, summary_frame
 from .plots import plot_estimate, plot_sensors
 from .schema import parse_job
 from .writers import draw
@@ -44,15 +44,6 @@ def default_chunk(n_states, n_channels, n_outputs):
 #: points per channel kept for the figure (the record decimated to at most this)
 _PLOT_POINTS = 20000
 CHECKPOINT = ".akf-resume.npz"
-
-
-def open_record(meas, sensors):
-    """The :class:`core_akf.io.Record` of a job's ``[measurements]`` (a :class:`akf.schema.Measurements`)."""
-    if meas.file is None:
-        raise AKFInputError("[measurements] needs file = 'data.csv' (a file, a folder or a glob pattern)")
-    return Record(meas.file, sensors, channels=meas.channels, units=meas.units, gauge_factor=meas.gauge_factor,
-                  bridge=meas.bridge, invert=meas.invert or (), remove_offset=meas.remove_offset or False,
-                  format=meas.format, time_column=meas.time_column or "time", group=meas.group)
 
 
 @dataclass
@@ -203,7 +194,6 @@ def stream_job(job, out, *, resume=False, overwrite=False, allow_undetectable=No
     after this many chunks (as if interrupted; for tests and for splitting work).  Returns a
     :class:`StreamResult`; its metrics have the keys of :attr:`akf.jobs.JobResult.metrics`.
     """
-    from .jobs import METRIC_UNITS, build_structure, summary_frame
 
     job = copy.deepcopy(job)
     spec = parse_job(job, "estimate")

@@ -26,16 +26,17 @@ from .types import ArrayLike, Covariance, Forces, Layout, NoiseCovariance
 if TYPE_CHECKING:
     from .structure import Structure
 from .checks import as_finite_array, check_covariance
+from .covariances import augmented_covariance, diag_levels, noise_covariance, state_covariance  # noqa: F401
 from .exceptions import AKFInputError
 from .recursion import lti_response
-from .riccati import RiccatiError, steady_gain
+from .riccati import RiccatiError
 from .sensors import as_layout, parse_force_locations
 from .statespace import (
     check_detectable,
-    diag_levels,
     observation,
     strain_feedthrough,
 )
+from .steady import steady_filter, steady_outputs, steady_states  # noqa: F401  (public here as before)
 
 
 def _batchify(A_a, G_a, Q_a, R, Y, check=True):
@@ -144,8 +145,10 @@ class ModalBlockTransition:
         return out
 
 
-def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
-    """Time-varying AKF.  Once the prior covariance has stopped changing (relative change over
+def time_varying_filter(A, G, Q, R, Y, x, P, switch_tol, transition=None):
+    """Time-varying AKF on a batch of B filters: ``A`` (B, n, n), ``G`` (B, m, n), ``Q`` (B, n, n),
+    ``R`` (B, m, m), ``Y`` (B, N, m), the prior mean ``x`` (B, n) and covariance ``P`` (B, n, n)
+    of the first step.  Once the prior covariance has stopped changing (relative change over
     ``_CHECK_EVERY`` steps below ``switch_tol``, every filter of the batch), the gain is
     constant to that precision and the rest of the record runs as the fixed-gain recursion.
     ``transition`` (e.g. :class:`ModalBlockTransition`) applies ``A`` cheaply in the
@@ -193,52 +196,6 @@ def _time_varying(A, G, Q, R, Y, x, P, switch_tol, transition=None):
 _CHECK_EVERY = 32
 
 
-def steady_states(A, G, Q, R, Y, x=None):
-    """Filtered states of a batch of steady-state AKFs: ``(X (B, N, n), L (B, n, m), P (B, n, n))``.
-
-    One batched Riccati solve (:func:`core_akf.riccati.steady_gain`), then the constant-gain
-    recursion ``X_k = (I - L G) A X_{k-1} + L y_k`` (:func:`core_akf.recursion.lti_response`)
-    from the prior mean ``x`` (B, n) (zero by default).  Shapes: A, Q (B, n, n); G (B, m, n);
-    R (B, m, m); Y (B, N, m).
-    """
-    P, L, F, first = _steady_filter(A, G, Q, R, Y, x)
-    return lti_response(F, L, Y, first), L, P
-
-
-def _steady_filter(A, G, Q, R, Y, x=None):
-    """Gain and fixed-gain recursion of a batch of steady-state AKFs: ``(P, L, F, X_0)`` with
-    ``X_k = F X_{k-1} + L y_k`` and the first filtered state ``X_0``."""
-    P, L = steady_gain(A, G, Q, R)
-    n = A.shape[-1]
-    I_LG = np.eye(n) - L @ G
-    first = np.einsum("bij,bj->bi", L, Y[:, 0])
-    if x is not None:
-        first += np.einsum("bij,bj->bi", I_LG, x)
-    return P, L, I_LG @ A, first
-
-
-def steady_outputs(A, G, Q, R, Y, H):
-    """Outputs ``H X_k`` of a stack of steady-state AKFs (filtered states, prior mean zero).
-
-    Parameters
-    ----------
-    A : (B, n, n) or (n, n);  G : (B, m, n);  Q : (B, n, n) or (n, n);  R : (B, m, m)
-    Y : (B, N, m) measurements;  H : (B, k, n) or (k, n) output rows
-
-    Returns
-    -------
-    ndarray (B, N, k)
-
-    One batched Riccati solve, then the lifted recursion straight to the outputs
-    (:func:`core_akf.recursion.lti_response`): with few output rows the n states per step are
-    never formed.
-    """
-    B, N, m = Y.shape
-    n = G.shape[-1]
-    P, L, F, first = _steady_filter(np.broadcast_to(A, (B, n, n)), G, np.broadcast_to(Q, (B, n, n)), R, Y)
-    return lti_response(F, L, Y, first, H)
-
-
 def _steady(A, G, Q, R, Y, x):
     out, L, P = steady_states(A, G, Q, R, Y, x)
     innov = np.empty_like(Y)                          # y_k - G A X_{k-1}: (G A) is only m x n
@@ -273,7 +230,7 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_to
             if P0.shape[-2:] != (n, n):
                 raise AKFInputError(f"P0 must be {n}x{n}, got {P0.shape}")
         P = Q.copy() if P0 is None else np.broadcast_to(P0, (B, n, n)).copy()
-        out, innov, L, P, _ = _time_varying(A, G, Q, Rb, Yb, x, P, switch_tol, transition)
+        out, innov, L, P, _ = time_varying_filter(A, G, Q, Rb, Yb, x, P, switch_tol, transition)
     if not batched:
         out, innov, L, P = out[0], innov[0], L[0], P[0]
     return FilterResult(states=out, innovations=innov, gain=L, P_prior=P)
@@ -316,23 +273,6 @@ def run(A_a: ArrayLike, G_a: ArrayLike, Q_a: ArrayLike, R: ArrayLike, Y: ArrayLi
 
 
 # ------------------------------------------------------------------------------- high level
-def noise_covariance(sensors, noise_cov):
-    """Measurement-noise covariance (m x m) from a scalar, per-channel variances, a matrix,
-    or a dict of variances per sensor kind, e.g. ``{"strain": 1e-12, "acc": 1e-4}``."""
-    layout = as_layout(sensors)
-    m = len(layout)
-    if isinstance(noise_cov, dict):
-        missing = sorted({s.kind for s in layout} - set(noise_cov))
-        if missing:
-            raise AKFInputError(f"noise_cov has no variance for sensor kind(s) {missing}")
-        for kind, var in noise_cov.items():
-            if isinstance(var, (bool, np.bool_)) or not isinstance(var, (int, float, np.integer, np.floating)) \
-                    or not np.isfinite(var) or var <= 0:
-                raise AKFInputError(f"noise_cov[{kind!r}] must be a positive variance in SI units squared, got {var!r}")
-        return np.diag([float(noise_cov[s.kind]) for s in layout])
-    return diag_levels(noise_cov, m, "noise_cov", definite=True)
-
-
 @dataclass
 class Estimate:
     """AKF estimate of forces, states and strains.
@@ -427,49 +367,6 @@ class Estimate:
             "value": values.T.reshape(-1)})
 
 
-def state_covariance(structure, model_error_cov):
-    """Model-error covariance ``Q`` (2n x 2n) in the structure's generalised coordinates.
-
-    ``model_error_cov`` is given per *physical* free DOF for the displacements and the
-    velocities (a scalar level, a vector of 2 n_phys variances or a matrix), so the same level
-    means the same thing for a full and a modally reduced model (``Q_q = P Q_u P^T`` with the
-    structure's projection ``P``).  For a reduced structure a matrix of the generalised size
-    (2n x 2n) is also accepted and used as it is.
-    """
-    if not structure.is_reduced:
-        return diag_levels(model_error_cov, 2 * structure.n, "model_error_cov")
-    n_phys = structure.free_dofs.size
-    P = structure.projection
-    if np.ndim(model_error_cov) <= 1 and not isinstance(model_error_cov, (bool, np.bool_)):
-        # P diag(q) P^T block by block: no (2 n_phys)^2 matrix for a large model
-        q = as_finite_array(model_error_cov, "model_error_cov")
-        q = np.broadcast_to(q, (2 * n_phys,)) if q.ndim == 0 else q
-        if q.size != 2 * n_phys:
-            raise AKFInputError(f"model_error_cov has {q.size} variances; expected {2 * n_phys} (displacements and "
-                                "velocities of every free physical DOF)")
-        if np.any(q < 0):
-            raise AKFInputError("model_error_cov: variances must be >= 0")
-        Q = scipy.linalg.block_diag((P * q[:n_phys]) @ P.T, (P * q[n_phys:]) @ P.T)
-        return 0.5 * (Q + Q.T)
-    if np.ndim(model_error_cov) == 2 and np.shape(model_error_cov) == (2 * structure.n,) * 2 \
-            and structure.n != n_phys:
-        return diag_levels(model_error_cov, 2 * structure.n, "model_error_cov")
-    Q_phys = diag_levels(model_error_cov, 2 * n_phys, "model_error_cov")
-    P = scipy.linalg.block_diag(structure.projection, structure.projection)
-    Q = P @ Q_phys @ P.T
-    return 0.5 * (Q + Q.T)
-
-
-def augmented_covariance(n_states, n_forces, model_error_cov, force_increment_cov):
-    """``Q_a = blockdiag(Q, S)`` from levels (scalar, vector of variances or matrix)."""
-    Q = diag_levels(model_error_cov, n_states, "model_error_cov")
-    S = diag_levels(force_increment_cov, n_forces, "force_increment_cov")
-    Q_a = np.zeros((n_states + n_forces,) * 2)
-    Q_a[:n_states, :n_states] = Q
-    Q_a[n_states:, n_states:] = S
-    return Q_a
-
-
 def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forces, measurements: ArrayLike,
                    dt: float, *, model_error_cov: Covariance, force_increment_cov: Covariance,
                    noise_cov: NoiseCovariance, steady: bool | None = None, allow_undetectable: bool = False,
@@ -507,7 +404,7 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
                                 f"({', '.join(s.label for s in l)}); use steady=False (CLI: --filter time-varying) to run the "
                                 "time-varying filter and watch it drift")
-    setup = _FilterSetup(structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0, P0)
+    setup = FilterSetup(structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0, P0)
     # classically damped structures are block-diagonal in these coordinates: cheap A P A^T
     transition = None if steady else ModalBlockTransition.detect(setup.A_a, structure.n)
     try:
@@ -519,7 +416,7 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
     return setup.estimates(res.states, res.innovations, res.gain, res.P_prior, Y, reports)
 
 
-class _FilterSetup:
+class FilterSetup:
     """The filter's matrices for sensor layouts of one structure and force set, in energy-normalised
     modal coordinates ``x = T z`` (see :func:`~core_akf.statespace.modal_state_transform`),
     discretised there mode by mode when the damping is classical: the one builder behind

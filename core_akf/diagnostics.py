@@ -236,9 +236,11 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     [1/3, 3] (or negative) with a correlation above 0.7 is reported with the unit it looks like.
     All hold-outs run as one batched steady-state filter.  Returns a list of warnings (str).
     """
-    from .akf import _FilterSetup, noise_covariance, steady_outputs
+    from .akf import FilterSetup
+    from .covariances import noise_covariance
     from .sensors import as_layout, parse_force_locations
     from .statespace import detectability
+    from .steady import steady_outputs
 
     layout = as_layout(sensors)
     Y = np.asarray(measurements, float)
@@ -258,7 +260,7 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
         Rs[b, idx, idx] *= _IGNORE
     # one-step predictions y_k^- = G_a A_a X_{k-1} of every hold-out, straight from the lifted
     # recursion (no state histories: memory of the order of the data, also for a large model)
-    setup = _FilterSetup(structure, [layout] * len(groups), locs, dt,
+    setup = FilterSetup(structure, [layout] * len(groups), locs, dt,
                          model_error_cov, force_increment_cov, Rs)
     H = setup.G_a @ setup.A_a
     predicted = np.zeros((len(groups),) + Y.shape)

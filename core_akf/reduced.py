@@ -16,11 +16,12 @@ from functools import cached_property
 
 import numpy as np
 
-from .akf import state_covariance, steady_outputs  # noqa: F401  (steady_outputs: re-exported here)
+from .covariances import state_covariance
 from .defaults import auto_modes
 from .exceptions import AKFInputError
 from .sensors import as_layout, parse_force_locations, selection_matrices
 from .statespace import augment, continuous, force_selection, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
+from .steady import steady_outputs  # noqa: F401  (re-exported here for the optimisers)
 
 
 class ModalFilterModel:

@@ -18,7 +18,6 @@ from .types import Forces, Layout
 if TYPE_CHECKING:
     from .structure import Structure
 from . import rank
-from .checks import as_finite_array, check_covariance
 from .exceptions import AKFInputError, UndetectableError
 from .rank import is_supported  # noqa: F401  (public here as before)
 from .sensors import as_layout, parse_force_locations, selection_matrices
@@ -424,23 +423,3 @@ def check_detectable(structure, sensors, forces, allow_undetectable=False):
     if not report.detectable and not allow_undetectable:
         raise UndetectableError(report)
     return report
-
-
-def diag_levels(level, size, name, definite=False):
-    """A covariance matrix (size x size) from a scalar level, a vector of variances or a full
-    matrix, checked by :func:`~core_akf.checks.check_covariance` (symmetric, PSD; PD with
-    ``definite=True``)."""
-    if isinstance(level, (bool, np.bool_)):
-        raise AKFInputError(f"{name} must be a number, a vector of variances or a matrix, got {level!r}")
-    arr = as_finite_array(level, name)
-    if arr.ndim == 0:
-        out = float(arr) * np.eye(size)
-    elif arr.ndim == 1:
-        if arr.size != size:
-            raise AKFInputError(f"{name} has {arr.size} variances; expected {size}")
-        out = np.diag(arr)
-    elif arr.shape == (size, size):
-        out = arr
-    else:
-        raise AKFInputError(f"{name} must be a scalar, a vector of {size} variances or a {size}x{size} matrix; got shape {arr.shape}")
-    return check_covariance(out, name, definite=definite)

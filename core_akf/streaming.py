@@ -22,7 +22,7 @@ import hashlib
 
 import numpy as np
 
-from .akf import ModalBlockTransition, _FilterSetup, _time_varying
+from .akf import FilterSetup, ModalBlockTransition, time_varying_filter
 from .checks import as_finite_array
 from .exceptions import AKFInputError
 from .recursion import lti_response
@@ -64,7 +64,7 @@ class Estimator:
         if steady and not self.report.detectable:
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
                                 f"({', '.join(s.label for s in self.layout)}); use steady=False")
-        self.setup = _FilterSetup(structure, [self.layout], self.locs, dt, model_error_cov, force_increment_cov,
+        self.setup = FilterSetup(structure, [self.layout], self.locs, dt, model_error_cov, force_increment_cov,
                                   noise_cov, x0, P0)
         self.dt, self.t0, self.switch_tol = float(dt), float(t0), float(switch_tol)
         self.model_error_cov, self.force_increment_cov = model_error_cov, force_increment_cov
@@ -126,7 +126,7 @@ class Estimator:
             innov[0] = Y[0] - s.G_a[0] @ x
             innov[1:] = Y[1:] - X[:-1] @ self._GA.T
         else:
-            X, innov, L, P, switched = _time_varying(s.A_a[None], s.G_a, s.Q_a[None], s.R, Y[None], x[None],
+            X, innov, L, P, switched = time_varying_filter(s.A_a[None], s.G_a, s.Q_a[None], s.R, Y[None], x[None],
                                                      self._P[None], self.switch_tol, self._transition)
             X, innov, L, self._P = X[0], innov[0], L[0], np.ascontiguousarray(P[0])
             if switched:

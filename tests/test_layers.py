@@ -70,6 +70,79 @@ def test_no_private_name_is_imported_across_packages():
     assert not offences, offences
 
 
+def _module_name(path):
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def module_graph():
+    """{module: set of modules of this distribution it imports} (``from pkg import mod`` counts as
+    importing ``pkg.mod``; an import of a package counts as its ``__init__``)."""
+    modules = {_module_name(p) for package in PACKAGES for p in (ROOT / package).rglob("*.py")}
+    graph = {m: set() for m in modules}
+    for package in PACKAGES:
+        for path, module, names in _imports(package):
+            source = _module_name(path)
+            for name in names or [None]:
+                target = f"{module}.{name}" if name and f"{module}.{name}" in modules else module
+                if target in modules and target != source:
+                    graph[source].add(target)
+    return graph
+
+
+def _cycles(graph):
+    """The strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                out.append(sorted(component))
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_circle_between_modules():
+    """No two modules import each other, directly or round about, also through imports inside
+    functions (a package's ``__init__`` importing its own modules is not a circle of theirs unless
+    one of them imports the package back)."""
+    graph = module_graph()
+    for module, imported in graph.items():       # a package's __init__ re-exports: not a dependency of its modules
+        imported -= {p for p in PACKAGES if module.startswith(p + ".")}
+    assert _cycles(graph) == []
+
+
+def test_no_private_name_is_imported_across_modules():
+    offences = []
+    for package in PACKAGES:
+        for path, module, names in _imports(package):
+            if module.split(".")[0] not in PACKAGES:
+                continue
+            private = [n for n in names if n.startswith("_") and not n.startswith("__")]
+            if private and module != _module_name(path):
+                offences.append(f"{path.relative_to(ROOT)}: from {module} import {private}")
+    assert not offences, offences
+
+
 @pytest.mark.parametrize("package", ["core_akf", "sensoropt", "impactloc"])
 def test_libraries_import_without_the_application_layer(package):
     code = (f"import sys, {package}, {package}.__init__; "
