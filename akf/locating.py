@@ -43,10 +43,14 @@ from .writers import draw
 
 log = logging.getLogger("akf")
 
-def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None):
+def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=None):
     """Run a locate job (a dict from TOML, see :mod:`akf.schema`; a relative data path is taken
     from the working folder: :func:`akf.jobs.load_job` makes it relative to the job file);
-    returns the :class:`~impactloc.locate.LocateResult`."""
+    returns the :class:`~impactloc.locate.LocateResult`.
+
+    ``simulation``: for a job with ``[simulation]``, the :class:`~core_akf.simulate.Simulation`
+    already run from it (the truth a built-in example shows beside the result), so that it is not
+    simulated twice; ``tune`` overrides ``[locate] tune`` (``--no-tune``)."""
     from core_akf.sensors import selection_matrices
     from impactloc.locate import locate
     from impactloc.scan import Covariances
@@ -64,7 +68,7 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None):
     elif spec.simulation is not None:
         if spec.forces is None:
             raise AKFInputError("a simulated locate job needs forces = ['NODE:DIR'] (where the impact hits)")
-        Y = simulate_job(job, structure=structure)[2].measurements
+        Y = (simulate_job(job, structure=structure)[2] if simulation is None else simulation).measurements
     else:
         raise AKFInputError("the locate job needs a [measurements] section (or a [simulation] to try the method)")
     loc = spec.locate

@@ -731,3 +731,21 @@ def test_csv_separated_by_semicolons(tmp_path):
     (tmp_path / "r.csv").write_text("time;acc:4:y\n0;1\n0,001;2\n")
     with pytest.raises(ValueError, match="the header looks ';'-separated"):
         _read(tmp_path / "r.csv", sensors=("acc:4:y",))
+
+
+def test_locate_example_honours_a_changed_locate_key(tmp_path, capsys, monkeypatch):
+    """akf locate --example runs the example's job through run_locate_job: a [locate] key of the
+    job (here tune = false, and fewer role splits) is honoured, and the truth is shown beside."""
+    import akf.examples.impact as impact
+
+    original = impact.load_example
+
+    def changed(name, command=None):
+        job = original(name, command)
+        job["locate"] |= {"tune": False, "max_splits": 5}
+        return job
+    monkeypatch.setattr(impact, "load_example", changed)
+    assert main(["locate", "--example", "imp-truss-case1", "--json", "--no-plot", "--out", str(tmp_path)]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d.get("ad_error_after_tuning") is None and d["true_node"] == 14 and d["identified"] == 14
+    assert pd.read_csv(tmp_path / "ranking.csv")["n_splits"].max() == 5

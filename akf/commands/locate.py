@@ -101,18 +101,15 @@ def _locate_events(args, job):
 def _prepare_locate(args, progress):
     """What ``akf locate`` runs: ``(run, scenario or None, output name)``; ``run()`` does the
     identification and returns the :class:`~impactloc.locate.LocateResult`."""
-    from impactloc.locate import locate
-
     from ..examples.impact import example_scenario
     from ..locating import run_locate_job
 
-    if args.example:
+    if args.example:        # the example's job, every [locate] key honoured; its simulation is the truth
         scenario = example_scenario(args.example, impact_node=args.impact_node, noise=args.noise, seed=args.seed)
 
         def run():
-            return locate(scenario.structure, scenario.sensors, scenario.measurements, scenario.dt, n_ad=scenario.n_ad,
-                          ad_kinds=scenario.ad_kinds, direction=scenario.direction, tune=not args.no_tune,
-                          n_jobs=workers(args), seed=args.seed, progress=progress, **(scenario.options or {}))
+            return run_locate_job(scenario.job, n_jobs=workers(args), seed=args.seed, progress=progress,
+                                  tune=False if args.no_tune else None, simulation=scenario.simulation)
         return run, scenario, f"{args.example}-node{scenario.impact[0]}-{args.noise}"
     if args.impact_node is not None:
         raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")

@@ -38,6 +38,9 @@ class ImpactScenario:
     simulation: object = None
     #: the job's further ``[locate]`` settings for :func:`impactloc.locate` (candidates, n_modes, ...)
     options: dict = None
+    #: the locate job the scenario was simulated from (:func:`impact_job`): what ``akf locate
+    #: --example`` runs, every ``[locate]`` key honoured (:func:`akf.locating.run_locate_job`)
+    job: dict = None
 
 
 def impact_job(name, impact_node=None, noise="abs", seed=0):
@@ -72,7 +75,7 @@ def example_scenario(name, impact_node=None, noise="abs", seed=0):
         options["n_modes"] = None
     return ImpactScenario(name, structure, list(job["sensors"]), float(job["dt"]), sim.measurements,
                           sim.loads[:, 0], forces[0], int(loc["n_ad"]), tuple(loc.get("ad_kinds", ["strain"])),
-                          loc["direction"], sim, options)
+                          loc["direction"], sim, options, job)
 
 
 #: the impact examples
