@@ -29,6 +29,25 @@ def command_plugins():
     return {ep.name: ep for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda ep: ep.name)}
 
 
+#: how the library's messages (which name arguments) read on the command line: phrase -> CLI words
+CLI_WORDING = (
+    ("use steady=False to run", "use --filter time-varying (steady = false in [filter]) to run"),
+    ("pass resume=True to continue it, or remove the file to start afresh",
+     "run again with --resume to continue it, or with --overwrite to start afresh"),
+    ("pass allow_undetectable=True", "pass --allow-undetectable"),
+    ("give its gauge_factor (and bridge:", "give its gauge_factor in [measurements] (and bridge:"),
+    ("microstrain: set units={", "microstrain: set in [measurements] units = {"),
+)
+
+
+def cli_wording(message):
+    """A library message in the words of the command line (:data:`CLI_WORDING`): the core names
+    its arguments (``steady=False``), the command line its flags and job keys."""
+    for phrase, words in CLI_WORDING:
+        message = message.replace(phrase, words)
+    return message
+
+
 def build_parser():
     """The ``akf`` argument parser with every installed sub-command."""
     parser = argparse.ArgumentParser(prog="akf", description="Model-based structural monitoring with an "
@@ -98,10 +117,10 @@ def main(argv=None):
     try:
         return args.func(args)
     except UndetectableError as exc:
-        print(f"akf: error: {exc}", file=sys.stderr)
+        print(f"akf: error: {cli_wording(str(exc))}", file=sys.stderr)
         return 3
     except AKFInputError as exc:
-        print(f"akf: error: {exc}", file=sys.stderr)
+        print(f"akf: error: {cli_wording(str(exc))}", file=sys.stderr)
         return 2
     except ClusterError as exc:
         print(f"akf: error: {exc}", file=sys.stderr)

@@ -402,7 +402,7 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
     for l, report in zip(layouts, reports):
         if steady and not report.detectable:
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
-                                f"({', '.join(s.label for s in l)}); use steady=False (CLI: --filter time-varying) to run the "
+                                f"({', '.join(s.label for s in l)}); use steady=False to run the "
                                 "time-varying filter and watch it drift")
     setup = FilterSetup(structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0, P0)
     # classically damped structures are block-diagonal in these coordinates: cheap A P A^T

@@ -241,7 +241,7 @@ class GeneticAlgorithm:
                 done = f" (generation {earlier['generation']} of {earlier['settings'].get('generations')})" \
                     if "generation" in earlier else ""
                 raise AKFInputError(f"{self.checkpoint!r} holds the checkpoint of an interrupted run{done}; pass "
-                                    "resume=True (CLI: --resume) to continue it, or remove it (CLI: --overwrite) to "
+                                    "resume=True to continue it, or remove the file to "
                                     "start afresh")
         if self.resume:
             ck = load_checkpoint(self.checkpoint)

@@ -352,7 +352,8 @@ def test_place_rerun_into_a_finished_runs_folder_runs_and_an_interrupted_one_ask
     ck.write_text(json.dumps(data))
     capsys.readouterr()
     assert main(args) == 2
-    assert "interrupted run (generation 2 of 2)" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "interrupted run (generation 2 of 2)" in err and "with --resume to continue it, or with --overwrite" in err
     assert main(args + ["--overwrite"]) == 0
 
 

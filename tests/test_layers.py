@@ -183,3 +183,44 @@ def test_a_third_party_package_adds_a_subcommand(monkeypatch, capsys):
     captured = capsys.readouterr()
     assert captured.out == "hello bridge\n"
     assert "sub-command 'broken'" in captured.err and "could not be loaded" in captured.err   # akf still works
+
+
+#: command-line words that the libraries must not use in their messages (the app adds them)
+CLI_WORDS = ("CLI:", "--filter", "--resume", "--overwrite", "--allow-undetectable", "in [measurements]",
+             "in [filter]", "in [place]", "in [locate]")
+
+
+@pytest.mark.parametrize("package", ["core_akf", "sensoropt", "impactloc"])
+def test_library_messages_name_arguments_not_cli_flags(package):
+    """The libraries speak Python (``steady=False``); :func:`akf.cli.cli_wording` turns that into
+    the command line's flags and job keys where the app catches the error."""
+    offences = []
+    for path in sorted((ROOT / package).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and not node.value.startswith(">>>"):
+                if any(w in node.value for w in CLI_WORDS) and "\n    " not in node.value:     # docstrings aside
+                    offences.append(f"{path.relative_to(ROOT)}:{node.lineno}: {node.value[:80]!r}")
+    assert not offences, offences
+
+
+def test_the_command_line_words_the_library_messages():
+    """Messages raised by the library, as the command line prints them."""
+    import numpy as np
+
+    from akf.cli import cli_wording
+    from core_akf import estimate
+    from core_akf.exceptions import UndetectableError
+    from core_akf.io.units import conversion
+    from core_akf.models import s17_truss
+
+    acc_only = ["acc:4:y", "acc:8:y"]
+    kw = dict(model_error_cov=1e-16, force_increment_cov=1e4, noise_cov=1e-4)
+    with pytest.raises(UndetectableError) as undetectable:
+        estimate(s17_truss(), acc_only, ["8:y"], np.zeros((64, 2)), 1e-3, **kw)
+    assert "--allow-undetectable" in cli_wording(str(undetectable.value))
+    with pytest.raises(ValueError) as no_steady:
+        estimate(s17_truss(), acc_only, ["8:y"], np.zeros((64, 2)), 1e-3, steady=True, allow_undetectable=True, **kw)
+    assert "use --filter time-varying" in cli_wording(str(no_steady.value))
+    with pytest.raises(ValueError) as bridge:
+        conversion("mV/V", "strain", "SG1")
+    assert "give its gauge_factor in [measurements]" in cli_wording(str(bridge.value))

@@ -291,7 +291,7 @@ class Record:
                     raise AKFInputError(
                         f"strain channel {self._named(j)} has an RMS of {level:.4g} ({where}), "
                         f"impossible in m/m for an elastic structure (> {MAX_PLAUSIBLE_STRAIN:g}); it looks like "
-                        f"microstrain: set units = {{\"{self.sources[0][j].name}\" = \"microstrain\"}} in [measurements]")
+                        f"microstrain: set units={{{self.sources[0][j].name!r}: 'microstrain'}}")
 
     def _named(self, j):
         """Channel ``j`` for messages: ``'SG13' (strain:13)``, or ``'strain:13'`` if named so."""

@@ -98,7 +98,7 @@ def conversion(unit, kind, channel, gauge_factor=None, bridge=None):
     if kind == "strain" and is_bridge_unit(text):
         if gauge_factor is None:
             raise AKFInputError(f"channel {channel!r} is a bridge output in {unit!r}: give its gauge_factor (and "
-                                f"bridge = {' | '.join(BRIDGES)}) in [measurements]")
+                                f"bridge: {', '.join(BRIDGES)})")
         bridge = bridge or "quarter"
         if bridge not in BRIDGES:
             raise AKFInputError(f"channel {channel!r}: unknown bridge type {bridge!r}; use one of {list(BRIDGES)}")
