@@ -52,16 +52,9 @@ RANK_FLOOR = 1e-9
 CRITICAL_RTOL = 1e-9
 
 
-def _cache(structure):
-    return structure.__dict__
-
-
 def stiffness_factorisation(structure):
     """Cholesky factor of ``K`` (SPD for a supported structure), computed once per structure."""
-    cache = _cache(structure)
-    if "_stiffness_cholesky" not in cache:
-        cache["_stiffness_cholesky"] = scipy.linalg.cho_factor(structure.K)
-    return cache["_stiffness_cholesky"]
+    return structure.memo("stiffness_cholesky", lambda: scipy.linalg.cho_factor(structure.K))
 
 
 def is_supported(structure):
@@ -75,21 +68,19 @@ def is_supported(structure):
     absolute row sum), the most a perturbation of the entries within the model's accuracy can
     move an eigenvalue (Weyl).
     """
-    cache = _cache(structure)
-    if "_supported" not in cache:
+    def decide():
         K = np.asarray(structure.K, float)
         d = np.sqrt(np.abs(np.diag(K)))
         if np.any(d == 0):
-            cache["_supported"] = False
-        else:
-            Ks = K / np.outer(d, d)
-            tol = SAFETY * MODEL_RTOL * np.max(np.sum(np.abs(Ks), axis=1))
-            try:
-                np.linalg.cholesky(Ks - tol * np.eye(K.shape[0]))
-                cache["_supported"] = True
-            except np.linalg.LinAlgError:
-                cache["_supported"] = False
-    return cache["_supported"]
+            return False
+        Ks = K / np.outer(d, d)
+        tol = SAFETY * MODEL_RTOL * np.max(np.sum(np.abs(Ks), axis=1))
+        try:
+            np.linalg.cholesky(Ks - tol * np.eye(K.shape[0]))
+        except np.linalg.LinAlgError:
+            return False
+        return True
+    return structure.memo("supported", decide)
 
 
 def zero_rows(mat):

@@ -80,7 +80,7 @@ class ModalFilterModel:
             if self.n_modes is None:
                 self._residual = np.zeros_like(Sp)
             else:
-                omega, phi = self.full._eig
+                omega, phi = self.full.eigen
                 r = phi[:, :self.n_modes]
                 kept = r @ ((r.T @ Sp) / omega[:self.n_modes, None] ** 2)
                 self._residual = np.linalg.solve(self.full.K, Sp) - kept

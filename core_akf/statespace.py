@@ -26,10 +26,7 @@ from .sensors import as_layout, parse_force_locations, selection_matrices
 def _minv(structure):
     """Cholesky factor of M (M is SPD by construction of :class:`Structure`), computed once
     per structure: the matrices never change after construction."""
-    cache = structure.__dict__
-    if "_mass_cholesky" not in cache:
-        cache["_mass_cholesky"] = scipy.linalg.cho_factor(structure.M)
-    return cache["_mass_cholesky"]
+    return structure.memo("mass_cholesky", lambda: scipy.linalg.cho_factor(structure.M))
 
 
 def _check_dt(dt):
@@ -42,7 +39,7 @@ def _check_dt(dt):
 def modal_damping(structure, rtol=1e-10):
     """Modal damping coefficients ``c_j = phi_j^T C phi_j`` (1/s) when ``Phi^T C Phi`` is
     diagonal (classical damping: modal or Rayleigh), else ``None``."""
-    phi = structure._eig[1]
+    phi = structure.eigen[1]
     Cm = phi.T @ structure.C @ phi
     c = np.diag(Cm).copy()
     if np.max(np.abs(Cm - np.diag(c)), initial=0.0) > rtol * max(np.max(np.abs(c), initial=0.0), 1e-300):
@@ -178,7 +175,7 @@ def modal_state_transform(structure):
     in these coordinates: in raw ``[u; u']`` the stiff high modes make the Riccati
     iteration lose accuracy (residual 1e-4 instead of 1e-9 on the TH plate).
     """
-    omega, phi = structure._eig
+    omega, phi = structure.eigen
     w = _modal_scale(omega)
     phi_inv = phi.T @ structure.M  # Phi^T M Phi = I
     T = scipy.linalg.block_diag(phi / w[None, :], phi)
@@ -200,7 +197,7 @@ def modal_zoh(structure, forces, dt, rtol=1e-10):
     if c is None:
         return None
     dt = _check_dt(dt)
-    omega, phi = structure._eig
+    omega, phi = structure.eigen
     n = structure.n
     w = _modal_scale(omega)
     p = phi.T @ force_selection(structure, forces)          # (n, n_p) modal force participation
@@ -255,10 +252,10 @@ class DetectabilityReport:
 
 def _critical_eigenvalues(structure, tol):
     """Distinct eigenvalues ``s`` of ``A_c`` with Re s >= 0 (one of each conjugate pair), plus 0
-    for the force states.  Depends on the structure only, so it is cached on it."""
-    cache = structure.__dict__.setdefault("_critical_eigs", {})
-    if tol not in cache:
-        omega = structure._eig[0]
+    for the force states.  Depends on the structure only, so it is computed once per structure."""
+
+    def compute():
+        omega = structure.eigen[0]
         c = modal_damping(structure)
         if c is not None:
             # classical damping: the roots of s^2 + c s + omega^2 = 0 mode by mode
@@ -272,8 +269,8 @@ def _critical_eigenvalues(structure, tol):
                 continue
             if not any(abs(s - d) <= 1e-8 * max(1, abs(s)) for d in distinct):
                 distinct.append(complex(s))
-        cache[tol] = distinct
-    return cache[tol]
+        return distinct
+    return structure.memo(("critical_eigenvalues", tol), compute)
 
 
 def static_gain(structure, sensors, forces):

@@ -120,6 +120,7 @@ class Structure:
     meta: dict = field(default_factory=dict)
     node_ids: np.ndarray = None
     static: object = None
+    _memo: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self):
         self.M = as_finite_array(self.M, "mass matrix M", ndim=2)
@@ -147,7 +148,7 @@ class Structure:
         if self.strain_matrix is not None and self.strain_matrix.shape[1] != n_phys:
             raise ModelError("strain_matrix must have one column per free physical DOF")
         if self.C is None:
-            self.C = _damping_matrix(self.M, self.K, self.damping, lambda: self._eig)
+            self.C = _damping_matrix(self.M, self.K, self.damping, lambda: self.eigen)
         else:
             self.C = as_finite_array(self.C, "damping matrix C", ndim=2)
             check_square_symmetric(self.C, "damping matrix C")
@@ -173,7 +174,9 @@ class Structure:
 
     # ------------------------------------------------------------------ modes
     @cached_property
-    def _eig(self):
+    def eigen(self):
+        """The undamped modes, computed once: ``(omega, Phi)`` with ``omega`` (n,) in rad/s,
+        ascending, and ``Phi`` (n, n) mass-normalised, in generalised coordinates."""
         w2, phi = scipy.linalg.eigh(self.K, self.M)
         if w2[0] < -1e-8 * max(abs(w2[-1]), 1.0):
             raise ModelError(f"K is not positive semi-definite (eigenvalue {w2[0]:.3g})")
@@ -181,7 +184,7 @@ class Structure:
 
     def frequencies(self, k=None):
         """First ``k`` undamped natural frequencies in Hz (all if ``k`` is None)."""
-        omega = self._eig[0]
+        omega = self.eigen[0]
         if k is not None:
             if not 1 <= int(k) <= omega.size:
                 raise AKFInputError(f"k must be between 1 and {omega.size}, got {k}")
@@ -190,8 +193,16 @@ class Structure:
 
     def modes(self, k=None):
         """First ``k`` mass-normalised mode shapes, shape (n_phys, k), in physical free DOFs."""
-        phi = self._eig[1][:, :k]
+        phi = self.eigen[1][:, :k]
         return phi if self.basis is None else self.basis @ phi
+
+    def memo(self, key, compute):
+        """A result of an analysis that depends only on this structure's matrices (which never
+        change after construction: a changed model is a new :class:`Structure`), computed once by
+        ``compute()`` and kept under ``key`` (a factorisation, the critical eigenvalues, ...)."""
+        if key not in self._memo:
+            self._memo[key] = compute()
+        return self._memo[key]
 
     # ------------------------------------------------------------------ id maps
     def _node_index(self, node):
@@ -348,7 +359,7 @@ class Structure:
         n_modes = check_n_modes(n_modes)
         if not 1 <= n_modes <= self.n:
             raise AKFInputError(f"n_modes must be between 1 and {self.n}, got {n_modes}")
-        omega, phi = self._eig
+        omega, phi = self.eigen
         phi = phi[:, :n_modes]
         Cr = phi.T @ self.C @ phi
         basis = phi if self.basis is None else self.basis @ phi

@@ -224,3 +224,15 @@ def test_the_command_line_words_the_library_messages():
     with pytest.raises(ValueError) as bridge:
         conversion("mV/V", "strain", "SG1")
     assert "give its gauge_factor in [measurements]" in cli_wording(str(bridge.value))
+
+
+def test_no_module_writes_into_another_objects_dict():
+    """Caches live with their owner (``Structure.memo``, ``cached_property``), not in another
+    object's ``__dict__``."""
+    offences = []
+    for package in ("core_akf", "sensoropt", "impactloc"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            for k, line in enumerate(path.read_text().splitlines(), start=1):
+                if "__dict__" in line and "self.__dict__" not in line:
+                    offences.append(f"{path.relative_to(ROOT)}:{k}: {line.strip()}")
+    assert not offences, offences

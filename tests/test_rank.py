@@ -154,7 +154,7 @@ def test_zero_rows_and_supported_are_scale_free():
     for f in (1e-6, 1.0, 1e6):
         assert is_supported(s17_truss(200e9 * f, 7800))
     import types
-    free = types.SimpleNamespace(K=s17_truss().meta["K_full"])
+    free = types.SimpleNamespace(K=s17_truss().meta["K_full"], memo=lambda key, compute: compute())
     assert not is_supported(free)
 
 

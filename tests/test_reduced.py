@@ -26,7 +26,7 @@ def test_static_correction_gives_exact_static_strains(n_modes):
     # kappa = (omega_max / omega_min)^2 = 2.9e8: each is accurate to eps * kappa = 6.4e-8 relative
     # to the largest strain (measured 1e-9 normwise, up to 9e-8 on small components, depending on
     # the BLAS kernel).  The tolerance is that bound on the largest strain.
-    omega = s._eig[0]
+    omega = s.eigen[0]
     atol = np.finfo(float).eps * (omega[-1] / omega[0]) ** 2 * np.abs(exact).max()
     np.testing.assert_allclose(strains, exact, rtol=0, atol=atol)
     G = fm.observation(["strain:2:gxy", "strain:58:ex"])

@@ -408,7 +408,7 @@ def _check_coordinate_units(coords, name):
 def _check_modes(structure):
     """No rigid-body mode; the first frequencies in :data:`FREQUENCY_RANGE`."""
     try:            # the modes are needed anyway (damping, the filter's modal coordinates): computed once
-        omega = structure._eig[0][:5]
+        omega = structure.eigen[0][:5]
     except ModelError:
         omega = np.zeros(1)
     w2 = omega ** 2
