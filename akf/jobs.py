@@ -134,6 +134,11 @@ def build_structure(spec):
     name = spec.pop("model", None)
     if not isinstance(name, str) or name not in MODELS:
         raise AKFInputError(f"structure.model must be one of {sorted(MODELS)}, got {name!r}")
+    if name == "matrices":
+        missing = [k for k in ("K", "M", "dofs", "nodes") if k not in spec]
+        if missing:
+            raise AKFInputError(f"[structure] model = \"matrices\" needs {', '.join(missing)} (files of K, M, the DOF map "
+                                "and the node coordinates)")
     try:
         return MODELS[name](**spec)
     except AKFInputError:

@@ -13,6 +13,7 @@ covariances on loky, on threads and on a dask cluster (``tests/test_dask.py``).
 from __future__ import annotations
 
 import contextlib
+import os
 
 from core_akf.exceptions import AKFInputError
 
@@ -122,6 +123,8 @@ def _lost_work(exc):
     return None
 
 
+#: a local cluster has at most this many single-threaded workers per core of the machine
+LOCAL_WORKERS_PER_CORE = 4
 #: seconds to connect to a scheduler and hear it answer
 CONNECT_TIMEOUT = 10.0
 #: the address schemes of dask's comms
@@ -205,6 +208,11 @@ def check_scheduler(spec):
         n = spec.split(":", 1)[1]
         if not n.isdigit() or int(n) < 1:
             raise AKFInputError(f"--scheduler local:N needs a number of workers N >= 1, got {spec!r}")
+        cores = os.cpu_count() or 1
+        if int(n) > LOCAL_WORKERS_PER_CORE * cores:
+            raise AKFInputError(f"--scheduler {spec} would start {n} worker processes on this machine of {cores} "
+                                f"core(s); give at most local:{LOCAL_WORKERS_PER_CORE * cores} (one per core is "
+                                "fastest), or the address of a cluster for more")
         return int(n)
     check_address(spec)
     return 0

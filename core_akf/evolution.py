@@ -209,6 +209,8 @@ class GeneticAlgorithm:
                  progress=None, hall_of_fame=5):
         if generations < 0:
             raise AKFInputError(f"generations must be >= 0, got {generations}")
+        if isinstance(seed, (bool, np.bool_)) or int(seed) != seed or seed < 0:
+            raise AKFInputError(f"seed must be a whole number >= 0, got {seed!r}")
         self.algorithm, self.evaluator = algorithm, evaluator
         self.generations, self.seed = int(generations), int(seed)
         self.stall_generations, self.stall_tol, self.stall_column = int(stall_generations), stall_tol, stall_column

@@ -750,3 +750,33 @@ def test_locate_example_honours_a_changed_locate_key(tmp_path, capsys, monkeypat
     d = json.loads(capsys.readouterr().out)
     assert d.get("ad_error_after_tuning") is None and d["true_node"] == 14 and d["identified"] == 14
     assert pd.read_csv(tmp_path / "ranking.csv")["n_splits"].max() == 5
+
+
+@pytest.mark.parametrize("command", [["place", "--example", "th-case5"], ["locate", "--example", "imp-truss-case1"],
+                                     ["estimate", "--example", "s17-case4"]])
+def test_a_negative_seed(command, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(command + ["--seed", "-5"])
+    assert stop.value.code == 2 and "a seed is a whole number >= 0" in capsys.readouterr().err
+
+
+def test_ga_engine_refuses_a_negative_seed():
+    from core_akf.evolution import GeneticAlgorithm
+
+    with pytest.raises(ValueError, match="seed must be a whole number >= 0"):
+        GeneticAlgorithm(None, None, generations=1, seed=-1)
+
+
+def test_a_local_cluster_of_hundreds_of_workers_on_a_small_machine():
+    pytest.importorskip("distributed")
+    from akf.parallel import check_scheduler
+
+    with pytest.raises(ValueError, match="would start 100000 worker processes"):
+        check_scheduler("local:100000")
+
+
+def test_matrices_model_without_its_files(tmp_path):
+    from akf.jobs import build_structure
+
+    with pytest.raises(ValueError, match='model = "matrices" needs K, M'):
+        build_structure({"model": "matrices", "dofs": "d.csv", "nodes": "n.csv"})

@@ -46,3 +46,16 @@ def print_job(args):
     with open(example_path(args.example), encoding="utf-8") as fh:
         print(fh.read(), end="")
     return 0
+
+
+def seed(text):
+    """An argparse type: a seed is a whole number >= 0 (numpy's generators take no other)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a seed is a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"a seed is a whole number >= 0, got {value}")
+    return value

@@ -10,7 +10,7 @@ from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
 from ..writers import draw
-from .common import add_print_job, print_job, print_written
+from .common import add_print_job, print_job, print_written, seed
 
 #: above this many (channel x step) rows, "all" strain histories are not written to the CSV
 _MAX_STRAIN_ROWS = 2_000_000
@@ -174,7 +174,7 @@ def register(sub):
     p.add_argument("--filter", choices=["steady", "time-varying"], help="override the job's filter form")
     p.add_argument("--allow-undetectable", action="store_true", help="run even if the PBH test fails")
     p.add_argument("--duration", type=float, help="override the simulated record length (s)")
-    p.add_argument("--seed", type=int, help="override the noise seed")
+    p.add_argument("--seed", type=seed, help="override the noise seed")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
     p.add_argument("--resume", action="store_true", help="measured data: continue an interrupted run in --out from its "
                    "last written chunk")

@@ -12,7 +12,7 @@ from core_akf.outputs import OutputFolder
 
 from ..jobs import load_job
 from ..parallel import add_scheduler_option, scheduler, workers
-from .common import add_print_job, print_job
+from .common import add_print_job, print_job, seed
 
 
 def _locate(args):
@@ -131,7 +131,7 @@ def register(sub):
     p.add_argument("--list-examples", action="store_true", help="list the built-in examples")
     p.add_argument("--impact-node", type=int, help="example: where the simulated impact hits (default the paper's)")
     p.add_argument("--noise", choices=NOISE, default="abs", help="example noise: abs (1 µε, 1 mg) or rel10 (10 %%)")
-    p.add_argument("--seed", type=int, default=0, help="noise, role-split sample and GA seed")
+    p.add_argument("--seed", type=seed, default=0, help="noise, role-split sample and GA seed")
     p.add_argument("--n-jobs", type=int, help="joblib workers (-1: all cores; default 1, every worker with --scheduler)")
     add_scheduler_option(p)
     p.add_argument("--no-tune", action="store_true", help="skip the covariance GA")

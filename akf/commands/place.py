@@ -14,7 +14,7 @@ from core_akf.outputs import OutputFolder, write_csv
 
 from ..jobs import load_job
 from ..parallel import add_scheduler_option, check_scheduler
-from .common import add_print_job, print_job, print_written
+from .common import add_print_job, print_job, print_written, seed
 
 
 def _place(args):
@@ -146,7 +146,7 @@ def register(sub):
     p.add_argument("--example", choices=example_names("place"), help="built-in problem")
     p.add_argument("--list-examples", action="store_true", help="list the built-in problems")
     p.add_argument("--sensors", type=int, help="number of sensors (overrides the example/job)")
-    p.add_argument("--seed", type=int, default=0, help="GA seed (the run repeats exactly)")
+    p.add_argument("--seed", type=seed, default=0, help="GA seed (the run repeats exactly)")
     p.add_argument("--generations", type=int, help="GA generations (default 100)")
     p.add_argument("--population", type=int, help="GA population (default 50)")
     p.add_argument("--operators", choices=["set", "thesis"], help="set-based (default) or the thesis' operators")
