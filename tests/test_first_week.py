@@ -780,3 +780,8 @@ def test_matrices_model_without_its_files(tmp_path):
 
     with pytest.raises(ValueError, match='model = "matrices" needs K, M'):
         build_structure({"model": "matrices", "dofs": "d.csv", "nodes": "n.csv"})
+
+
+def test_a_free_dof_without_mass():
+    with pytest.raises(ValueError, match="1 free DOF\\(s\\) have no mass \\(2:x\\)"):
+        _two_dof(M=np.diag([10.0, 0.0]))

@@ -253,6 +253,12 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
         if not targets:
             raise AKFInputError(f"fixed node {f} has no DOF in the DOF map")
     rows = np.flatnonzero(keep)
+    diag_m = M.diagonal()
+    massless = [f"{dofs[r][0]}:{dofs[r][1]}" for r in rows if diag_m[r] == 0]
+    if massless:
+        raise AKFInputError(f"{len(massless)} free DOF(s) have no mass ({', '.join(massless[:8])}"
+                            f"{' ...' if len(massless) > 8 else ''}): give them a mass or rotary inertia, fix them, or "
+                            "condense them out (static/Guyan condensation) before exporting K and M")
     if rows.size == 0:
         raise AKFInputError(f"every DOF of the model is fixed ({len(dofs)} of {len(dofs)}): nothing can move; fix only "
                             "the supports")
