@@ -137,3 +137,14 @@ def check_memory(n_steps, floats_per_step, what, fix, items="time steps"):
     if have is not None and need > 0.8 * have:
         raise AKFInputError(f"{what}: {n_steps:.4g} {items} need about {need / 2 ** 30:.3g} GiB, but this machine "
                             f"has {have / 2 ** 30:.3g} GiB available; {fix}")
+
+
+def first_repeat(values):
+    """``(i, j, value)`` for the first value that repeats, at positions ``i < j`` (0-based), or
+    ``None`` when every value is distinct."""
+    seen = {}
+    for j, v in enumerate(values):
+        if v in seen:
+            return seen[v], j, v
+        seen[v] = j
+    return None

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import first_repeat
 from ..exceptions import AKFInputError
 
 #: a time stamp may lie off the uniform grid ``t_0 + k dt`` by this fraction of a step
@@ -209,12 +210,11 @@ class CsvReader(Reader):
 
 def _check_unique_columns(names, path):
     """Refuse a table that names a column twice: which of the two is the channel is not known."""
-    seen = {}
-    for i, name in enumerate(names):
-        if name in seen:
-            raise AKFInputError(f"{path}: column {name!r} appears twice (columns {seen[name] + 1} and {i + 1}); "
-                                "every channel needs a name of its own")
-        seen[name] = i
+    repeat = first_repeat(names)
+    if repeat:
+        i, j, name = repeat
+        raise AKFInputError(f"{path}: column {name!r} appears twice (columns {i + 1} and {j + 1}); every channel "
+                            "needs a name of its own")
 
 
 def _numeric(column, path, name, row0):

@@ -23,6 +23,7 @@ import warnings
 
 import numpy as np
 
+from ..checks import first_repeat
 from ..exceptions import AKFInputError, ModelError
 from ..structure import Structure
 from .sparse import (
@@ -105,12 +106,11 @@ def read_nodes(path):
     if np.any(ids != np.round(ids)):
         r = int(np.flatnonzero(ids != np.round(ids))[0])
         raise AKFInputError(f"{path}: node {table['node'].iloc[r]!r} in data row {r + 1} is not an integer id")
-    first = {}
-    for r, n in enumerate(ids):
-        if n in first:
-            raise AKFInputError(f"{path}: node {int(n)} is listed twice (data rows {first[n] + 1} and {r + 1}); every "
-                                "node needs one place")
-        first[n] = r
+    repeat = first_repeat(ids.tolist())
+    if repeat:
+        i, j, n = repeat
+        raise AKFInputError(f"{path}: node {int(n)} is listed twice (data rows {i + 1} and {j + 1}); every node needs "
+                            "one place")
     return {int(n): tuple(row) for n, row in zip(ids, values[cols[1:]].to_numpy(dtype=float))}
 
 
