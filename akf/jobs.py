@@ -318,8 +318,8 @@ def run_job(job: dict, allow_undetectable: bool | None = None, steady: bool | No
     steady = filt.steady if steady is None else steady     # None: core_akf.defaults, steady where it exists
     allow_undetectable = bool(filt.allow_undetectable if allow_undetectable is None else allow_undetectable)
     model = true_structure.scaled(default("stiffness_factor", filt.stiffness_factor))
-    if filt.reduce_modes:
-        model = model.reduce(filt.reduce_modes, static_correction=True)
+    if filt.n_modes:
+        model = model.reduce(filt.n_modes, static_correction=True)
     sensors = as_layout(job["sensors"])
     selection_matrices(true_structure, sensors)      # every sensor exists on this structure
     forces = parse_force_locations(true_structure, job["forces"])

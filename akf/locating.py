@@ -19,9 +19,9 @@ A locate job (TOML)::
     n_modes = "auto"                # filter reduction for scan/tuning ("auto", an int, or "full")
 
     [locate.covariances]            # optional assumed levels (default: from the data)
-    model_error = 1e-16
-    force_increment = 1e6
-    noise = {strain = 1e-13, acc = 1e-3}
+    model_error_cov = 1e-16
+    force_increment_cov = 1e6
+    noise_cov = {strain = 1e-13, acc = 1e-3}
 
     [locate.tuning]                 # optional GA settings
     population = 12
@@ -73,7 +73,7 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
         raise AKFInputError("the locate job needs a [measurements] section (or a [simulation] to try the method)")
     loc = spec.locate
     c = loc.covariances
-    covariances = None if c is None else Covariances(c.model_error, c.force_increment, dict(c.noise))
+    covariances = None if c is None else Covariances(c.model_error_cov, c.force_increment_cov, dict(c.noise_cov))
     tuning = None if loc.tuning is None else loc.tuning.model_dump(exclude_none=True)
     return locate(structure, spec.sensors, Y, spec.dt, n_ad=loc.n_ad, direction=loc.direction,
                   ad_kinds=tuple(loc.ad_kinds or ["strain"]), candidates=loc.candidates, covariances=covariances,

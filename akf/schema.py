@@ -110,8 +110,8 @@ class Filter(Section):
     stiffness_factor: Positive = key(
         "a positive number", "the filter's stiffness relative to the true structure (1.05: 5 % stiffer)",
         used_by=("estimate", "place"), registry="stiffness_factor / placement_stiffness_factor")
-    reduce_modes: Count = key("an integer >= 1", "keep this many modes (with static correction) in "
-                                        "the filter's model; default the full model", used_by=ESTIMATE)
+    n_modes: Count = key("an integer >= 1", "keep this many modes (with static correction) in the filter's model; "
+                         "default the full model (the key was reduce_modes)", used_by=ESTIMATE)
     model_error_cov: Covariance = key(
         "a variance >= 0, a list of variances or a matrix (list of lists)",
         "Q: model-error variance per step (one level, one per state, or the matrix)",
@@ -256,10 +256,12 @@ class Place(Section):
 class CovariancesSection(Section):
     """``[locate.covariances]``: assumed covariance levels before tuning."""
 
-    model_error: NonNegative = key("a number >= 0", "Q level", unit="state units^2", used_by=LOCATE, required=True)
-    force_increment: Positive = key("a positive number", "S level", unit="N^2", used_by=LOCATE, required=True)
-    noise: dict[Text, Positive] = key("a table of positive numbers", "R per sensor kind", unit="SI^2",
-                                      used_by=LOCATE, required=True)
+    model_error_cov: NonNegative = key("a number >= 0", "Q level (as [filter] model_error_cov; the key was "
+                                       "model_error)", unit="state units^2", used_by=LOCATE, required=True)
+    force_increment_cov: Positive = key("a positive number", "S level (as [filter] force_increment_cov; the key was "
+                                        "force_increment)", unit="N^2", used_by=LOCATE, required=True)
+    noise_cov: dict[Text, Positive] = key("a table of positive numbers", "R per sensor kind (as [filter] noise_cov; "
+                                          "the key was noise)", unit="SI^2", used_by=LOCATE, required=True)
 
 
 class Tuning(Section):
@@ -376,6 +378,32 @@ def _message(error, kind):
     return f"{name} in {_where(path)} must be {expect}; got {_describe(value)}"
 
 
+#: keys renamed so that one concept has one name everywhere: (table path, old key, new key)
+RENAMED_KEYS = ((("filter",), "reduce_modes", "n_modes"),
+                (("locate", "covariances"), "model_error", "model_error_cov"),
+                (("locate", "covariances"), "force_increment", "force_increment_cov"),
+                (("locate", "covariances"), "noise", "noise_cov"))
+
+
+def _rename_old_keys(data, source=None):
+    """Read a job written with a key's old name (:data:`RENAMED_KEYS`) under its new one, with a
+    ``FutureWarning`` that says what to change; both names at once are an error."""
+    import warnings
+
+    for path, old, new in RENAMED_KEYS:
+        table = data
+        for part in path:
+            table = table.get(part) if isinstance(table, dict) else None
+        if not isinstance(table, dict) or old not in table:
+            continue
+        where = "[" + ".".join(path) + "]"
+        if new in table:
+            raise JobError([f"{where} has both {old!r} and {new!r}; {old} is the old name of {new}: keep one"], source)
+        table[new] = table.pop(old)
+        warnings.warn(f"{source + ': ' if source else ''}{where} {old} is now called {new}; read as {new} (rename it in "
+                      "the job file)", FutureWarning, stacklevel=3)
+
+
 #: top-level job keys that no model function takes as an argument (a ``[structure]`` table passes
 #: its other keys to the model)
 TOP_LEVEL_ONLY = ("dt", "sensors", "forces", "description")
@@ -423,6 +451,7 @@ def parse_job(data: dict, command: str, source: str | None = None) -> Job:
     kind = {"estimate": "job", "place": "place job", "locate": "locate job"}[command]
     if not isinstance(data, dict):
         raise JobError([f"a {kind} is a table of settings (a dict), got {type(data).__name__}"], source)
+    _rename_old_keys(data, source)
     structure = data.get("structure")
     if isinstance(structure, dict):       # its extra keys go to the model function: catch a misplaced job key first
         misplaced = [misplaced_key(k, "structure") for k in structure if k in TOP_LEVEL_ONLY]

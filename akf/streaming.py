@@ -207,8 +207,8 @@ def stream_job(job, out, *, resume=False, overwrite=False, allow_undetectable=No
     record = open_record(spec.measurements, sensors)
     record.check_dt(dt)
     model = structure.scaled(default("stiffness_factor", filt.stiffness_factor))
-    if filt.reduce_modes:
-        model = model.reduce(filt.reduce_modes, static_correction=True)
+    if filt.n_modes:
+        model = model.reduce(filt.n_modes, static_correction=True)
     noise_cov = filt.noise_cov
     if noise_cov is None or isinstance(noise_cov, str):
         raise AKFInputError("measured data need the noise variances: [filter] noise_cov = {strain = ..., acc = ...} "

@@ -245,7 +245,7 @@ def test_reduced_model_estimate_close_to_full_on_th_case3():
     job = example_job("th-case3")
     job["simulation"]["duration"] = 0.5
     full = run_job(job).metrics["avg_strain_error"]
-    job["filter"]["reduce_modes"] = 80
+    job["filter"]["n_modes"] = 80
     reduced = run_job(job).metrics["avg_strain_error"]
     assert reduced == pytest.approx(full, rel=0.05)    # truncation error of 80 modes (measured 0.3 %)
 

@@ -166,7 +166,7 @@ JOB_CASES = {
     "steady = 'no'": (lambda tp: _job(filter__steady="no"), "steady in \\[filter\\] must be true or false"),
     "allow_undetectable = 'no'": (lambda tp: _job(filter__allow_undetectable="no"),
                                   "allow_undetectable in \\[filter\\] must be true or false"),
-    "reduce_modes = 0": (lambda tp: _job(filter__reduce_modes=0), "reduce_modes in \\[filter\\] must be an integer >= 1"),
+    "n_modes = 0": (lambda tp: _job(filter__n_modes=0), "n_modes in \\[filter\\] must be an integer >= 1"),
     "dt = false": (lambda tp: _job(dt=False), "dt in the job must be a positive number"),
     "dt = '1ms'": (lambda tp: _job(dt="1ms"), "dt in the job must be a positive number"),
     "seed = 0.0": (lambda tp: _job(simulation__seed=0.0), "seed in \\[simulation\\] must be an integer >= 0"),
@@ -352,7 +352,7 @@ from hypothesis import strategies as st  # noqa: E402
 _VALUES = st.one_of(st.none(), st.booleans(), st.integers(-3, 3), st.sampled_from([0.0, -1.0, 1e-300, 1e300, 0.5, 2.0]),
                     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=5),
                     st.lists(st.integers(-2, 2), max_size=3), st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))
-_PATHS = ["dt", "sensors", "forces", "name", "filter__steady", "filter__allow_undetectable", "filter__reduce_modes",
+_PATHS = ["dt", "sensors", "forces", "name", "filter__steady", "filter__allow_undetectable", "filter__n_modes",
           "filter__model_error_cov", "filter__force_increment_cov", "filter__noise_cov", "filter__stiffness_factor",
           "simulation__duration", "simulation__seed", "simulation__relative_noise", "simulation__loads",
           "simulation__absolute_noise", "structure__model", "output__strains", "structure", "filter"]

@@ -785,3 +785,23 @@ def test_matrices_model_without_its_files(tmp_path):
 def test_a_free_dof_without_mass():
     with pytest.raises(ValueError, match="1 free DOF\\(s\\) have no mass \\(2:x\\)"):
         _two_dof(M=np.diag([10.0, 0.0]))
+
+
+# ----------------------------------------------------------------- one name per concept (issue 20, item 5)
+def test_old_key_names_are_read_under_the_new_ones_with_a_warning():
+    from akf.schema import parse_job
+
+    job = {"dt": 0.001, "sensors": ["strain:5"], "forces": ["4:y"], "structure": {"model": "s17_truss"},
+           "simulation": {"duration": 0.5}, "filter": {"reduce_modes": 12}}
+    with pytest.warns(FutureWarning, match=r"\[filter\] reduce_modes is now called n_modes"):
+        assert parse_job(job, "estimate").filter.n_modes == 12
+    locate = {"dt": 0.001, "sensors": ["strain:5", "strain:9"], "structure": {"model": "s17_truss"},
+              "locate": {"n_ad": 1, "direction": "y", "covariances": {"model_error": 1e-16, "force_increment": 1e6,
+                                                                      "noise": {"strain": 1e-13}}},
+              "simulation": {"duration": 0.5}, "forces": ["4:y"]}
+    with pytest.warns(FutureWarning, match=r"\[locate.covariances\] model_error is now called model_error_cov"):
+        c = parse_job(locate, "locate").locate.covariances
+    assert (c.model_error_cov, c.force_increment_cov, c.noise_cov) == (1e-16, 1e6, {"strain": 1e-13})
+    job["filter"] = {"reduce_modes": 12, "n_modes": 10}
+    with pytest.raises(ValueError, match="has both 'reduce_modes' and 'n_modes'"):
+        parse_job(job, "estimate")

@@ -75,13 +75,13 @@ CASES = {
 CHANNELS = ("strain:70:ex", "strain:1:gxy")
 
 
-def run_case(case, duration=6.0, seed=0, reduce_modes=None):
+def run_case(case, duration=6.0, seed=0, n_modes=None):
     """Run one thesis case; returns the :class:`~akf.jobs.JobResult`."""
     description, sensors, model_error, noise, options = CASES[case]
     job = th_job(f"th-{case}", description, sensors, model_error=model_error, noise=noise, **options)
     job["simulation"].update(duration=duration, seed=seed)
     flexible = options is _FLEX
-    job["filter"]["reduce_modes"] = reduce_modes or (150 if flexible else 80)
+    job["filter"]["n_modes"] = n_modes or (150 if flexible else 80)
     try:
         return run_job(job)
     except Exception as exc:  # undetectable: force the time-varying filter, as the thesis does
