@@ -1,18 +1,18 @@
 """Sensor placement on plates with a mixed-integer GA on DEAP (TH §4).
 
->>> from sensoropt import Encoding, StrainErrorObjective, place     # doctest: +SKIP
->>> enc = Encoding(plate, kinds=("ex", "ey", "gxy"), n_sensors=3)                # doctest: +SKIP
+>>> from sensoropt import PlateGrid, StrainErrorObjective, place     # doctest: +SKIP
+>>> enc = PlateGrid(plate, kinds=("ex", "ey", "gxy"), n_sensors=3)                # doctest: +SKIP
 >>> obj = StrainErrorObjective(plate, forces, loads, dt, enc, window=0.1)         # doctest: +SKIP
 >>> res = place(obj, enc, seed=0, n_jobs=2)                                       # doctest: +SKIP
 >>> res.layout, res.best_error                                                    # doctest: +SKIP
 """
-from .encoding import KINDS, STRAIN_KINDS, CandidateSet, Encoding, make_encoding
+from .encoding import KINDS, STRAIN_KINDS, CandidateSet, Encoding, PlateGrid, make_encoding
 from .ga import THESIS, PlacementResult, independent_runs, place
 from .objective import FunctionObjective, StrainErrorObjective
 from .pareto import ParetoResult, pareto
 from .plots import plot_convergence, plot_layout, plot_pareto
 from .problem import PlacementProblem
 
-__all__ = ["KINDS", "STRAIN_KINDS", "CandidateSet", "Encoding", "make_encoding", "THESIS", "PlacementResult", "independent_runs", "place",
-           "FunctionObjective", "StrainErrorObjective", "ParetoResult", "pareto", "plot_convergence", "plot_layout",
-           "plot_pareto", "PlacementProblem"]
+__all__ = ["KINDS", "STRAIN_KINDS", "CandidateSet", "PlateGrid", "Encoding", "make_encoding", "THESIS",
+           "PlacementResult", "independent_runs", "place", "FunctionObjective", "StrainErrorObjective",
+           "ParetoResult", "pareto", "plot_convergence", "plot_layout", "plot_pareto", "PlacementProblem"]

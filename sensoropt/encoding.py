@@ -1,5 +1,5 @@
 """Layout encodings for the placement GA: a candidate set of sensors of any kind at any place on
-any structure (:class:`CandidateSet`), and the thesis' rectangular plate grid (:class:`Encoding`,
+any structure (:class:`CandidateSet`), and the thesis' rectangular plate grid (:class:`PlateGrid`,
 TH §4), one way to build such a set.
 
 On any structure (:class:`CandidateSet`) a candidate is a sensor string -- a strain gauge on a
@@ -8,14 +8,14 @@ on a node and direction (``acc:8:y``) -- placed at a point: the node, or the cen
 a strain output reads.  The *move* mutation steps to one of the nearest candidates of the same
 kind (a KD-tree on those points); the distance between layouts matches sensors by that spacing.
 
-On the plate grid (:class:`Encoding`) a sensor is a gene triple ``(ix, iy, kind)`` -- grid column and row (1-based, node number
+On the plate grid (:class:`PlateGrid`) a sensor is a gene triple ``(ix, iy, kind)`` -- grid column and row (1-based, node number
 ``(iy - 1)(nx + 1) + ix``) and kind ``"ex"``, ``"ey"``, ``"gxy"`` (strain components) or
 ``"acc"`` (out-of-plane acceleration w).  Only *admissible* sensors are candidates: a sensor
 whose observation row is identically zero (an accelerometer on the clamped edge, e_x along a
 clamped edge y = 0) cannot measure anything.  Internally a layout is the sorted tuple of
 candidate indices, so orderings of the same sensors are one individual, and no sensor appears
 twice.  The operators keep layouts unique, admissible and within the per-type budget by
-construction; :meth:`Encoding.repair` is the safety net.
+construction; :meth:`PlateGrid.repair` is the safety net.
 """
 from __future__ import annotations
 
@@ -388,7 +388,7 @@ class CandidateSet:
 DIVERSITY_SAMPLE = 500
 
 
-class Encoding(CandidateSet):
+class PlateGrid(CandidateSet):
     """Admissible sensor candidates of a plate and the GA operators on layouts.
 
     Parameters
@@ -542,8 +542,12 @@ class Encoding(CandidateSet):
         return float(C[r, c].sum())
 
 
+#: the old name of :class:`PlateGrid` (kept so that scripts written against it still run)
+Encoding = PlateGrid
+
+
 def make_encoding(structure, kinds=None, n_sensors=None, budget=None, candidates=None):
-    """The encoding of a placement problem: the thesis' plate grid (:class:`Encoding`) for a plate
+    """The encoding of a placement problem: the thesis' plate grid (:class:`PlateGrid`) for a plate
     whose nodes form a rectangular grid and plate kinds (``ex ey gxy acc``), else a
     :class:`CandidateSet` of ``candidates`` or of ``kinds`` (default: strain gauges on every
     strain output, plus nothing else)."""
@@ -554,5 +558,5 @@ def make_encoding(structure, kinds=None, n_sensors=None, budget=None, candidates
         if structure.strain_kind == "node" and set(kinds) <= set(KINDS) and "w" in structure.dof_names:
             xs, ys = np.unique(np.round(structure.nodes[:, 0], 12)), np.unique(np.round(structure.nodes[:, 1], 12))
             if len(xs) * len(ys) == structure.n_nodes and structure.nodes.shape[1] == 2:
-                return Encoding(structure, kinds=kinds, n_sensors=n_sensors, budget=budget)
+                return PlateGrid(structure, kinds=kinds, n_sensors=n_sensors, budget=budget)
     return CandidateSet(structure, kinds=kinds or (), n_sensors=n_sensors, budget=budget, candidates=candidates)

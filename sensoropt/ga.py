@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .encoding import Encoding
+    from .encoding import PlateGrid
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -94,7 +94,7 @@ class PlacementGA(Algorithm):
                 "diversity": self.encoding.diversity([tuple(i) for i in pop])}
 
 
-def place(objective, encoding: Encoding, *, population: int = 50, generations: int = 100, elite: int = 2,
+def place(objective, encoding: PlateGrid, *, population: int = 50, generations: int = 100, elite: int = 2,
           crossover: float = 0.8, mutation: float = 0.16, tournament: int = 4, stall_generations: int = 50,
           stall_tol: float = 1e-6, operators: str = "set", seed: int = 0, n_jobs: int = 1,
           checkpoint: str | None = None, checkpoint_every: int = 5, resume: bool = False, progress: bool = False,
@@ -106,7 +106,7 @@ def place(objective, encoding: Encoding, *, population: int = 50, generations: i
     ----------
     objective : an objective with ``evaluate(list of layouts) -> list of floats`` (see
         :mod:`sensoropt.objective`; wrap a plain function with ``FunctionObjective``)
-    encoding : :class:`~sensoropt.encoding.Encoding` -- candidates, sensor count / budget
+    encoding : :class:`~sensoropt.encoding.PlateGrid` -- candidates, sensor count / budget
     population, generations, elite, crossover, mutation, tournament : GA settings
     stall_generations, stall_tol : stop when the mean fitness changed by less than
         ``stall_tol`` (relative) over that many generations

@@ -51,7 +51,7 @@ class StrainErrorObjective:
     structure : Structure -- the true plate;  forces : force locations;  loads : (N, n_p) N
     dt : float (s);  window : float (s) -- the record used, from the start of ``loads``
     encoding : :class:`~sensoropt.encoding.CandidateSet` (or the plate grid
-        :class:`~sensoropt.encoding.Encoding`) -- the candidates to prepare
+        :class:`~sensoropt.encoding.PlateGrid`) -- the candidates to prepare
     targets : strain output labels (``"strain:13"``, ``"strain:58:ex"``) whose error is averaged;
         default every strain output
     n_modes : filter modes with static correction (None: the full model).  ``"auto"``:

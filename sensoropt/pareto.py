@@ -12,7 +12,7 @@ import numpy as np
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, individual_class, tournament_dcd
 from core_akf.exceptions import AKFInputError
 
-from .encoding import Encoding
+from .encoding import PlateGrid
 from .ga import BATCH, PENALTY
 
 
@@ -131,7 +131,7 @@ def pareto(objective, structure, *, kinds: tuple[str, ...] = ("ex", "ey", "gxy")
     lo, hi = int(sizes[0]), int(sizes[1])
     if not 1 <= lo <= hi:
         raise AKFInputError(f"sizes must satisfy 1 <= min <= max, got {sizes}")
-    encs = {k: Encoding(structure, kinds=kinds, n_sensors=k) for k in range(lo, hi + 1)}
+    encs = {k: PlateGrid(structure, kinds=kinds, n_sensors=k) for k in range(lo, hi + 1)}
     base = encs[lo]
     cost = {k: 1.0 for k in base.kinds} if cost is None else {str(k): float(v) for k, v in cost.items()}
     missing = [k for k in base.kinds if k not in cost]

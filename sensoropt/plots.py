@@ -31,9 +31,9 @@ def plot_layout(encoding, layout, path=None, title="", forces=()):
     """The mesh (nodes as dots, clamped nodes grey), the sensors with kind markers and node ids,
     and the force locations (red crosses); on any other structure than the plate grid the layout
     drawn on the structure (3-D for 3-D coordinates, :func:`core_akf.figures.plot_structure`)."""
-    from .encoding import Encoding
+    from .encoding import PlateGrid
 
-    if not isinstance(encoding, Encoding):
+    if not isinstance(encoding, PlateGrid):
         from core_akf.figures import plot_structure
 
         return plot_structure(encoding.structure, path=path, title=title, numbers=encoding.structure.n_nodes <= 60,

@@ -100,9 +100,9 @@ class _EndsItsWorker:
 
 def _toy_placement(objective, n_jobs):
     from core_akf.models import th_plate
-    from sensoropt import Encoding
+    from sensoropt import PlateGrid
 
-    enc = Encoding(th_plate(), kinds=("ex",), n_sensors=2)
+    enc = PlateGrid(th_plate(), kinds=("ex",), n_sensors=2)
     return place(objective, enc, population=12, generations=4, seed=1, n_jobs=n_jobs)
 
 

@@ -13,7 +13,7 @@ from akf.jobs import build_loads
 from akf.placement import example_problem
 from core_akf import AKFInputError
 from core_akf.models import plate, th_plate
-from sensoropt import THESIS, Encoding, FunctionObjective, PlacementProblem, StrainErrorObjective, pareto, place
+from sensoropt import THESIS, FunctionObjective, PlacementProblem, PlateGrid, StrainErrorObjective, pareto, place
 
 
 def small_problem(n_sensors=2):
@@ -35,7 +35,7 @@ def small():
 
 def test_encoding_candidates_exclude_dead_positions():
     s = th_plate()
-    enc = Encoding(s, kinds=("ex", "ey", "gxy", "acc"), n_sensors=3)
+    enc = PlateGrid(s, kinds=("ex", "ey", "gxy", "acc"), n_sensors=3)
     labels = set(enc.sensors(range(len(enc.candidates))))
     assert "acc:5:w" not in labels and "acc:12:w" in labels          # clamped edge y = 0: nodes 1-11
     assert "strain:5:ex" not in labels and "strain:5:gxy" in labels   # e_x is identically zero along the clamp
@@ -44,7 +44,7 @@ def test_encoding_candidates_exclude_dead_positions():
 
 
 def test_operators_keep_layouts_unique_admissible_and_in_budget():
-    enc = Encoding(th_plate(), kinds=("ex", "ey", "gxy", "acc"), budget={"strain": 3, "acc": 1})
+    enc = PlateGrid(th_plate(), kinds=("ex", "ey", "gxy", "acc"), budget={"strain": 3, "acc": 1})
     rng = np.random.default_rng(0)
     pop = [enc.random_layout(rng) for _ in range(30)]
     for _ in range(200):
@@ -59,7 +59,7 @@ def test_operators_keep_layouts_unique_admissible_and_in_budget():
 
 def test_reduced_objective_within_5_percent_of_full_model_on_case3_layout():
     p = example_problem("th-case5")
-    enc = Encoding(p.structure, kinds=("ex", "ey", "gxy", "acc"), n_sensors=3)
+    enc = PlateGrid(p.structure, kinds=("ex", "ey", "gxy", "acc"), n_sensors=3)
     full = StrainErrorObjective(p.structure, p.forces, p.loads, p.dt, enc, n_modes=None).evaluate([TH_CASE3])[0]
     red = StrainErrorObjective(p.structure, p.forces, p.loads, p.dt, enc).evaluate([TH_CASE3])[0]  # auto: 100 modes
     assert red == pytest.approx(full, rel=0.05)    # modal truncation error (measured 1.3 %)
@@ -129,7 +129,7 @@ def _nan_objective(sensors):
 
 
 def test_custom_objective_and_nan_penalty():
-    enc = Encoding(th_plate(), kinds=("ex",), n_sensors=2)
+    enc = PlateGrid(th_plate(), kinds=("ex",), n_sensors=2)
     res = place(FunctionObjective(_corner_distance), enc, population=30, generations=30, seed=0)
     assert sorted(d["node"] for d in res.layout) == [120, 121]
     res = place(FunctionObjective(_nan_objective), enc, population=20, generations=3, seed=0,
@@ -140,14 +140,14 @@ def test_custom_objective_and_nan_penalty():
 def test_bad_input_is_reported():
     s = th_plate()
     with pytest.raises(AKFInputError, match="admissible positions"):
-        Encoding(s, kinds=("ex",), n_sensors=500)
+        PlateGrid(s, kinds=("ex",), n_sensors=500)
     with pytest.raises(AKFInputError, match="unknown sensor kind"):
-        Encoding(s, kinds=("ex", "strain"), n_sensors=2)
+        PlateGrid(s, kinds=("ex", "strain"), n_sensors=2)
     with pytest.raises(AKFInputError, match="empty"):
-        Encoding(s, kinds=("ex", "acc"), budget={"strain": 0, "acc": 0})
+        PlateGrid(s, kinds=("ex", "acc"), budget={"strain": 0, "acc": 0})
     with pytest.raises(AKFInputError, match="allow none"):
-        Encoding(s, kinds=("ex",), budget={"acc": 1})
-    enc = Encoding(s, n_sensors=2)
+        PlateGrid(s, kinds=("ex",), budget={"acc": 1})
+    enc = PlateGrid(s, n_sensors=2)
     with pytest.raises(AKFInputError, match="not an admissible"):
         enc.from_sensors(["acc:12:w", "strain:999:ex"])
     with pytest.raises(AKFInputError, match="callable"):

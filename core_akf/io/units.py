@@ -16,9 +16,10 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from ..exceptions import AKFInputError
+from ..sensors import UNITS
 
-#: the SI unit of each sensor kind (what the filter works in)
-SI_UNITS = {"strain": "m/m", "acc": "m/s^2", "vel": "m/s", "disp": "m"}
+#: the SI unit of each sensor kind (what the filter works in): the one table, :data:`core_akf.sensors.UNITS`
+SI_UNITS = UNITS
 _SI_PINT = {"strain": "dimensionless", "acc": "m/s^2", "vel": "m/s", "disp": "m"}
 
 #: bridge types: strain = factor * r / GF (``r`` the bridge output in V/V); the quarter bridge with
