@@ -1,22 +1,17 @@
-"""Output folders that cannot be corrupted: a lock per folder and atomic file writes.
-
-A run takes :class:`OutputFolder` on its folder: the folder is created (a clear error if the
-path is a file or not writable) and locked, so a second run into the same folder refuses instead
-of interleaving its files with the first.  Every file is written to a temporary name in the same
-folder and renamed into place (:func:`atomic_path`), so a result file is either complete or
-absent -- also when the run is interrupted (Ctrl-C) or killed.
+"""Files that cannot be corrupted: every file is written to a temporary name in the same folder
+and renamed into place (:func:`atomic_path`), so a result file is either complete or absent --
+also when the run is interrupted (Ctrl-C) or killed -- with the permissions of the user's umask;
+and, inside :func:`confine_writes`, never through a symbolic link that leads out of the folder.
+(The application's run lock on an output folder is :class:`akf.outputs.OutputFolder`.)
 """
 from __future__ import annotations
 
 import contextlib
 import os
-import socket
 import tempfile
-import time
 
 from .exceptions import AKFInputError
 
-LOCK_NAME = ".akf-run.lock"
 #: the output folders in use by this process: (path as given, made absolute; its real path)
 _ACTIVE: list = []
 
@@ -38,7 +33,7 @@ def _umask():
 
 def confined(path):
     """``path``, after checking that no symbolic link inside an output folder in use
-    (:class:`OutputFolder`) leads it outside that folder: a write or a delete through such a link
+    (:func:`confine_writes`) leads it outside that folder: a write or a delete through such a link
     would change a file elsewhere.  Paths outside every folder in use are returned unchecked."""
     absolute = os.path.abspath(path)
     for root, real_root in _ACTIVE:
@@ -51,93 +46,18 @@ def confined(path):
     return path
 
 
-def _pid_alive(pid):
+@contextlib.contextmanager
+def confine_writes(path):
+    """Inside the ``with`` block, :func:`confined` (and so every :func:`atomic_path` write) refuses
+    a path under the folder ``path`` that a symbolic link leads out of it.  Yields the folder's
+    absolute path."""
+    entry = (os.path.abspath(path), os.path.realpath(path))
+    _ACTIVE.append(entry)
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:      # exists, owned by someone else
-        return True
-    except OSError:
-        return False
-    return True
-
-
-class OutputFolder:
-    """Create and lock an output folder for one run (a context manager).
-
-    Parameters
-    ----------
-    path : str -- the folder; created with its parents if missing
-    what : str -- how the user named it in messages (e.g. ``"--out"``)
-    """
-
-    def __init__(self, path, what="output folder"):
-        self.path = os.path.abspath(path)
-        self.what = what
-        self._lock = os.path.join(self.path, LOCK_NAME)
-        self._held = False
-
-    def __enter__(self):
-        if os.path.exists(self.path) and not os.path.isdir(self.path):
-            raise AKFInputError(f"{self.what} {self.path!r} is a file, not a folder; give a folder path")
-        try:
-            os.makedirs(self.path, exist_ok=True)
-        except OSError as exc:
-            raise AKFInputError(f"cannot create {self.what} {self.path!r}: {exc.strerror or exc}") from None
-        if not os.access(self.path, os.W_OK | os.X_OK):
-            raise AKFInputError(f"{self.what} {self.path!r} is not writable; choose another folder")
-        for _ in range(2):
-            try:
-                fd = os.open(self._lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:
-                if self._stale():
-                    with contextlib.suppress(FileNotFoundError):
-                        os.remove(self._lock)
-                    continue
-                raise AKFInputError(
-                    f"{self.what} {self.path!r} is in use by another akf run ({self._owner()}); wait for it to "
-                    f"finish or write to another folder (if no run is active, delete {self._lock})") from None
-            except OSError as exc:
-                raise AKFInputError(f"cannot write into {self.what} {self.path!r}: {exc.strerror or exc}") from None
-            with os.fdopen(fd, "w") as fh:
-                fh.write(f"{os.getpid()} {socket.gethostname()} {time.strftime('%Y-%m-%d %H:%M:%S')}\n")
-            self._held = True
-            _ACTIVE.append((self.path, os.path.realpath(self.path)))
-            return self
-        raise AKFInputError(f"cannot lock {self.what} {self.path!r}")
-
-    def _read_lock(self):
-        try:
-            with open(self._lock) as fh:
-                parts = fh.read().split()
-            return int(parts[0]), parts[1], " ".join(parts[2:])
-        except (OSError, ValueError, IndexError):
-            return None
-
-    def _stale(self):
-        info = self._read_lock()
-        if info is None:
-            return False          # being written right now, or unreadable: treat as held
-        pid, host, _ = info
-        return host == socket.gethostname() and not _pid_alive(pid)
-
-    def _owner(self):
-        info = self._read_lock()
-        return "unknown process" if info is None else f"pid {info[0]} on {info[1]}, started {info[2]}"
-
-    def file(self, name):
-        """Path of a file ``name`` inside the folder."""
-        return os.path.join(self.path, name)
-
-    def __exit__(self, *exc):
-        if self._held:
-            with contextlib.suppress(FileNotFoundError):
-                os.remove(self._lock)
-            self._held = False
-            with contextlib.suppress(ValueError):
-                _ACTIVE.remove((self.path, os.path.realpath(self.path)))
-        return False
+        yield entry[0]
+    finally:
+        with contextlib.suppress(ValueError):
+            _ACTIVE.remove(entry)
 
 
 @contextlib.contextmanager

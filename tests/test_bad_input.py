@@ -277,7 +277,7 @@ def test_cli_bad_input_exit_2(name, tmp_path, capsys):
 
 
 def test_second_run_into_a_locked_folder_refuses(tmp_path, capsys):
-    from core_akf.outputs import OutputFolder
+    from akf.outputs import OutputFolder
     with OutputFolder(str(tmp_path), "--out"):
         rc = main(["estimate", "--example", "s17-case4", "--duration", "0.05", "--no-plot", "--out", str(tmp_path)])
     assert rc == 2

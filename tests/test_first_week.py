@@ -251,7 +251,8 @@ def test_streamed_parquet_run_into_a_folder_whose_parts_are_a_link_to_a_folder_e
 
 
 def test_figure_written_through_a_linked_subfolder_is_refused(tmp_path):
-    from core_akf.outputs import OutputFolder, write_csv
+    from akf.outputs import OutputFolder
+    from core_akf.outputs import write_csv
 
     (tmp_path / "elsewhere").mkdir()
     (tmp_path / "out").mkdir()

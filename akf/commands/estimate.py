@@ -6,9 +6,10 @@ import os
 import sys
 
 from core_akf.exceptions import AKFInputError
-from core_akf.outputs import OutputFolder, write_csv
+from core_akf.outputs import write_csv
 
 from ..jobs import load_job
+from ..outputs import OutputFolder
 from ..writers import draw
 from .common import add_print_job, print_job, print_written, seed
 

@@ -8,9 +8,9 @@ import sys
 import numpy as np
 
 from core_akf.exceptions import AKFInputError
-from core_akf.outputs import OutputFolder
 
 from ..jobs import load_job
+from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler, workers
 from .common import add_print_job, print_job, seed
 

@@ -10,9 +10,10 @@ import os
 import sys
 
 from core_akf.exceptions import AKFInputError
-from core_akf.outputs import OutputFolder, write_csv
+from core_akf.outputs import write_csv
 
 from ..jobs import load_job
+from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, check_scheduler
 from .common import add_print_job, print_job, print_written, seed
 

@@ -9,9 +9,9 @@ import os
 import sys
 
 from core_akf.exceptions import AKFInputError
-from core_akf.outputs import OutputFolder
 
 from ..jobs import MODELS, build_structure
+from ..outputs import OutputFolder
 
 
 def _structure_of(target):

@@ -3,8 +3,7 @@ from __future__ import annotations
 
 import os
 
-from core_akf.outputs import OutputFolder
-
+from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler
 from .common import seed
 
