@@ -152,8 +152,8 @@ def _load_checkpoint(path):
                               f"({type(exc).__name__}: {exc}); start anew with --overwrite") from None
     missing = [k for k in _CHECKPOINT_KEYS if k not in saved]
     if missing:
-        raise CheckpointError(f"{path} is not a checkpoint of akf estimate (it lacks {', '.join(missing)}); start "
-                              "anew with --overwrite")
+        what = "was written by an earlier version of akf" if "next_step" in saved else "is not a checkpoint of akf estimate"
+        raise CheckpointError(f"{path} {what} (it lacks {', '.join(missing)}); start anew with --overwrite")
     for k, v in saved.items():
         if v.dtype.kind == "f" and k not in ("z",) and not np.all(np.isfinite(v)):
             raise CheckpointError(f"the checkpoint {path} holds NaN or infinite values in {k!r}: it cannot be "
