@@ -82,6 +82,10 @@ def _add_verbosity(p, top):
         pass
 
 
+#: whether --quiet set TQDM_DISABLE (and a later run of this process may take it back)
+_TQDM_SWITCHED_OFF = False
+
+
 class _Handler(logging.StreamHandler):
     """The ``akf`` logger's messages on the current ``sys.stdout`` (warnings on ``sys.stderr``)."""
 
@@ -102,11 +106,13 @@ def configure_logging(verbosity=0):
     logger.addHandler(handler)
     logger.setLevel({-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}[verbosity])
     logger.propagate = False
-    if verbosity < 0:
+    global _TQDM_SWITCHED_OFF
+    if verbosity < 0 and os.environ.get("TQDM_DISABLE") != "1":
         os.environ["TQDM_DISABLE"] = "1"          # tqdm's own switch: every progress bar off
-    elif os.environ.get("TQDM_DISABLE") == "1" and logger.__dict__.pop("_akf_quiet", False):
-        del os.environ["TQDM_DISABLE"]            # a later run in the same process that is not quiet
-    logger._akf_quiet = verbosity < 0
+        _TQDM_SWITCHED_OFF = True
+    elif verbosity >= 0 and _TQDM_SWITCHED_OFF:
+        os.environ.pop("TQDM_DISABLE", None)      # a later run in the same process that is not quiet
+        _TQDM_SWITCHED_OFF = False
 
 
 def main(argv=None):

@@ -141,10 +141,8 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
                 for w in d["warnings"]:
                     log.warning(f"      WARNING: {w}")
         rows.append(row)
-        frame = pd.DataFrame(rows, columns=columns)
-        write_csv(frame, written["events"])          # after every event: what is located is kept
+        write_csv(pd.DataFrame(rows, columns=columns), written["events"])   # after every event: nothing located is lost
     frame = pd.DataFrame(rows, columns=columns)
-    write_csv(frame, written["events"])
     written["event_folders"] = os.path.join(out, "events")
     if plot and frame["node"].notna().any():
         notes = []
