@@ -38,48 +38,39 @@ import os
 from core_akf.exceptions import AKFInputError
 from core_akf.outputs import confined, write_csv
 
-from .schema import parse_job
 from .writers import draw
 
 log = logging.getLogger("akf")
 
 def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=None):
-    """Run a locate job (a dict from TOML, see :mod:`akf.schema`; a relative data path is taken
-    from the working folder: :func:`akf.jobs.load_job` makes it relative to the job file);
-    returns the :class:`~impactloc.locate.LocateResult`.
+    """Run a locate :class:`~akf.job.Job` (:func:`akf.job.load_job`); returns the
+    :class:`~impactloc.locate.LocateResult`.
 
     ``simulation``: for a job with ``[simulation]``, the :class:`~core_akf.simulate.Simulation`
     already run from it (the truth a built-in example shows beside the result), so that it is not
     simulated twice; ``tune`` overrides ``[locate] tune`` (``--no-tune``)."""
-    from core_akf.sensors import selection_matrices
     from impactloc.locate import locate
     from impactloc.scan import Covariances
 
-    from .jobs import build_structure, open_record, simulate_job
-
-    spec = parse_job(job, "locate")
-    structure = build_structure(job["structure"])
-    selection_matrices(structure, spec.sensors)     # every sensor exists on this structure
-    meas = spec.measurements
-    if meas is not None:
-        record = open_record(meas, spec.sensors)
-        record.check_dt(spec.dt)
-        Y = record.read()[1]
+    spec = job.spec
+    sensors = job.sensors           # checked against the structure
+    if spec.measurements is not None:
+        Y = job.open_record().read()[1]
     elif spec.simulation is not None:
         if spec.forces is None:
             raise AKFInputError("a simulated locate job needs forces = ['NODE:DIR'] (where the impact hits)")
-        Y = (simulate_job(job, structure=structure)[2] if simulation is None else simulation).measurements
+        Y = (job.simulate() if simulation is None else simulation).measurements
     else:
         raise AKFInputError("the locate job needs a [measurements] section (or a [simulation] to try the method)")
     loc = spec.locate
     c = loc.covariances
     covariances = None if c is None else Covariances(c.model_error_cov, c.force_increment_cov, dict(c.noise_cov))
     tuning = None if loc.tuning is None else loc.tuning.model_dump(exclude_none=True)
-    return locate(structure, spec.sensors, Y, spec.dt, n_ad=loc.n_ad, direction=loc.direction,
+    return locate(job.structure, sensors, Y, job.dt, n_ad=loc.n_ad, direction=loc.direction,
                   ad_kinds=tuple(loc.ad_kinds or ["strain"]), candidates=loc.candidates, covariances=covariances,
                   tune=(True if loc.tune is None else loc.tune) if tune is None else tune, max_splits=loc.max_splits,
-                  n_modes=None if loc.n_modes == "full" else (loc.n_modes or "auto"), skip=loc.skip or 0.0,
-                  n_jobs=n_jobs, seed=seed, progress=progress, tuning=tuning)
+                  n_modes=job.n_modes, skip=loc.skip or 0.0, n_jobs=n_jobs, seed=seed, progress=progress,
+                  tuning=tuning)
 
 
 def is_event_folder(job):
@@ -87,8 +78,7 @@ def is_event_folder(job):
     pattern): then every file is one event (:func:`locate_events`)."""
     import glob
 
-    meas = job.get("measurements") or {}
-    f = meas.get("file")
+    f = job.spec.measurements.file if job.spec.measurements is not None else None
     return isinstance(f, str) and (os.path.isdir(f) or glob.has_magic(f))
 
 
@@ -101,15 +91,11 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
     ``time_of_peak`` (s, from the record's start), ``duration`` (s), ``impulse`` (N s) and
     ``error`` (why a file could not be used; the others go on).  ``events.png`` draws the located
     impacts on the structure.  Returns ``(DataFrame, {name: path})``."""
-    import copy
-
     import pandas as pd
 
     from core_akf.io import record_files
 
-    from .jobs import build_structure
-
-    files = record_files(job["measurements"]["file"])
+    files = record_files(job.spec.measurements.file)
     rows, written = [], {}
     os.makedirs(confined(out), exist_ok=True)
     columns = ["file", "node", "direction", "confidence", "margin", "peak_force", "time_of_peak", "duration", "impulse",
@@ -118,11 +104,9 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
     for i, path in enumerate(files):
         shown = printable_path(path)
         name = os.path.splitext(os.path.basename(shown))[0]
-        one = copy.deepcopy(job)
-        one["measurements"]["file"] = path
         row = {"file": shown}
         try:
-            result = run_locate_job(one, n_jobs=n_jobs, seed=seed, progress=False, tune=tune)
+            result = run_locate_job(job.with_record(path), n_jobs=n_jobs, seed=seed, progress=False, tune=tune)
             d = result.to_dict()
             row |= {"node": d["identified"], "direction": d["direction"], "confidence": d["confidence"],
                     "margin": d["margin"], "peak_force": d["peak_force"], "time_of_peak": d["time_of_peak"],
@@ -146,8 +130,8 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
     written["event_folders"] = os.path.join(out, "events")
     if plot and frame["node"].notna().any():
         notes = []
-        draw(written, "events_figure", notes, _plot_events, build_structure(job["structure"]), frame,
-             os.path.join(out, "events.png"), job.get("name", "impacts"))
+        draw(written, "events_figure", notes, _plot_events, job.structure, frame,
+             os.path.join(out, "events.png"), job.name)
         if notes and progress:
             log.warning(f"  WARNING: {notes[0]}")
     return frame, written

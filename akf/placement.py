@@ -5,62 +5,68 @@ from core_akf.defaults import default
 from core_akf.exceptions import AKFInputError
 from sensoropt.problem import PlacementProblem
 
-from .examples import TH_CASE2, load_example
-from .jobs import build_loads, build_structure
-from .schema import parse_job
+from .examples import TH_CASE2, example
+from .job import Job
 
 
 def example_problem(name, n_sensors=None):
     """The built-in placement problem ``name`` (``th-case5``, ``th-case6``, ``th-multi``: job
     files in :mod:`akf.examples`), optionally with another sensor count; the trial-and-error
     layout of TH case 2 is its reference."""
-    job = load_example(name, "place")
+    job = example_place_job(name)
     if n_sensors is not None:
-        if "budget" in job["place"]:
-            raise AKFInputError(f"{name} has a fixed budget {job['place']['budget']}; --sensors does not apply")
-        job["place"]["sensors"] = int(n_sensors)
+        if job.spec.place.budget is not None:
+            raise AKFInputError(f"{name} has a fixed budget {job.spec.place.budget}; --sensors does not apply")
+        job = example_place_job(name, {"place.sensors": int(n_sensors)})
     problem, _ = problem_from_job(job)
     if name.startswith("th-"):
         problem.reference_layouts = {"TH case 2 (trial and error)": list(TH_CASE2)}
     return problem
 
 
+def example_place_job(name, overrides=None):
+    """The built-in place job ``name`` (a :class:`~akf.job.Job`); an example of another command is
+    refused naming the right one."""
+    from .examples import load_example
+
+    load_example(name, "place")
+    return example(name, overrides)
+
+
 def example_settings(name):
     """The GA settings a built-in place example sets in its ``[place]`` table (the thesis'
     defaults for the rest)."""
-    return problem_from_job(load_example(name, "place"))[1]
+    return ga_settings(example_place_job(name))
 
 
 GA_KEYS = ("population", "generations", "elite", "crossover", "mutation", "tournament", "stall_generations", "operators")
 
 
-def problem_from_job(job):
-    """A :class:`PlacementProblem` and GA settings from a place job (dict from TOML, see
-    :mod:`akf.schema`)."""
-    spec = parse_job(job, "place")
-    structure = build_structure(job["structure"])
-    dt = spec.dt
-    sim = spec.simulation
-    if sim.duration is None:
-        raise AKFInputError("[simulation] needs a positive duration (s)")
-    loads = build_loads(job["simulation"].get("loads", []), int(round(sim.duration / dt)), dt, len(spec.forces))
-    p, f = spec.place, spec.filter
+def ga_settings(job: Job) -> dict:
+    """The GA settings a place job sets in its ``[place]`` table."""
+    p = job.spec.place
+    return {k: getattr(p, k) for k in GA_KEYS if getattr(p, k) is not None}
+
+
+def problem_from_job(job: Job):
+    """A :class:`PlacementProblem` and the GA settings (:func:`ga_settings`) of a place
+    :class:`~akf.job.Job`."""
+    spec = job.spec
+    sim, p, f = spec.simulation, spec.place, spec.filter
+    loads = job.loads()
     if p.sensors is None and p.budget is None:
         raise AKFInputError("[place] needs sensors = N or budget = {strain = N, acc = M}")
-    problem = PlacementProblem(spec.name or "place", structure, list(spec.forces), loads, dt,
+    problem = PlacementProblem(job.name, job.structure, list(spec.forces), loads, job.dt,
                                kinds=tuple(p.kinds) if p.kinds else None, n_sensors=p.sensors, budget=p.budget,
                                candidates=list(p.candidates) if p.candidates else None,
                                targets=list(p.targets) if p.targets else None,
-                               window=default("window", p.window),
-                               stiffness_factor=default("placement_stiffness_factor", f.stiffness_factor),
+                               window=default("window", p.window), stiffness_factor=job.stiffness_factor,
                                relative_noise=default("relative_noise", sim.relative_noise),
-                               model_error_cov=default("model_error_cov", f.model_error_cov),
-                               force_increment_cov=default("force_increment_cov", f.force_increment_cov),
-                               n_modes=None if p.n_modes == "full" else (p.n_modes or "auto"),
-                               seed=sim.seed or 0)
+                               model_error_cov=job.model_error_cov, force_increment_cov=job.force_increment_cov,
+                               n_modes=job.n_modes, seed=sim.seed or 0)
     if f.force_increment_cov is None:
         problem.notes = force_increment_notes(loads)
-    return problem, {k: getattr(p, k) for k in GA_KEYS if getattr(p, k) is not None}
+    return problem, ga_settings(job)
 
 
 def force_increment_notes(loads, band=10.0):

@@ -10,8 +10,9 @@ import numpy as np
 import scipy.linalg
 from run_all import best_of, textbook_loop  # bench/ is on the path when run as a script
 
+from akf.estimating import estimate_job
 from akf.examples import S17_FORCES, S17_MULTI, example_job
-from akf.jobs import run_job
+from akf.job import Job
 from core_akf import akf
 from core_akf.models import s17_truss
 from core_akf.riccati import solve_filter_dare
@@ -28,7 +29,7 @@ def main():
     model = truss.scaled(1.05)
     job = example_job("s17-case4")
     job["simulation"]["duration"] = N_STEPS * DT
-    res = run_job(job)
+    res = estimate_job(Job.from_dict(job, "estimate"))
     sim = res.simulation
     R = np.diag(sim.noise_std ** 2)
     Y = sim.measurements
@@ -87,7 +88,7 @@ def main():
 
     # the thesis plate: full model (330 DOFs, 662 augmented states) and modal reductions
     job = example_job("th-case3")
-    th = run_job(job)
+    th = estimate_job(Job.from_dict(job, "estimate"))
     sim = th.simulation
     plate = th.estimate.structure
     noise = np.diag(sim.noise_std ** 2)

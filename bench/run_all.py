@@ -115,7 +115,7 @@ def gemm_rate(n, repeat=200):
 
 def filter_rows():
     from akf.examples import S17_FORCES, S17_MULTI, example_job
-    from akf.jobs import run_job
+    from akf.job import Job
     from core_akf import akf
     from core_akf.models import s17_truss
     from core_akf.recursion import lti_response
@@ -126,7 +126,7 @@ def filter_rows():
     n_steps, dt = 8192, 1 / 4096
     job = example_job("s17-case4")
     job["simulation"]["duration"] = n_steps * dt
-    sim = run_job(job).simulation
+    sim = Job.from_dict(job, "estimate").simulate()
     R = np.diag(sim.noise_std ** 2)
     Y = sim.measurements
     model = s17_truss().scaled(1.05)

@@ -7,7 +7,7 @@
 The S17 case-4 sensor set (5 accelerometers, 4 strain gauges; 4 unknown forces) sampled at 1 kHz
 is simulated file by file -- TDMS files of 10 minutes each, written by npTDMS with DAQ channel
 names and units (microstrain, g), as a monitoring system would leave them -- and then estimated by
-``akf.streaming.stream_job``, the code behind ``akf estimate``: the files read in time order,
+``akf.estimating.estimate_job``, the code behind ``akf estimate``: the files read in time order,
 converted to SI through the channel map, filtered chunk by chunk (65536 steps) and written to
 ``timeseries.parquet`` (the four forces and one strain history per step).  A thread samples the
 process's resident memory (RSS) every 0.2 s.  Printed: the time to estimate, samples per second
@@ -95,7 +95,8 @@ def job(folder):
 
 
 def run(hours, base):
-    from akf.streaming import stream_job
+    from akf.estimating import estimate_job
+    from akf.job import Job
 
     folder = os.path.join(base, f"record-{hours:g}h")
     out = os.path.join(base, f"out-{hours:g}h")
@@ -114,7 +115,7 @@ def run(hours, base):
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
     t0 = time.perf_counter()
-    res = stream_job(job(folder), out, plot=False)
+    res = estimate_job(Job.from_dict(job(folder), "estimate"), out, plot=False)
     elapsed = time.perf_counter() - t0
     stop.set()
     sampler.join()
@@ -138,7 +139,8 @@ def run_plate(base, seconds=60.0, dt=5e-4):
     """The thesis plate, ``seconds`` at 1/dt Hz, streamed from one Parquet file."""
     import pandas as pd
 
-    from akf.streaming import stream_job
+    from akf.estimating import estimate_job
+    from akf.job import Job
     from core_akf import simulate
     from core_akf.models import th_plate
 
@@ -170,7 +172,7 @@ def run_plate(base, seconds=60.0, dt=5e-4):
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
     t0 = time.perf_counter()
-    stream_job(job, out, plot=False)
+    estimate_job(Job.from_dict(job, "estimate"), out, plot=False)
     elapsed = time.perf_counter() - t0
     stop.set()
     sampler.join()

@@ -19,8 +19,8 @@ import numpy as np
 from .covariances import state_covariance
 from .defaults import auto_modes
 from .exceptions import AKFInputError
-from .sensors import as_layout, parse_force_locations, selection_matrices
-from .statespace import augment, continuous, force_selection, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
+from .sensors import as_layout, parse_force_locations
+from .statespace import augment, continuous, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
 from .steady import steady_outputs  # noqa: F401  (re-exported here for the optimisers)
 
 
@@ -52,7 +52,11 @@ class ModalFilterModel:
         if n_modes is not None and not 1 <= int(n_modes) <= structure.n:
             raise AKFInputError(f"n_modes must be between 1 and {structure.n}, got {n_modes}")
         self.n_modes = None if n_modes is None or int(n_modes) == structure.n else int(n_modes)
-        self.structure = structure if self.n_modes is None else structure.reduce(self.n_modes)
+        # the one static-correction path: the reduced structure carries it (Structure.reduce), kept
+        # with the structure so that every force location and candidate shares one factorisation
+        k = self.n_modes
+        self.structure = structure if k is None else structure.memo(
+            ("reduced with static correction", k), lambda: structure.reduce(k, static_correction=True))
         self.T, self.T_inv = modal_state_transform(self.structure)
         AB = modal_zoh(self.structure, self.forces, self.dt)
         if AB is None:
@@ -60,7 +64,6 @@ class ModalFilterModel:
             AB = (self.T_inv @ A @ self.T, self.T_inv @ B)
         self.A_a, _ = augment(AB[0], AB[1], np.zeros((0, AB[0].shape[0])), np.zeros((0, len(self.forces))))
         self.n_states = AB[0].shape[0]
-        self._residual = None
 
     @cached_property
     def Q_unit(self):
@@ -72,28 +75,10 @@ class ModalFilterModel:
     def n_a(self):
         return self.A_a.shape[0]
 
-    def residual_flexibility(self):
-        """Quasi-static physical displacement (n_phys x n_p, m/N) of the dropped modes; zeros
-        for the full model."""
-        if self._residual is None:
-            Sp = force_selection(self.full, self.forces)
-            if self.n_modes is None:
-                self._residual = np.zeros_like(Sp)
-            else:
-                omega, phi = self.full.eigen
-                r = phi[:, :self.n_modes]
-                kept = r @ ((r.T @ Sp) / omega[:self.n_modes, None] ** 2)
-                self._residual = np.linalg.solve(self.full.K, Sp) - kept
-        return self._residual
-
     def observation(self, sensors):
         """Augmented observation rows ``[G T, D]`` (m x n_a) for a sensor layout, with the
-        static correction on strain and displacement rows."""
-        layout = as_layout(sensors)
-        G, D = observation(self.structure, layout, self.forces)      # with the structure's own static correction
-        if self.n_modes is not None and self.full.static is None:
-            S = selection_matrices(self.full, layout)
-            D = D + (S["strain"] + S["disp"]) @ self.residual_flexibility()
+        static correction of a reduced model on strain and displacement rows."""
+        G, D = observation(self.structure, as_layout(sensors), self.forces)
         return np.hstack([G @ self.T, D])
 
     def strain_rows(self):
@@ -101,10 +86,9 @@ class ModalFilterModel:
         ops = self.structure.strain_operator            # (n_strain, n) in the model's coordinates
         out = np.zeros((ops.shape[0], self.n_a))
         out[:, :self.n_states] = np.hstack([ops, np.zeros_like(ops)]) @ self.T
-        if self.structure.static is not None:
-            out[:, self.n_states:] = strain_feedthrough(self.structure, self.forces)
-        elif self.n_modes is not None:
-            out[:, self.n_states:] = self.full.strain_operator @ self.residual_flexibility()
+        extra = strain_feedthrough(self.structure, self.forces)
+        if extra is not None:
+            out[:, self.n_states:] = extra
         return out
 
     def Q_a(self, model_error_cov, force_increment_cov):

@@ -239,14 +239,15 @@ def test_reduced_model_estimate_close_to_full_on_th_case3():
     """TH case-3 layout (g_xy at 2 and 100, acceleration at 12), 5 % model error, 2 % noise:
     the 80-mode reduced filter model gives the full model's average strain error within 5 %,
     with the same covariance levels (model error is specified per physical DOF)."""
+    from helpers import run_estimate
+
     from akf.examples import example_job
-    from akf.jobs import run_job
 
     job = example_job("th-case3")
     job["simulation"]["duration"] = 0.5
-    full = run_job(job).metrics["avg_strain_error"]
+    full = run_estimate(job).metrics["avg_strain_error"]
     job["filter"]["n_modes"] = 80
-    reduced = run_job(job).metrics["avg_strain_error"]
+    reduced = run_estimate(job).metrics["avg_strain_error"]
     assert reduced == pytest.approx(full, rel=0.05)    # truncation error of 80 modes (measured 0.3 %)
 
 

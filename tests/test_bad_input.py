@@ -12,9 +12,9 @@ import os
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import run_estimate
 
 from akf.cli import main
-from akf.jobs import run_job
 from core_akf import AKFInputError, UndetectableError, akf
 from core_akf.akf import estimate
 from core_akf.models import s17_truss
@@ -216,19 +216,19 @@ JOB_CASES = {
 def test_job_bad_input(name, tmp_path):
     make, message = JOB_CASES[name]
     with pytest.raises(AKFInputError, match=message):
-        run_job(make(tmp_path))
+        run_estimate(make(tmp_path))
 
 
 def test_time_column_rounded_to_six_decimals_is_accepted(tmp_path):
     """A DAQ that prints the time with 6 decimals is off the grid by <= 5e-7 s (0.05 % of a step)."""
     job = _measured_job(tmp_path, _frame(t=np.round(np.arange(256) * DT, 6)))
-    res = run_job(job)
+    res = run_estimate(job)
     assert res.metrics["n_steps"] == 256
 
 
 def test_messages_print_unequal_numbers_unequally(tmp_path):
     with pytest.raises(AKFInputError) as err:
-        run_job(_measured_job(tmp_path, _frame(t=np.arange(256) * DT * 1.05)))
+        run_estimate(_measured_job(tmp_path, _frame(t=np.arange(256) * DT * 1.05)))
     msg = str(err.value)
     assert "0.00102539062" in msg and "0.0009765625" in msg
 
@@ -314,13 +314,13 @@ def test_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path, capsys, monkeypat
 
     def interrupted(frame, path, **kw):
         calls.append(path)
-        if len(calls) == 2:                                # the second file is being written
+        if len(calls) == 1:           # summary.csv is being written (timeseries.csv is appended chunk by chunk)
             with outputs.atomic_path(path) as tmp:
                 frame.head(5).to_csv(tmp)
                 raise KeyboardInterrupt
         return real(frame, path, **kw)
 
-    monkeypatch.setattr("akf.commands.estimate.write_csv", interrupted)
+    monkeypatch.setattr("akf.estimating.write_csv", interrupted)
     rc = main(["estimate", "--example", "s17-case4", "--duration", "0.05", "--no-plot", "--out", str(tmp_path)])
     assert rc == 130
     assert "interrupted" in capsys.readouterr().err
@@ -363,7 +363,7 @@ _PATHS = ["dt", "sensors", "forces", "name", "filter__steady", "filter__allow_un
 def test_any_job_value_gives_a_result_or_a_clear_error(path, value):
     job = _job(**{path: value})
     try:
-        res = run_job(copy.deepcopy(job))
+        res = run_estimate(copy.deepcopy(job))
     except AKFInputError as exc:
         assert str(exc)
     else:
@@ -421,11 +421,11 @@ def test_estimates_say_when_they_cannot_be_trusted():
     from akf.examples import example_job
     job = example_job("s17-case2")
     job["simulation"]["duration"] = 0.2
-    res = run_job(job, allow_undetectable=True, steady=False)
+    res = run_estimate(job, allow_undetectable=True, steady=False)
     assert any("does not decay" in w for w in res.metrics["warnings"])
     job = example_job("s17-case4")
     job["simulation"]["duration"] = 0.02
-    res = run_job(job)
+    res = run_estimate(job)
     assert any("shorter than 3 time constants" in w for w in res.metrics["warnings"])
     job["simulation"]["duration"] = 1.0
-    assert run_job(job).metrics["warnings"] == []
+    assert run_estimate(job).metrics["warnings"] == []

@@ -87,16 +87,17 @@ def test_console_script_installed():
 
 
 def test_job_typo_is_an_error_not_a_default():
+    from helpers import run_estimate
+
     from akf.examples import example_job
-    from akf.jobs import run_job
     job = example_job("s17-case4")
     job["filter"]["stifness_factor"] = 1.05
     with pytest.raises(ValueError, match="unknown key 'stifness_factor' in \\[filter\\]; did you mean 'stiffness_factor'"):
-        run_job(job)
+        run_estimate(job)
     job = example_job("s17-case4")
     del job["dt"]
     with pytest.raises(ValueError, match="the job has no 'dt'"):
-        run_job(job)
+        run_estimate(job)
 
 
 def test_measurement_path_relative_to_job_file(tmp_path, capsys, monkeypatch):
@@ -126,18 +127,19 @@ file = "data.csv"
 
 def test_job_absolute_noise_units():
     """IMP's absolute noise levels, 1 µε and 1 mg, given in the job's units."""
+    from helpers import run_estimate
+
     from akf.examples import example_job
-    from akf.jobs import run_job
     job = example_job("s17-case4")
     job["simulation"].pop("relative_noise")
     job["simulation"]["absolute_noise"] = {"microstrain": 1.0, "acc_mg": 1.0}
     job["simulation"]["duration"] = 0.25
-    sim = run_job(job).simulation
+    sim = run_estimate(job).simulation
     assert sim.noise_std[:5] == pytest.approx(9.80665e-3)   # five accelerometers
     assert sim.noise_std[5:] == pytest.approx(1e-6)         # four strain gauges
     job["simulation"]["absolute_noise"] = {"micro_strain": 1.0}
     with pytest.raises(ValueError, match="absolute_noise.micro_strain in \\[simulation\\]: input should be 'strain', 'microstrain'"):
-        run_job(job)
+        run_estimate(job)
 
 
 def test_version_and_show(tmp_path, capsys):

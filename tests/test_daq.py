@@ -8,10 +8,10 @@ import tracemalloc
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import run_estimate
 
 from akf.cli import main
-from akf.jobs import load_job_file
-from akf.streaming import stream_job
+from akf.job import load_job_file
 from core_akf.akf import estimate
 from core_akf.diagnostics import RunningDiagnostics, force_statistics, sensor_diagnostics
 from core_akf.exceptions import AKFInputError
@@ -55,7 +55,7 @@ def _forces(out):
 def si_forces(tmp_path_factory):
     """Forces estimated from the SI reference (columns named like the sensors), streamed."""
     out = tmp_path_factory.mktemp("si")
-    stream_job(_job(DAQ / "record-si.csv"), str(out), plot=False)
+    run_estimate(_job(DAQ / "record-si.csv"), str(out), plot=False)
     return _forces(out)[0]
 
 
@@ -64,7 +64,7 @@ def test_each_format_with_channel_map_gives_the_si_estimate(name, tmp_path, si_f
     """Round trip: simulated SI measurements -> a DAQ file (channel names, microstrain, g, mm/s^2,
     mV/V of a quarter bridge, an inverted accelerometer), written by the format's library ->
     read with the channel map -> the same forces as from the SI data, to 1e-12."""
-    res = stream_job(_job(DAQ / name, **_channel_map(name)), str(tmp_path), plot=False)
+    res = run_estimate(_job(DAQ / name, **_channel_map(name)), str(tmp_path), plot=False)
     assert res.complete and res.metrics["n_steps"] == 1024
     forces, _ = _forces(tmp_path)
     np.testing.assert_allclose(forces, si_forces, rtol=0, atol=1e-12 * np.max(np.abs(si_forces)))
@@ -75,7 +75,7 @@ def test_streamed_estimate_equals_the_one_piece_estimate(tmp_path, si_forces):
     df = pd.read_csv(DAQ / "record-si.csv")
     ref = estimate(s17_truss().scaled(1.05), SENSORS, FORCES, df[SENSORS].to_numpy(), df.time[1], **KW)
     np.testing.assert_allclose(si_forces, ref.forces, rtol=0, atol=1e-12 * np.max(np.abs(ref.forces)))
-    stream_job(_job(DAQ / "record-si.csv", chunk=100 * df.time[1]), str(tmp_path), plot=False)
+    run_estimate(_job(DAQ / "record-si.csv", chunk=100 * df.time[1]), str(tmp_path), plot=False)
     np.testing.assert_allclose(_forces(tmp_path)[0], ref.forces, rtol=0, atol=1e-12 * np.max(np.abs(ref.forces)))
 
 
@@ -145,11 +145,11 @@ def test_resumed_run_continues_from_the_last_written_chunk(tmp_path, fmt):
     job = _job(DAQ / "record.tdms", chunk=0.02, **_channel_map("record.tdms"))
     job["output"]["format"] = fmt
     whole = tmp_path / "whole"
-    stream_job(job, str(whole), plot=False)
+    run_estimate(job, str(whole), plot=False)
     part = tmp_path / "part"
-    first = stream_job(job, str(part), plot=False, stop_after=3)
+    first = run_estimate(job, str(part), plot=False, stop_after=3)
     assert not first.complete and (part / ".akf-resume.npz").exists()
-    res = stream_job(job, str(part), resume=True, plot=False)
+    res = run_estimate(job, str(part), resume=True, plot=False)
     assert res.complete and res.resumed_at == 3 * 82 and not (part / ".akf-resume.npz").exists()
     a, ta = _forces(whole)
     b, tb = _forces(part)
@@ -157,11 +157,11 @@ def test_resumed_run_continues_from_the_last_written_chunk(tmp_path, fmt):
     np.testing.assert_array_equal(b, a)
     pd.testing.assert_frame_equal(pd.read_csv(part / "summary.csv"), pd.read_csv(whole / "summary.csv"))
     with pytest.raises(AKFInputError, match="nothing to resume"):
-        stream_job(job, str(part), resume=True, plot=False)
-    stream_job(job, str(part), plot=False, stop_after=1)
+        run_estimate(job, str(part), resume=True, plot=False)
+    run_estimate(job, str(part), plot=False, stop_after=1)
     other = _job(DAQ / "record.tdms", chunk=0.02, **_channel_map("record.tdms") | {"invert": []})
     with pytest.raises(CheckpointError, match="the job changed .*\\(\\[measurements\\] invert"):
-        stream_job(other, str(part), resume=True, plot=False)
+        run_estimate(other, str(part), resume=True, plot=False)
 
 
 def test_units_are_converted_by_pint_with_daq_conventions():
@@ -371,6 +371,6 @@ def test_a_wrong_unit_in_the_channel_map_is_named(tmp_path):
     and the unit mistake it looks like."""
     meas = _channel_map("record.tdms")
     meas["units"] = dict(meas["units"], ACC_8Y="m/s^2")          # the file holds mm/s^2
-    res = stream_job(_job(DAQ / "record.tdms", **meas), str(tmp_path), plot=False)
+    res = run_estimate(_job(DAQ / "record.tdms", **meas), str(tmp_path), plot=False)
     text = " ".join(res.metrics["warnings"])
     assert "acc:8:y" in text and "millimetres" in text and "check the channel map" in text

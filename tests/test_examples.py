@@ -10,9 +10,10 @@ default, Haswell, Zen, Sandybridge and Prescott OpenBLAS kernels: 1.3e-12 (truss
 """
 import numpy as np
 import pytest
+from helpers import run_estimate
 
 from akf.examples import COMMAND_OF, example_names, example_path, load_example
-from akf.jobs import load_job, run_job
+from akf.job import load_job
 from akf.schema import parse_job
 
 #: our average strain error (microstrain) of the estimate examples, full 2 s / 6 s records
@@ -31,7 +32,7 @@ def pin_rtol(structure):
 def test_every_example_is_a_valid_job_file_of_its_command(name):
     command = COMMAND_OF[name]
     job = load_job(example_path(name), command)             # the file itself, through the schema
-    assert job["name"] == name
+    assert job.name == name and job.command == command
     parse_job(load_example(name), command)
     others = [c for c in ("estimate", "place", "locate") if c != command]
     with pytest.raises(ValueError, match=f"example of akf {command}"):
@@ -47,7 +48,7 @@ def test_examples_are_listed_per_command():
 
 @pytest.mark.parametrize("name", sorted(ESTIMATE_PINS))
 def test_estimate_examples_are_pinned(name):
-    res = run_job(load_example(name))
+    res = run_estimate(load_example(name))
     assert res.metrics["detectable"]
     assert res.metrics["avg_strain_error_microstrain"] == pytest.approx(ESTIMATE_PINS[name],
                                                                         rel=pin_rtol(res.estimate.structure))
@@ -61,8 +62,8 @@ def test_s17_acceleration_only_examples_are_undetectable(name):
     from core_akf import UndetectableError
 
     with pytest.raises(UndetectableError):
-        run_job(load_example(name), allow_undetectable=False)
-    forced = run_job(load_example(name), allow_undetectable=True)      # the file asks for the time-varying filter
+        run_estimate(load_example(name), allow_undetectable=False)
+    forced = run_estimate(load_example(name), allow_undetectable=True)      # the file asks for the time-varying filter
     assert not forced.metrics["detectable"]
 
 

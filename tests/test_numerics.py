@@ -77,7 +77,7 @@ def test_parquet_measurements_are_read(tmp_path):
     """Parquet is a documented input format: its reader (pyarrow) is a declared dependency."""
     import pandas as pd
 
-    from akf.jobs import read_measurements
+    from akf.job import read_measurements
     rng = np.random.default_rng(0)
     df = pd.DataFrame({"time": np.arange(50) * 1e-3, "strain:13": 1e-6 * rng.normal(size=50),
                        "acc:8:y": rng.normal(size=50)})

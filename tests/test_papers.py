@@ -6,14 +6,14 @@ instability, not absolute values.
 """
 import numpy as np
 import pytest
+from helpers import run_estimate
 
 from akf.examples import example_job
-from akf.jobs import run_job
 
 
 @pytest.fixture(scope="module")
 def s17_results():
-    return {name: run_job(example_job(name), allow_undetectable=True)
+    return {name: run_estimate(example_job(name), allow_undetectable=True)
             for name in ("s17-case1", "s17-case2", "s17-case3", "s17-case4")}
 
 
@@ -42,7 +42,7 @@ def test_s17_case2_error_grows_with_record_length():
         job = example_job(name)
         job["simulation"]["duration"] = duration
         job["filter"]["steady"] = False
-        return _rms(run_job(job, allow_undetectable=True)).mean()
+        return _rms(run_estimate(job, allow_undetectable=True)).mean()
 
     assert err("s17-case2", 4.0) > 1.3 * err("s17-case2", 1.0)
     assert err("s17-case4", 4.0) < 1.3 * err("s17-case4", 1.0)
@@ -58,6 +58,6 @@ def test_s17_case1_fine_without_errors(s17_results):
 
 def test_s17_steady_equals_time_varying_case4():
     job = example_job("s17-case4")
-    tv = run_job(job, steady=False)
-    ss = run_job(job, steady=True)
+    tv = run_estimate(job, steady=False)
+    ss = run_estimate(job, steady=True)
     assert np.allclose(_rms(tv), _rms(ss), rtol=0.01)   # they differ only in the transient (~1 % of 2 s)

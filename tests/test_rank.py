@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from akf.examples import TH_FLEXIBLE_PLATE
-from akf.jobs import build_structure
+from akf.job import build_structure
 from core_akf.models import imp_plate, s17_truss, th_plate
 from core_akf.rank import StaticGain, is_supported, zero_rows
 from core_akf.statespace import detectability, static_gain

@@ -9,7 +9,7 @@ import pytest
 
 from akf.cli import main
 from akf.examples import TH_CASE2, TH_CASE3, th_job
-from akf.jobs import build_loads
+from akf.job import build_loads
 from akf.placement import example_problem
 from core_akf import AKFInputError
 from core_akf.models import plate, th_plate

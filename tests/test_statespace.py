@@ -198,7 +198,7 @@ def test_pbh_thin_cantilever_plate_counts_as_supported():
     """f1 / f_max ~ 1e-8 on the thesis' flexible plate (in-plane and shear modes in the MHz):
     still a supported structure, so the static test applies and two gauges are detectable."""
     from akf.examples import TH_FLEXIBLE_PLATE
-    from akf.jobs import build_structure
+    from akf.job import build_structure
     from core_akf.statespace import is_supported
 
     s = build_structure(TH_FLEXIBLE_PLATE)

@@ -118,7 +118,7 @@ def test_flexible_plate_first_frequency_matches_plate_strip_theory():
     """TH case 5 plate: f1 against the clamped-free plate strip, (1.8751^2 / 2 pi) sqrt(D / rho h) / L^2
     (the thesis states 0.14 Hz for these dimensions; see studies/README.md)."""
     from akf.examples import TH_FLEXIBLE_PLATE
-    from akf.jobs import build_structure
+    from akf.job import build_structure
 
     p = TH_FLEXIBLE_PLATE
     D = p["E"] * p["thickness"] ** 3 / (12 * (1 - p["nu"] ** 2))

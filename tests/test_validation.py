@@ -3,7 +3,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from akf.jobs import read_measurements
+from akf.job import read_measurements
 from core_akf import AKFInputError, ModelError, Structure, UndetectableError
 from core_akf.akf import estimate, run
 from core_akf.models import plate, s17_truss, th_plate

@@ -9,7 +9,7 @@ import numpy as np
 
 from core_akf.exceptions import AKFInputError
 
-from ..jobs import load_job
+from ..job import load_job
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler, workers
 from .common import add_print_job, print_job, seed
@@ -78,11 +78,11 @@ def _locate_events(args, job):
     from ..locating import locate_events
     from .common import print_written
 
-    name = job.get("name", os.path.splitext(os.path.basename(args.job))[0])
+    name = job.name
     out = args.out or os.path.join("akf-out", "locate", name)
     with OutputFolder(out, "--out"), scheduler(args.scheduler, resume="run the same command again"):
         if not args.json:
-            print(f"{name}: locating the impact of every file of {job['measurements']['file']}")
+            print(f"{name}: locating the impact of every file of {job.spec.measurements.file}")
         frame, files = locate_events(job, out, n_jobs=workers(args), seed=args.seed, progress=not args.json,
                                      tune=False if args.no_tune else None, plot=not args.no_plot)
     located = frame["node"].notna().sum()
@@ -118,7 +118,7 @@ def _prepare_locate(args, progress):
     def run():
         return run_locate_job(job, n_jobs=workers(args), seed=args.seed, progress=progress,
                               tune=False if args.no_tune else None)
-    return run, None, job.get("name", os.path.splitext(os.path.basename(args.job))[0])
+    return run, None, job.name
 
 
 def register(sub):

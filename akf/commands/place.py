@@ -12,7 +12,7 @@ import sys
 from core_akf.exceptions import AKFInputError
 from core_akf.outputs import write_csv
 
-from ..jobs import load_job
+from ..job import load_job
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, check_scheduler
 from .common import add_print_job, print_job, print_written, seed
@@ -34,10 +34,12 @@ def _place(args):
     if args.example:
         problem, ga = example_problem(args.example, args.sensors), example_settings(args.example)
     else:
-        problem, ga = problem_from_job(load_job(args.job, "place"))
+        job = load_job(args.job, "place")
         if args.sensors is not None:
-            if problem.budget:
+            if job.spec.place.budget is not None:
                 raise AKFInputError("--sensors does not apply to a job with a budget per sensor type")
+        problem, ga = problem_from_job(job)
+        if args.sensors is not None:
             problem.n_sensors = args.sensors
     if args.window is not None:
         problem.window = args.window

@@ -10,7 +10,7 @@ import sys
 
 from core_akf.exceptions import AKFInputError
 
-from ..jobs import MODELS, build_structure
+from ..job import MODELS, build_structure
 from ..outputs import OutputFolder
 
 
@@ -21,9 +21,9 @@ def _structure_of(target):
     if not os.path.isfile(target):
         raise AKFInputError(f"{target!r} is neither a built-in structure ({', '.join(sorted(set(MODELS) - {'matrices'}))}) "
                             "nor a job file")
-    from ..jobs import load_job_file, resolve_paths
+    from ..job import load_job_file, resolve_paths
 
-    job = resolve_paths(load_job_file(target), target)
+    job = resolve_paths(load_job_file(target), os.path.dirname(os.path.abspath(target)))   # any command's job
     if not isinstance(job.get("structure"), dict):
         raise AKFInputError(f"{target}: the job file has no [structure] table")
     name = job.get("name") or os.path.splitext(os.path.basename(target))[0]

@@ -31,7 +31,7 @@ import os
 from core_akf.defaults import default
 from core_akf.exceptions import AKFInputError
 
-from ..jobs import load_job_file
+from ..job import Job, load_job_file
 
 #: the folder of the example job files
 JOBS_DIR = os.path.join(os.path.dirname(__file__), "jobs")
@@ -60,12 +60,7 @@ def example_path(name):
 
 @functools.cache
 def _load(name):
-    from ..schema import parse_job
-
-    path = example_path(name)
-    job = load_job_file(path)
-    parse_job(job, COMMAND_OF[name], source=path)
-    return job
+    return load_job_file(example_path(name))        # checked where it is used: Job.from_dict
 
 
 def load_example(name, command=None):
@@ -80,8 +75,15 @@ def load_example(name, command=None):
 
 
 def example_job(name):
-    """A fresh copy of the built-in estimation job ``name``."""
+    """A fresh copy of the built-in estimation job ``name`` (a dict, to vary before it is run)."""
     return load_example(name, "estimate")
+
+
+def example(name, overrides=None):
+    """The built-in job ``name`` as a :class:`akf.job.Job` of its command (checked once), with
+    ``overrides`` as in :meth:`akf.job.Job.from_dict`."""
+    data = load_example(name)          # an unknown name is refused here, naming the examples
+    return Job.from_dict(data, COMMAND_OF[name], overrides=overrides)
 
 
 # ------------------------------------------------------------------------ variations for studies

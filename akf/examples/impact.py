@@ -38,9 +38,9 @@ class ImpactScenario:
     simulation: object = None
     #: the job's further ``[locate]`` settings for :func:`impactloc.locate` (candidates, n_modes, ...)
     options: dict = None
-    #: the locate job the scenario was simulated from (:func:`impact_job`): what ``akf locate
-    #: --example`` runs, every ``[locate]`` key honoured (:func:`akf.locating.run_locate_job`)
-    job: dict = None
+    #: the locate :class:`~akf.job.Job` the scenario was simulated from (:func:`impact_job`): what
+    #: ``akf locate --example`` runs, every ``[locate]`` key honoured (:func:`akf.locating.run_locate_job`)
+    job: object = None
 
 
 def impact_job(name, impact_node=None, noise="abs", seed=0):
@@ -65,17 +65,17 @@ def impact_job(name, impact_node=None, noise="abs", seed=0):
 
 def example_scenario(name, impact_node=None, noise="abs", seed=0):
     """Simulate the built-in impact example ``name`` (see :func:`impact_job`)."""
-    from ..jobs import simulate_job
+    from ..job import Job
 
-    job = impact_job(name, impact_node, noise, seed)
-    structure, forces, sim = simulate_job(job)
-    loc = job["locate"]
-    options = {k: loc[k] for k in ("candidates", "n_modes", "skip", "max_splits") if k in loc}
-    if options.get("n_modes") == "full":
-        options["n_modes"] = None
-    return ImpactScenario(name, structure, list(job["sensors"]), float(job["dt"]), sim.measurements,
-                          sim.loads[:, 0], forces[0], int(loc["n_ad"]), tuple(loc.get("ad_kinds", ["strain"])),
-                          loc["direction"], sim, options, job)
+    job = Job.from_dict(impact_job(name, impact_node, noise, seed), "locate")
+    sim = job.simulate()
+    loc = job.spec.locate
+    options = {k: getattr(loc, k) for k in ("candidates", "skip", "max_splits") if getattr(loc, k) is not None}
+    if loc.n_modes is not None:
+        options["n_modes"] = job.n_modes
+    return ImpactScenario(name, job.structure, list(job.spec.sensors), job.dt, sim.measurements,
+                          sim.loads[:, 0], job.forces[0], int(loc.n_ad), tuple(loc.ad_kinds or ["strain"]),
+                          loc.direction, sim, options, job)
 
 
 #: the impact examples

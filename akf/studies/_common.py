@@ -17,7 +17,7 @@ class StudyResult:
     table: object                      # pandas DataFrame
     summary: object = None             # pandas DataFrame: one row per case
     files: dict = field(default_factory=dict)
-    data: dict = field(default_factory=dict)  # per-case JobResult objects (for tests and plots)
+    data: dict = field(default_factory=dict)  # per-case EstimateResult objects (for tests and plots)
 
 
 def output_dir(name, out=None):

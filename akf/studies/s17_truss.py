@@ -41,8 +41,9 @@ import numpy as np
 from core_akf.figures import subplots
 from core_akf.outputs import write_csv
 
+from ..estimating import estimate_job
 from ..examples import S17_ACC_ONLY, S17_MULTI, S17_STRAIN_ONLY, s17_job
-from ..jobs import run_job
+from ..job import Job
 from ._common import Progress, StudyResult, drift_ratio, output_dir, psd, save
 
 log = logging.getLogger("akf")
@@ -71,12 +72,13 @@ CASES = {
 
 
 def run_case(case, duration=2.0, seed=0):
-    """Run one S17 case; returns the :class:`~akf.jobs.JobResult`."""
+    """Run one S17 case; returns the :class:`~akf.estimating.EstimateResult`."""
     description, sensors, slow, errors = CASES[case]
     job = s17_job(f"s17-{case}", description, sensors, slow=slow, model_error=errors, noise=errors)
     job["simulation"].update(duration=duration, seed=seed)
     acc_only = all(s.startswith("acc") for s in sensors)
-    return run_job(job, allow_undetectable=acc_only or None, steady=False if acc_only else None)
+    forced = {"filter.allow_undetectable": True, "filter.steady": False} if acc_only else {}
+    return estimate_job(Job.from_dict(job, "estimate", overrides=forced))
 
 
 def run(out=None, quick=False, seed=0, cases=None):

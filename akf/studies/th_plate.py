@@ -40,8 +40,9 @@ import numpy as np
 from core_akf.figures import figure
 from core_akf.outputs import write_csv
 
+from ..estimating import estimate_job
 from ..examples import TH_CASE1, TH_CASE2, TH_CASE3, TH_CASE4, TH_FLEXIBLE_PLATE, th_job
-from ..jobs import run_job
+from ..job import Job
 from ._common import Progress, StudyResult, drift_ratio, output_dir, psd, save
 
 log = logging.getLogger("akf")
@@ -76,20 +77,21 @@ CHANNELS = ("strain:70:ex", "strain:1:gxy")
 
 
 def run_case(case, duration=6.0, seed=0, n_modes=None):
-    """Run one thesis case; returns the :class:`~akf.jobs.JobResult`."""
+    """Run one thesis case; returns the :class:`~akf.estimating.EstimateResult`."""
     description, sensors, model_error, noise, options = CASES[case]
     job = th_job(f"th-{case}", description, sensors, model_error=model_error, noise=noise, **options)
     job["simulation"].update(duration=duration, seed=seed)
     flexible = options is _FLEX
     job["filter"]["n_modes"] = n_modes or (150 if flexible else 80)
     try:
-        return run_job(job)
+        return estimate_job(Job.from_dict(job, "estimate"))
     except Exception as exc:  # undetectable: force the time-varying filter, as the thesis does
         from core_akf.exceptions import UndetectableError
 
         if not isinstance(exc, UndetectableError):
             raise
-        return run_job(job, allow_undetectable=True, steady=False)
+        return estimate_job(Job.from_dict(job, "estimate", overrides={"filter.allow_undetectable": True,
+                                                                      "filter.steady": False}))
 
 
 def run(out=None, quick=False, seed=0, cases=None):

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from akf.examples import example_job
-from akf.jobs import simulate_job
+from akf.job import Job
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 G_N = 9.80665
@@ -64,7 +64,7 @@ def to_si(sensor, raw):
 def main():
     job = example_job("s17-case4")
     job["simulation"]["duration"] = 0.25
-    _, _, sim = simulate_job(job)
+    sim = Job.from_dict(job, "estimate").simulate()
     dt = float(job["dt"])
     sensors = job["sensors"]
     n = sim.measurements.shape[0]

@@ -1,0 +1,542 @@
+"""The estimate pipeline: one job, simulated or measured, through one
+:class:`core_akf.streaming.Estimator`, to one result, one set of files and one set of figures.
+
+A simulated job is one chunk: its whole record, with the truth beside the estimate.  A measured
+record is read in chunks and filtered with the state carried over (constant memory), the results
+written as they come, and a checkpoint after every chunk so that an interrupted run continues
+where it ended (``akf estimate JOB --resume``).  Without an output folder the whole record is
+held in memory and the :class:`EstimateResult` carries the :class:`~core_akf.akf.Estimate`.
+
+The time series go to ``timeseries.csv`` (appended) or ``timeseries.parquet`` (a folder of one
+Parquet file per chunk: a dataset that ``pandas.read_parquet`` reads whole): tidy, one row per
+time step and channel, with the reference of a simulated job.  The checkpoint
+(``.akf-resume.npz``) holds the filter's state, the running diagnostics, how much of the output
+is written and a fingerprint of the job and its files; a resumed run cuts the output back to the
+checkpoint and goes on from there.
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core_akf.checks import check_memory
+from core_akf.diagnostics import CONSISTENCY_LIMIT, RunningDiagnostics, scale_check, warnings_for
+from core_akf.exceptions import AKFInputError
+from core_akf.metrics import average_strain_error, rms_error
+from core_akf.outputs import atomic_path, confined, write_csv
+from core_akf.simulate import MICROSTRAIN
+from core_akf.statespace import strain_feedthrough
+from core_akf.streaming import CheckpointError, Estimator
+
+from .job import Job
+from .plots import plot_estimate, plot_sensors
+from .writers import draw
+
+#: steps per chunk at most, unless the job says ``[measurements] chunk`` (seconds)
+DEFAULT_CHUNK_STEPS = 65536
+#: bytes a chunk may hold (states, their transforms, channels, output rows)
+CHUNK_BYTES = 256e6
+#: above this many (strain output x step) rows, ``[output] strains`` left at its default writes none
+MAX_STRAIN_ROWS = 2_000_000
+#: points per channel kept for the figures (the record decimated to at most this)
+PLOT_POINTS = 20000
+CHECKPOINT = ".akf-resume.npz"
+
+#: units of the numbers in :attr:`EstimateResult.metrics` (and the CLI's JSON)
+METRIC_UNITS = {"rms_force": "N", "rms_strain": "m/m", "avg_strain_error": "m/m", "avg_strain_error_microstrain": "µε",
+                "forces": {"rms": "N", "peak": "N", "time_of_peak": "s"},
+                "sensors": "per channel: the sensor's SI unit (m/m, m/s^2, m/s, m); consistency and whiteness "
+                           "are dimensionless"}
+
+
+def default_chunk(n_states, n_channels, n_outputs):
+    """Steps per chunk: :data:`DEFAULT_CHUNK_STEPS`, fewer for a large model so that a chunk holds
+    about :data:`CHUNK_BYTES` (about four copies of the augmented states of ``n_states``, the
+    channels and a tidy output row of six columns per written channel), at least 1024."""
+    per_step = 8 * (4 * n_states + 4 * n_channels + 6 * n_outputs)
+    return int(min(DEFAULT_CHUNK_STEPS, max(1024, CHUNK_BYTES // per_step)))
+
+
+def summary_frame(metrics):
+    """One row per channel of a job's metrics: every force location (estimated RMS and peak, and
+    the RMS error against the reference if there is one), every sensor (measured RMS and the
+    innovation statistics of :mod:`core_akf.diagnostics`) and, with a reference, every strain
+    output (RMS error).  Never empty: measured data without a reference still has forces and sensors."""
+    import pandas as pd
+
+    m = metrics
+    errors = m.get("rms_force", {})
+    rows = [dict(quantity="force", **f, rms_error=errors.get(f["channel"], np.nan)) for f in m.get("forces", [])]
+    rows += [dict(quantity="sensor", channel=d["channel"], unit=d["unit"], rms=d["measured_rms"],
+                  **{k: v for k, v in d.items() if k not in ("channel", "unit", "measured_rms")})
+             for d in m.get("sensors", [])]
+    rows += [{"quantity": "strain", "channel": k, "unit": "m/m", "rms_error": v}
+             for k, v in m.get("rms_strain", {}).items()]
+    columns = ["quantity", "channel", "unit", "rms_error", "rms", "peak", "time_of_peak", "innovation_rms",
+               "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+@dataclass
+class EstimateResult:
+    """What :func:`estimate_job` did.
+
+    Attributes
+    ----------
+    job : Job
+    metrics : dict
+        ``detectable``, ``n_steps``, ``units`` (:data:`METRIC_UNITS`), ``forces`` and ``sensors``
+        (per channel, :mod:`core_akf.diagnostics`), ``warnings``; for a simulated job also
+        ``rms_force`` (N per force), ``rms_strain`` (m/m per output), ``avg_strain_error`` (m/m)
+        and ``avg_strain_error_microstrain``.  Empty for a run stopped before its end.
+    files : dict
+        The files written (``timeseries``, ``summary``, ``figure``, ``sensors_figure``,
+        ``checkpoint`` of a stopped run); empty without an output folder.
+    channels : list of str
+        The record's channels (file channel -> sensor, unit); empty for a simulated job.
+    notes : list of str
+    resumed_at : int
+        The step a resumed run went on from (0: from the start).
+    complete : bool
+        False for a run stopped before its end (``stop_after``).
+    estimate : core_akf.akf.Estimate or None
+        The whole record's estimate, when it was filtered in one chunk (a simulated job, or any
+        job without an output folder).
+    simulation : core_akf.simulate.Simulation or None
+        The truth of a simulated job.
+    """
+
+    job: Job
+    metrics: dict
+    files: dict = field(default_factory=dict)
+    channels: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    resumed_at: int = 0
+    complete: bool = True
+    estimate: object = None
+    simulation: object = None
+
+    def summary_frame(self):
+        """One row per channel (:func:`summary_frame` of the metrics)."""
+        return summary_frame(self.metrics)
+
+    def timeseries_frame(self, strains="all"):
+        """The tidy time series of an estimate held in memory (as ``timeseries.csv``): forces, then
+        the strain outputs ``strains`` ("all" or a list of labels), with the reference of a
+        simulated job."""
+        if self.estimate is None:
+            raise AKFInputError("this run was filtered in chunks: its time series are in files['timeseries']")
+        index = list(range(self.estimate.structure.n_strain)) if strains == "all" else \
+            self.estimate.structure.strain_label_index(strains)
+        return TidyRows(self.estimate.structure, self.estimate.force_locations, index).frame(self.estimate,
+                                                                                             self.simulation)
+
+
+class TidyRows:
+    """The tidy rows of a chunk: forces, then the strain outputs at ``strain_index`` (their rows of
+    the model's strain operator, with the static correction of a reduced model), with the
+    reference of a simulated record.  Text columns are categoricals: the same rows, built and
+    written ten times faster than strings."""
+
+    def __init__(self, model, forces, strain_index):
+        self.index = list(strain_index)
+        self.labels = [f"{node}:{d}" for node, d in forces] + [model.strain_labels[i] for i in self.index]
+        self.rows = model.strain_operator[self.index] if self.index else None
+        extra = strain_feedthrough(model, forces) if self.index else None
+        self.extra = None if extra is None else extra[self.index]
+
+    def frame(self, est, simulation=None, start=0):
+        """Rows of the chunk ``est``; ``simulation``: the truth, of which the chunk holds steps
+        ``start`` onwards."""
+        import pandas as pd
+
+        n = est.time.size
+        blocks = [est.forces]
+        if self.index:
+            strains = est.states[:, :est.structure.n] @ self.rows.T
+            blocks.append(strains if self.extra is None else strains + est.forces @ self.extra.T)
+        values = np.hstack(blocks)
+        if simulation is not None:
+            ref = [simulation.loads[start:start + n]] + ([simulation.strains[start:start + n, self.index]]
+                                                           if self.index else [])
+            reference = np.hstack(ref).T.reshape(-1)
+        else:
+            reference = np.full(n * len(self.labels), np.nan)
+        n_forces = len(est.force_locations)
+        is_strain = np.repeat(np.arange(len(self.labels)) >= n_forces, n).astype(np.int8)
+
+        def column(codes, categories):
+            return pd.Categorical.from_codes(codes, categories=categories)
+        return pd.DataFrame({"time": np.tile(est.time, len(self.labels)),
+                             "quantity": column(is_strain, ["force", "strain"]),
+                             "channel": column(np.repeat(np.arange(len(self.labels)), n), self.labels),
+                             "unit": column(is_strain, ["N", "m/m"]),
+                             "estimated": values.T.reshape(-1), "reference": reference})
+
+
+def strain_outputs(job, structure, n_steps, notes):
+    """Indices of the strain outputs whose histories are written: ``[output] strains``, or all of
+    them unless that is more than :data:`MAX_STRAIN_ROWS` rows (then none, with a note) when the
+    job leaves it at its default."""
+    wanted = job.spec.output.strains if job.spec.output is not None else None
+    if wanted is None:
+        if structure.n_strain * n_steps <= MAX_STRAIN_ROWS:
+            return list(range(structure.n_strain))
+        notes.append(f"strain histories not written ({structure.n_strain} channels x {n_steps} steps); list the "
+                     "channels you want in [output] strains (summary.csv has every RMS error of a simulated job)")
+        return []
+    if wanted == "all":
+        return list(range(structure.n_strain))
+    return structure.strain_label_index(wanted)
+
+
+class _Writer:
+    """Tidy rows appended chunk by chunk, to CSV or to Parquet parts; cut back on resume."""
+
+    def __init__(self, out, fmt):
+        self.fmt = fmt
+        self.path = os.path.join(out, "timeseries.csv" if fmt == "csv" else "timeseries.parquet")
+        self.position = 0        # CSV: bytes written; Parquet: parts written
+
+    def start(self, position=0):
+        """Begin anew (0) or cut the output back to a checkpoint's ``position``.  Nothing is
+        written or deleted through a symbolic link that leads out of the output folder."""
+        confined(self.path)
+        if self.fmt == "csv":
+            if position == 0:
+                with open(self.path, "w") as fh:
+                    fh.write("time,quantity,channel,unit,estimated,reference\n")
+                position = os.path.getsize(self.path)
+            else:
+                if not os.path.exists(self.path) or os.path.getsize(self.path) < position:
+                    raise CheckpointError(f"{self.path} is shorter than the checkpoint says: start the run anew")
+                with open(self.path, "r+b") as fh:
+                    fh.truncate(position)
+        else:
+            if os.path.isfile(self.path):
+                os.remove(self.path)
+            os.makedirs(self.path, exist_ok=True)
+            for name in os.listdir(self.path):
+                if name.startswith("part-") and (position == 0 or int(name[5:10]) >= position):
+                    os.remove(os.path.join(self.path, name))
+            if position and not os.path.exists(os.path.join(self.path, f"part-{position - 1:05d}.parquet")):
+                raise CheckpointError(f"{self.path} lacks parts the checkpoint says were written: start the run anew")
+        self.position = position
+
+    def write(self, frame):
+        confined(self.path)
+        if self.fmt == "csv":
+            with open(self.path, "a") as fh:
+                frame.to_csv(fh, header=False, index=False, float_format="%.17g")
+                fh.flush()
+                os.fsync(fh.fileno())
+            self.position = os.path.getsize(self.path)
+        else:
+            with atomic_path(os.path.join(self.path, f"part-{self.position:05d}.parquet")) as tmp:
+                frame.to_parquet(tmp, index=False)
+            self.position += 1
+
+
+def _fingerprint(job, record):
+    """What shapes a run's outputs, for its checkpoint: ``(spec, files)`` as canonical JSON -- the
+    job's keys as set (overrides such as ``--filter`` included), without its free-text description,
+    and the record's files (names, sizes, times of change)."""
+    spec = job.to_dict()
+    spec.pop("description", None)
+    files = [[os.path.abspath(f), os.path.getsize(f), os.path.getmtime(f)] for f in record.files]
+    return json.dumps(spec, sort_keys=True, default=str), json.dumps(files, default=str)
+
+
+def _flat(value, prefix=()):
+    """A nested dict as ``{(table, ..., key): value}``."""
+    if isinstance(value, dict):
+        out = {}
+        for k, v in value.items():
+            out.update(_flat(v, prefix + (str(k),)))
+        return out
+    return {prefix: value}
+
+
+def _changed_keys(old, new):
+    """The job keys that differ between two canonical JSON specs, as ``[table] key`` strings."""
+    a, b = _flat(json.loads(old)), _flat(json.loads(new))
+    keys = sorted(k for k in set(a) | set(b) if a.get(k, "<absent>") != b.get(k, "<absent>"))
+    return [(f"[{'.'.join(k[:-1])}] " if len(k) > 1 else "") + k[-1] for k in keys]
+
+
+#: what a checkpoint of :func:`estimate_job` holds besides the filter's and the diagnostics' state
+_CHECKPOINT_KEYS = ("job", "files", "next_step", "position", "chunk", "plot_t", "plot_f", "plot_y", "plot_p")
+
+
+def _load_checkpoint(path):
+    """A checkpoint's arrays, or a :class:`CheckpointError` that says what is wrong with the file:
+    truncated, not a checkpoint of ``akf estimate``, or holding values that are not finite."""
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            saved = {k: data[k] for k in data.files}
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
+        raise CheckpointError(f"the checkpoint {path} is truncated or not a checkpoint of akf estimate "
+                              f"({type(exc).__name__}: {exc}); start anew with --overwrite") from None
+    missing = [k for k in _CHECKPOINT_KEYS if k not in saved]
+    if missing:
+        what = "was written by an earlier version of akf" if "next_step" in saved else "is not a checkpoint of akf estimate"
+        raise CheckpointError(f"{path} {what} (it lacks {', '.join(missing)}); start anew with --overwrite")
+    for k, v in saved.items():
+        if v.dtype.kind == "f" and k not in ("z",) and not np.all(np.isfinite(v)):
+            raise CheckpointError(f"the checkpoint {path} holds NaN or infinite values in {k!r}: it cannot be "
+                                  "continued; start anew with --overwrite")
+    return saved
+
+
+def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool = False, overwrite: bool = False,
+                 plot: bool = True, progress: bool = False, stop_after: int | None = None,
+                 on_result=None) -> EstimateResult:
+    """Estimate the forces and strains of an estimate :class:`~akf.job.Job`: its simulated record
+    (``[simulation]``, one chunk, with the truth) or its measured one (``[measurements]``, in
+    chunks of ``[measurements] chunk`` when written to ``out``).
+
+    Parameters
+    ----------
+    job : Job
+        A job of ``akf estimate`` (:func:`akf.job.load_job`, :func:`akf.examples.example`).
+    out : str or None
+        Output folder: ``timeseries.csv`` (or ``.parquet``), ``summary.csv``, ``estimate.png``,
+        ``sensors.png``.  None: nothing is written and the whole record is filtered in memory
+        (:attr:`EstimateResult.estimate`).
+    resume : bool
+        Continue an interrupted measured run from its checkpoint in ``out``; it must have been
+        written for the same job and data files (else a :class:`CheckpointError` names what
+        changed).
+    overwrite : bool
+        Start anew over an interrupted run's checkpoint in ``out`` (refused without it or
+        ``resume``; a finished run leaves no checkpoint).
+    plot : bool
+        Draw the figures (after the results are written: a figure that fails is a warning).
+    progress : bool
+        A progress bar over the record's steps.
+    stop_after : int or None
+        Stop after this many chunks, as if interrupted (for tests and for splitting work).
+    on_result : callable or None
+        Called with the :class:`EstimateResult` once its files are written and before the figures
+        are drawn (to print the results first: a figure that fails loses nothing).
+
+    Returns
+    -------
+    EstimateResult
+    """
+    if not isinstance(job, Job):
+        raise TypeError(f"estimate_job takes an akf.job.Job (akf.job.load_job, Job.from_dict), got {type(job).__name__}")
+    if job.command != "estimate":
+        raise AKFInputError(f"the job was read for akf {job.command}, not for akf estimate")
+    spec = job.spec
+    if spec.simulation is None and spec.measurements is None:
+        raise AKFInputError("the job needs a [simulation] or a [measurements] section")
+    if resume and overwrite:
+        raise AKFInputError("--resume continues a run and --overwrite starts anew: give one of them")
+    if resume and spec.measurements is None:
+        raise AKFInputError("--resume continues an interrupted run of measured data; this job simulates its data")
+    dt, structure, sensors, forces = job.dt, job.structure, job.sensors, job.forces
+    model = job.filter_model()
+    n_a = 2 * model.n + len(forces)
+    sim = record = None
+    if spec.measurements is not None:
+        record = job.open_record()
+        n_total, t0 = record.n_steps, record.start
+        noise_cov = job.noise_cov()
+        if out is None:           # in memory: the record is one chunk
+            check_memory(n_total, 4 * n_a + 3 * structure.n_strain + 4 * len(sensors),
+                         f"the record of {n_total} steps", "give an output folder (akf estimate streams measured "
+                         "records in chunks) or use core_akf.streaming.Estimator")
+    else:
+        # float64 values held per time step: simulated states, filter states and their products
+        # (about 4 copies of the augmented state), strains of the truth and the estimate, channels
+        sim = job.simulate(4 * n_a + 2 * 2 * structure.n + 3 * structure.n_strain + 4 * len(sensors))
+        n_total, t0 = sim.measurements.shape[0], 0.0
+        noise_cov = job.noise_cov(sim)
+    estimator = Estimator(model, sensors, forces, dt, steady=job.steady, allow_undetectable=job.allow_undetectable,
+                          model_error_cov=job.model_error_cov, force_increment_cov=job.force_increment_cov,
+                          noise_cov=noise_cov, t0=t0)
+    notes = []
+    tidy = TidyRows(model, forces, strain_outputs(job, structure, n_total, notes) if out is not None else [])
+    if record is None or out is None:
+        chunk = n_total
+    elif spec.measurements.chunk is not None:
+        chunk = max(1, int(round(spec.measurements.chunk / dt)))
+    else:
+        chunk = default_chunk(n_a, len(sensors), len(tidy.labels))
+    run = _Run(job, out, record, n_total, chunk, resume, overwrite) if out is not None else None
+    start = run.start(estimator) if run is not None else 0
+    diag = RunningDiagnostics(n_total)
+    progress_bar = _progress(progress, n_total, start)
+    chunks = record.chunks(chunk, start) if record is not None else [(0, sim.measurements)]
+    first_chunk = last = None
+    done = 0
+    for step, Y in chunks:
+        est = estimator.update(Y)
+        if run is not None and last is None and start:
+            run.restore_diagnostics(diag, est)
+        diag.update(est)
+        first_chunk = Y if first_chunk is None and step == 0 else first_chunk
+        last = est
+        done += 1
+        progress_bar(Y.shape[0])
+        if run is not None:
+            run.write(est, tidy, sim, step)
+            if step + Y.shape[0] < n_total:     # after the last chunk the summary follows: a resume redoes that one
+                run.checkpoint(estimator, diag, step + Y.shape[0])
+                if stop_after is not None and done >= stop_after:
+                    notes.append(f"stopped after {done} chunk(s) at step {step + Y.shape[0]} of {n_total}; continue "
+                                 "with --resume")
+                    return EstimateResult(job, {}, run.partial_files(), record.describe(), notes, start,
+                                          complete=False)
+    whole = last if done == 1 and start == 0 else None
+    metrics = _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors, forces, noise_cov,
+                       lambda: first_chunk if first_chunk is not None else next(iter(record.chunks(chunk)))[1])
+    result = EstimateResult(job, metrics, {}, record.describe() if record is not None else [], notes, start,
+                            estimate=whole, simulation=sim)
+    if run is not None:
+        result.files = run.write_summary(metrics)
+    if on_result is not None:
+        on_result(result)
+    if run is not None:
+        run.finish(result.files, metrics, plot, whole, forces, sensors)
+    return result
+
+
+def _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors, forces, noise_cov, first_chunk):
+    """The metrics of a finished run (see :class:`EstimateResult`); ``first_chunk()`` gives the
+    record's first chunk, for the scale check of a channel that does not fit."""
+    metrics = {"detectable": estimator.report.detectable, "n_steps": int(n_total), "units": METRIC_UNITS}
+    if sim is not None:
+        rf = rms_error(whole.forces, sim.loads)
+        metrics["rms_force"] = {f"{n}:{d}": float(v) for (n, d), v in zip(forces, rf)}
+        if job.structure.n_strain:       # a model of one's own may have no strain outputs
+            rs = rms_error(whole.strains, sim.strains)
+            metrics["rms_strain"] = dict(zip(job.structure.strain_labels, map(float, rs)))
+            metrics["avg_strain_error"] = float(average_strain_error(whole.strains, sim.strains))
+            metrics["avg_strain_error_microstrain"] = metrics["avg_strain_error"] / MICROSTRAIN
+    metrics["forces"] = diag.forces(t0)
+    metrics["sensors"] = diag.sensors()
+    metrics["warnings"] = warnings_for(last, metrics["sensors"], duration=n_total * job.dt)
+    if estimator.report.detectable and any(d["consistency"] > CONSISTENCY_LIMIT for d in metrics["sensors"]):
+        # some channel does not fit: on the record's first chunk, find out whether a unit or a sign is wrong
+        found = scale_check(model, sensors, forces, first_chunk(), job.dt, model_error_cov=estimator.model_error_cov,
+                            force_increment_cov=estimator.force_increment_cov, noise_cov=noise_cov)
+        metrics["warnings"] = found + metrics["warnings"]
+        if sim is None:
+            metrics["warnings"].append("check the channel map in [measurements]: units, invert (sign) and "
+                                       "gauge_factor of the channels named above")
+    return metrics
+
+
+class _Run:
+    """The files of one run in an output folder: the tidy writer, the checkpoint and the decimated
+    record kept for the figures."""
+
+    def __init__(self, job, out, record, n_total, chunk, resume, overwrite):
+        self.job, self.out, self.record, self.chunk = job, os.fspath(out), record, chunk
+        self.resume, self.overwrite = resume, overwrite
+        os.makedirs(confined(self.out), exist_ok=True)
+        fmt = (job.spec.output.format if job.spec.output is not None else None) or "csv"
+        self.writer = _Writer(self.out, fmt)
+        self.path = os.path.join(self.out, CHECKPOINT)
+        self.decimate = max(1, -(-n_total // PLOT_POINTS))
+        self.kept = {"t": [], "f": [], "y": [], "p": []}
+        self.reference = []           # the decimated true forces of a simulated record
+        self.saved = None
+
+    def start(self, estimator):
+        """The step the run starts from: 0, or a checkpoint's (its state restored into ``estimator``)."""
+        path, out = self.path, self.out
+        if not self.resume and os.path.lexists(path) and not self.overwrite:
+            raise AKFInputError(f"{out} holds an interrupted run (its checkpoint {CHECKPOINT} and partial output): "
+                                "continue it with --resume, or start anew with --overwrite")
+        if self.record is not None:
+            self.spec, self.data_files = _fingerprint(self.job, self.record)
+        if not self.resume:
+            self.writer.start(0)
+            return 0
+        if not os.path.exists(path):
+            raise AKFInputError(f"nothing to resume in {out}: no checkpoint {CHECKPOINT} (run without --resume)")
+        saved = _load_checkpoint(path)
+        if str(saved["job"]) != self.spec:
+            raise CheckpointError(f"the job changed since the checkpoint in {out} was written ("
+                                  + ", ".join(_changed_keys(str(saved["job"]), self.spec)) + "); resuming would mix "
+                                  "two runs in one output: start anew with --overwrite, or undo the change")
+        if str(saved["files"]) != self.data_files:
+            raise CheckpointError(f"the data files changed since the checkpoint in {out} was written (names, sizes or "
+                                  "times of change); start anew with --overwrite")
+        if int(saved["chunk"]) != self.chunk:
+            raise CheckpointError("the checkpoint was written with another chunk length; start anew with --overwrite")
+        estimator.restore(saved)
+        self.writer.start(int(saved["position"]))
+        self.kept = {k: [saved[f"plot_{k}"]] for k in self.kept}
+        self.saved = saved
+        return int(saved["next_step"])
+
+    def restore_diagnostics(self, diag, est):
+        try:
+            diag.restore(self.saved, est)
+        except (KeyError, ValueError) as exc:
+            raise CheckpointError(f"the checkpoint {self.path} lacks the running diagnostics ({exc}); start anew "
+                                  "with --overwrite") from None
+
+    def write(self, est, tidy, sim, step):
+        """Append a chunk's rows and keep its decimated signals for the figures."""
+        self.writer.write(tidy.frame(est, sim, step))
+        sel = np.arange((-step) % self.decimate, est.forces.shape[0], self.decimate)
+        self.kept["t"].append(est.time[sel])
+        self.kept["f"].append(est.forces[sel])
+        self.kept["y"].append(est.measurements[sel])
+        self.kept["p"].append(est.predicted[sel])
+        if sim is not None:
+            self.reference.append(sim.loads[step + sel])
+
+    def checkpoint(self, estimator, diag, next_step):
+        state = estimator.state() | diag.state() | {
+            "next_step": np.array(next_step), "position": np.array(self.writer.position),
+            "job": np.array(self.spec), "files": np.array(self.data_files), "chunk": np.array(self.chunk)} | {
+            f"plot_{k}": np.concatenate(v) if k == "t" else np.vstack(v) for k, v in self.kept.items()}
+        with atomic_path(self.path) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **state)
+
+    def partial_files(self):
+        return {"timeseries": self.writer.path, "checkpoint": self.path}
+
+    def write_summary(self, metrics):
+        """Write ``summary.csv``; returns the files written."""
+        files = {"timeseries": self.writer.path, "summary": os.path.join(self.out, "summary.csv")}
+        write_csv(summary_frame(metrics), files["summary"])
+        return files
+
+    def finish(self, files, metrics, plot, whole, forces, sensors):
+        """Draw the figures (into ``files``; a failure is a warning) and remove the checkpoint."""
+        if plot:       # after the results: a figure that fails is a warning
+            t = np.concatenate(self.kept["t"])
+            title = self.job.name
+            step = f"; every {self.decimate}th step drawn" if self.decimate > 1 else ""
+            draw(files, "figure", metrics["warnings"], plot_estimate, t, np.vstack(self.kept["f"]),
+                 [f"{n}:{d}" for n, d in forces], os.path.join(self.out, "estimate.png"),
+                 f"{title}: estimated forces" + (" (streamed)" if whole is None else ""),
+                 reference=np.vstack(self.reference) if self.reference else None, strain_errors=metrics.get("rms_strain"),
+                 consistency={d["channel"]: d["consistency"] for d in metrics["sensors"]}, note=step)
+            draw(files, "sensors_figure", metrics["warnings"], plot_sensors, t, np.vstack(self.kept["y"]),
+                 np.vstack(self.kept["p"]), sensors, os.path.join(self.out, "sensors.png"),
+                 f"{title}: measured vs. predicted at the sensors")
+        if os.path.exists(self.path):
+            os.remove(self.path)        # a link is removed, never what it points to
+
+
+def _progress(on, total, start):
+    if not on:
+        return lambda k: None
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=total, initial=start, unit="step", unit_scale=True, desc="estimate", leave=False)
+    return bar.update

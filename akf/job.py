@@ -1,0 +1,374 @@
+"""Estimation jobs: one structure, sensors, force locations, filter settings and either a
+simulated scenario or measured data -- from a TOML file or a built-in example.
+
+A job file (TOML)::
+
+    name = "my-truss"
+    dt = 0.000244140625            # s
+    sensors = ["acc:4:y", "strain:5"]
+    forces = ["4:y"]
+
+    [structure]
+    model = "s17_truss"            # s17_truss | th_plate | imp_plate | plate (with its arguments)
+
+    [filter]
+    stiffness_factor = 1.05        # the filter's model is 5 % stiffer than the true one
+    model_error_cov = 1e-16        # Q level
+    force_increment_cov = 1e5      # S level, N^2 per step
+    noise_cov = "simulated"        # R from the simulated noise, or {strain = 1e-14, acc = 1e-2}
+    steady = true
+
+    [simulation]                   # or [measurements] file = "data.csv" (time + one column per sensor)
+    duration = 2.0
+    relative_noise = 0.02
+    seed = 0
+    [[simulation.loads]]           # one table per force location, summing its components
+    components = [{type = "band_noise", rms = 500, f_high = 200, seed = 1}]
+"""
+from __future__ import annotations
+
+import copy
+import os
+
+import numpy as np
+
+from core_akf import loads as L
+from core_akf.checks import check_memory
+from core_akf.defaults import default
+from core_akf.exceptions import AKFInputError
+from core_akf.models import footbridge, from_files, imp_plate, plate, s17_truss, th_plate
+from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
+from core_akf.simulate import MG, MICROSTRAIN, simulate
+
+from .schema import Job as JobSpec
+from .schema import parse_job
+
+MODELS = {"s17_truss": s17_truss, "th_plate": th_plate, "imp_plate": imp_plate, "plate": plate, "footbridge": footbridge,
+          "matrices": from_files}
+#: the keys of a ``model = "matrices"`` structure that name files (relative to the job file)
+MATRIX_FILES = ("K", "M", "C", "dofs", "nodes", "strains", "extensometers")
+_LOADS = {
+    "band_noise": lambda t, dt, c, seed: L.band_limited_white_noise(t.size, dt, c["rms"], c.get("f_low", 0.0), c.get("f_high"), seed),
+    "white_noise": lambda t, dt, c, seed: L.white_noise(t.size, c["std"], seed),
+    "pulse": lambda t, dt, c, seed: L.half_sine_pulse(t, c["start"], c["duration"], c["peak"]),
+    "ramp": lambda t, dt, c, seed: L.ramp(t, c["start"], c["end"], c["peak"]),
+    "half_sine": lambda t, dt, c, seed: L.half_sine(t, c["start"], c["end"], c["peak"]),
+    "sine": lambda t, dt, c, seed: L.sine(t, c["frequency"], c["amplitude"], c.get("phase", 0.0)),
+    "constant": lambda t, dt, c, seed: np.full(t.size, float(c["value"])),
+}
+
+
+def load_job(path: str | os.PathLike, command: str, overrides: dict | None = None) -> Job:
+    """The job file at ``path`` for ``command`` ("estimate", "place", "locate"): read
+    (:func:`load_job_file`), its data paths made relative to the file's folder, ``overrides``
+    applied (see :meth:`Job.from_dict`) and checked once against the schema (messages name the
+    file).  Returns a :class:`Job`."""
+    return Job.from_dict(load_job_file(path), command, source=os.fspath(path), overrides=overrides)
+
+
+def resolve_paths(job: dict, base: str | os.PathLike) -> dict:
+    """The data paths of a job dict (its record, its model's files) made relative to the folder
+    ``base`` (in place; returns ``job``): the one place where job-relative paths are resolved."""
+    here = os.path.abspath(base)
+    meas = job.get("measurements")
+    if isinstance(meas, dict) and isinstance(meas.get("file"), str) and not os.path.isabs(meas["file"]):
+        meas["file"] = os.path.join(here, meas["file"])
+    structure = job.get("structure")
+    if isinstance(structure, dict) and structure.get("model") == "matrices":
+        for k in MATRIX_FILES:
+            if isinstance(structure.get(k), str) and not os.path.isabs(structure[k]):
+                structure[k] = os.path.join(here, structure[k])
+    return job
+
+
+class Job:
+    """A job parsed once for one command, with every default applied once.
+
+    Build it with :func:`load_job` (a file) or :meth:`from_dict` (a dict as read from TOML, for
+    instance a built-in example from :func:`akf.examples.load_example`); the runners
+    (:func:`akf.estimating.estimate_job`, :func:`akf.locating.run_locate_job`,
+    :func:`akf.placement.problem_from_job`) take a :class:`Job`.
+
+    Attributes
+    ----------
+    spec : akf.schema.Job
+        The validated job (pydantic), paths resolved; its sections hold the keys as written.
+    command : str
+        "estimate", "place" or "locate".
+    source : str or None
+        The job file (None for a job built from a dict).
+    name, description : str
+        The job's name (default: the file's stem, else the command) and free text.
+    dt : float
+        Time step (s).
+    stiffness_factor : float
+        The filter's stiffness relative to the true structure: ``[filter] stiffness_factor`` or
+        the command's default (``stiffness_factor`` for estimate, ``placement_stiffness_factor``
+        for place; :data:`core_akf.defaults.DEFAULTS`).
+    model_error_cov, force_increment_cov
+        Q and S levels (``[filter]`` or the defaults registry).
+    steady : bool or None
+        The filter form; None: the steady-state filter where the sensor set is detectable.
+    allow_undetectable : bool
+        Run even if the PBH test fails.
+    n_modes : int, "auto" or None
+        Modes kept in the filter's model (with a static correction); None: the full model.
+        estimate: ``[filter] n_modes``; place and locate: ``[place]`` / ``[locate] n_modes``
+        ("full" -> None, default "auto").
+    """
+
+    def __init__(self, spec: JobSpec, command: str, source: str | None = None, structure=None):
+        self.spec, self.command, self.source = spec, command, source
+        self.name = str(spec.name or (os.path.splitext(os.path.basename(source))[0] if source else command))
+        self.description = spec.description or ""
+        self.dt = float(spec.dt) if spec.dt is not None else None
+        f = spec.filter
+        self.stiffness_factor = default("placement_stiffness_factor" if command == "place" else "stiffness_factor",
+                                        f.stiffness_factor)
+        self.model_error_cov = default("model_error_cov", f.model_error_cov)
+        self.force_increment_cov = default("force_increment_cov", f.force_increment_cov)
+        self.steady = f.steady
+        self.allow_undetectable = bool(f.allow_undetectable)
+        section = {"place": spec.place, "locate": spec.locate}.get(command)
+        if command == "estimate":
+            self.n_modes = f.n_modes
+        else:
+            modes = getattr(section, "n_modes", None)
+            self.n_modes = None if modes == "full" else (modes or "auto")
+        self._structure = structure
+
+    @classmethod
+    def from_dict(cls, data: dict, command: str, *, source: str | os.PathLike | None = None,
+                  overrides: dict | None = None) -> Job:
+        """A :class:`Job` from a dict as read from TOML (copied, never changed).
+
+        ``source``: the job file it came from; relative data paths are taken from its folder
+        (without it, from the working folder) and messages name it.  ``overrides``: values that
+        replace keys before the job is checked, ``{"simulation.duration": 2.0, "filter.steady":
+        False}`` (dotted ``table.key``; a table that is absent is created)."""
+        data = copy.deepcopy(data)
+        if not isinstance(data, dict):
+            return cls(parse_job(data, command, source=source), command)       # parse_job names the problem
+        for dotted, value in (overrides or {}).items():
+            *tables, key = dotted.split(".")
+            table = data
+            for t in tables:
+                table = table.setdefault(t, {})
+                if not isinstance(table, dict):
+                    raise AKFInputError(f"[{t}] of the job is not a table; cannot set {dotted}")
+            table[key] = value
+        source = None if source is None else os.fspath(source)
+        if source is not None:
+            resolve_paths(data, os.path.dirname(os.path.abspath(source)))
+        return cls(parse_job(data, command, source=source), command, source)
+
+    def to_dict(self) -> dict:
+        """The job as written (the keys set, after renames and path resolution): a dict for TOML or JSON."""
+        return self.spec.model_dump(mode="json", exclude_unset=True)
+
+    # ------------------------------------------------------------------ what the runners build
+    @property
+    def structure(self):
+        """The true structure of ``[structure]`` (built on first use)."""
+        if self._structure is None:
+            self._structure = build_structure(self.spec.structure.model_dump())
+        return self._structure
+
+    @property
+    def sensors(self):
+        """The sensor layout (list of :class:`core_akf.sensors.Sensor`), checked against the structure."""
+        layout = as_layout(self.spec.sensors)
+        selection_matrices(self.structure, layout)       # every sensor exists on this structure
+        return layout
+
+    @property
+    def forces(self):
+        """The unknown force locations as 1-based ``(node, direction)`` pairs."""
+        return parse_force_locations(self.structure, self.spec.forces)
+
+    def filter_model(self):
+        """The filter's model: the structure with :attr:`stiffness_factor`, reduced to
+        :attr:`n_modes` (an int) with a static correction."""
+        model = self.structure.scaled(self.stiffness_factor)
+        if isinstance(self.n_modes, int):
+            model = model.reduce(self.n_modes, static_correction=True)
+        return model
+
+    def noise_cov(self, simulation=None):
+        """R: ``[filter] noise_cov``; "simulated" (the default) is the true noise of ``simulation``
+        (floored at :data:`core_akf.defaults.DEFAULTS` ``noise_floor``), which measured data lack."""
+        value = "simulated" if self.spec.filter.noise_cov is None else self.spec.filter.noise_cov
+        if not isinstance(value, str):
+            return value
+        if simulation is None:
+            raise AKFInputError("[filter] noise_cov = \"simulated\" (the default) needs a simulated job: measured data need "
+                                "the noise variances: [filter] noise_cov = {strain = ..., acc = ...} (SI units squared) or "
+                                "one variance per sensor")
+        return np.diag(np.maximum(simulation.noise_std, default("noise_floor")) ** 2)
+
+    def open_record(self):
+        """The :class:`core_akf.io.Record` of ``[measurements]``, its time step checked against ``dt``."""
+        from core_akf.io import Record
+
+        meas = self.spec.measurements
+        if meas is None or meas.file is None:
+            raise AKFInputError("[measurements] needs file = 'data.csv' (a file, a folder or a glob pattern)")
+        record = Record(meas.file, self.sensors, channels=meas.channels, units=meas.units,
+                        gauge_factor=meas.gauge_factor, bridge=meas.bridge, invert=meas.invert or (),
+                        remove_offset=meas.remove_offset or False, format=meas.format,
+                        time_column=meas.time_column or "time", group=meas.group)
+        if record.n_steps < 2:
+            raise AKFInputError(f"{record.files[0]}: {record.n_steps} data row(s); a record needs at least two time "
+                                "steps")
+        record.check_dt(self.dt)
+        return record
+
+    def with_record(self, path: str) -> Job:
+        """The same job reading another record (``[measurements] file = path``), not checked again."""
+        meas = self.spec.measurements.model_copy(update={"file": os.fspath(path)})
+        return Job(self.spec.model_copy(update={"measurements": meas}), self.command, self.source, self._structure)
+
+    def loads(self, n_steps: int | None = None):
+        """The simulated load histories (N, n_p) of ``[[simulation.loads]]`` (N from the duration)."""
+        sim = self.spec.simulation
+        if sim is None or sim.duration is None:
+            raise AKFInputError("[simulation] needs a positive duration (s)")
+        n_steps = int(round(sim.duration / self.dt)) if n_steps is None else n_steps
+        specs = [{"components": [c.model_dump(exclude_unset=True) for c in load.components]}
+                 for load in (sim.loads or [])]
+        return build_loads(specs, n_steps, self.dt, len(self.spec.forces))
+
+    def simulate(self, per_step=None):
+        """Simulate the measurements of ``[simulation]``: the true structure, its sensors, the forces
+        with the loads of ``[[simulation.loads]]`` and the noise of ``relative_noise`` /
+        ``absolute_noise`` (a :class:`core_akf.simulate.Simulation`).
+
+        ``per_step``: float64 values the caller holds per time step, to refuse a record that would
+        not fit in memory before it is allocated."""
+        sp = self.spec.simulation
+        if sp is None or sp.duration is None:
+            raise AKFInputError("[simulation] needs a positive duration (s)")
+        if self.spec.forces is None:
+            raise AKFInputError("a simulated job needs forces = ['NODE:DIR'] (where the loads act)")
+        structure, sensors, forces, dt = self.structure, self.sensors, self.forces, self.dt
+        n_steps = sp.duration / dt
+        per_step = per_step or (2 * 2 * structure.n + structure.n_strain + 2 * len(sensors))
+        check_memory(n_steps, per_step, f"a {sp.duration:g} s record at dt = {dt:g} s",
+                     "shorten [simulation] duration (CLI: --duration) or check dt")
+        n_steps = int(round(n_steps))
+        if n_steps < 2:
+            raise AKFInputError(f"[simulation] duration {sp.duration:g} s is shorter than two steps of dt = {dt:g} s")
+        loads = self.loads(n_steps)
+        absolute = _absolute_noise(sp.absolute_noise) if sp.absolute_noise is not None else None
+        return simulate(structure, sensors, forces, loads, dt, relative_noise=sp.relative_noise,
+                        absolute_noise=absolute, seed=sp.seed or 0)
+
+def load_job_file(path: str | os.PathLike) -> dict:
+    """A job (dict) from a TOML file, with clear errors for a missing, folder or invalid file."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python < 3.11
+        import tomli as tomllib
+    if not os.path.exists(path):
+        raise AKFInputError(f"job file {path!r} not found")
+    if os.path.isdir(path):
+        raise AKFInputError(f"job file {path!r} is a folder; give the TOML file")
+    with open(path, "rb") as fh:
+        raw = fh.read()
+    try:
+        return tomllib.loads(job_text(raw, path))
+    except tomllib.TOMLDecodeError as exc:
+        raise AKFInputError(f"{path}: not valid TOML: {exc}") from None
+
+
+def job_text(raw: bytes, path) -> str:
+    """The text of a job file: UTF-8, with or without a byte-order mark; any other encoding is an
+    error that names it (UTF-16 from a Windows editor, Latin-1 / Windows-1252, or not text)."""
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]                               # UTF-8 with a BOM (Windows Notepad): the same text
+    for bom, name in ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"), (b"\xff\xfe", "UTF-16"),
+                      (b"\xfe\xff", "UTF-16")):
+        if raw.startswith(bom):
+            raise AKFInputError(f"{path}: the job file is {name} text; TOML job files are UTF-8: save it as UTF-8 "
+                                "(in Notepad: Save as, Encoding UTF-8)")
+    if b"\x00" in raw:
+        odd, even = raw[1::2].count(0), raw[0::2].count(0)
+        if max(odd, even) > len(raw) // 4:
+            raise AKFInputError(f"{path}: the job file looks like UTF-16 text without a byte-order mark; TOML job files "
+                                "are UTF-8: save it as UTF-8")
+        raise AKFInputError(f"{path}: not a text file (it holds NUL bytes); a job file is TOML text in UTF-8")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        guess = raw.decode("cp1252", errors="replace").splitlines()[line - 1] if line else ""
+        raise AKFInputError(f"{path}: line {line} is not UTF-8 (byte 0x{raw[exc.start]:02x}); the file looks like "
+                            f"Latin-1 / Windows-1252 text ({guess.strip()[:60]!r}): save it as UTF-8") from None
+
+
+def build_structure(spec):
+    """A Structure from ``{"model": name, **arguments}``."""
+    spec = dict(spec)
+    name = spec.pop("model", None)
+    if not isinstance(name, str) or name not in MODELS:
+        raise AKFInputError(f"structure.model must be one of {sorted(MODELS)}, got {name!r}")
+    if name == "matrices":
+        missing = [k for k in ("K", "M", "dofs", "nodes") if k not in spec]
+        if missing:
+            raise AKFInputError(f"[structure] model = \"matrices\" needs {', '.join(missing)} (files of K, M, the DOF map "
+                                "and the node coordinates)")
+    try:
+        return MODELS[name](**spec)
+    except AKFInputError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise AKFInputError(f"bad arguments for structure model {name!r}: {exc}") from None
+
+
+def build_loads(load_specs, n_steps, dt, n_forces):
+    """Load histories (N, n_p) from one ``{"components": [...]}`` spec per force location."""
+    if len(load_specs) != n_forces:
+        raise AKFInputError(f"simulation.loads has {len(load_specs)} entries for {n_forces} force locations")
+    t = L.time_grid(n_steps, dt)
+    out = np.zeros((n_steps, n_forces))
+    for j, spec in enumerate(load_specs):
+        for c in spec.get("components", []):
+            kind = c.get("type")
+            if kind not in _LOADS:
+                raise AKFInputError(f"unknown load type {kind!r}; use one of {sorted(_LOADS)}")
+            try:
+                out[:, j] += _LOADS[kind](t, dt, c, c.get("seed"))
+            except KeyError as exc:
+                raise AKFInputError(f"load {kind!r} for force {j + 1} needs parameter {exc}") from None
+    return out
+
+
+#: unit suffixes accepted in absolute noise levels: key -> (sensor kind, factor to SI)
+_NOISE_UNITS = {"strain": ("strain", 1.0), "microstrain": ("strain", MICROSTRAIN), "acc": ("acc", 1.0),
+                "acc_mg": ("acc", MG), "vel": ("vel", 1.0), "disp": ("disp", 1.0)}
+
+
+def _absolute_noise(spec):
+    """Absolute noise standard deviations per sensor kind in SI from a job's table, e.g.
+    ``{microstrain = 1, acc_mg = 1}`` -> ``{"strain": 1e-6, "acc": 9.8e-3}``."""
+    out = {}
+    for key, value in spec.items():
+        if key not in _NOISE_UNITS:
+            raise AKFInputError(f"absolute_noise: unknown key {key!r}; use {sorted(_NOISE_UNITS)}")
+        kind, factor = _NOISE_UNITS[key]
+        out[kind] = float(value) * factor
+    return out
+
+
+def read_measurements(path, sensors, dt, time_column="time", **channel_map):
+    """Measured data (N x m, SI) of ``sensors`` from a file, folder or glob pattern in any format
+    :mod:`core_akf.io` reads, with the sampling interval checked against ``dt`` (s).
+    ``channel_map``: the keys of :class:`core_akf.io.Record` (channels, units, gauge_factor,
+    bridge, invert, remove_offset, format, group)."""
+    from core_akf.io import Record
+
+    record = Record(path, sensors, time_column=time_column, **channel_map)
+    if record.n_steps < 2:
+        raise AKFInputError(f"{record.files[0]}: {record.n_steps} data row(s); a record needs at least two time steps")
+    record.check_dt(dt)
+    return record.read()[1]
