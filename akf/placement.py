@@ -5,38 +5,33 @@ from core_akf.defaults import default
 from core_akf.exceptions import AKFInputError
 from sensoropt.problem import PlacementProblem
 
-from .examples import TH_CASE2, example
+from .examples import TH_CASE2, load_example
 from .job import Job
 
 
 def example_problem(name, n_sensors=None):
-    """The built-in placement problem ``name`` (``th-case5``, ``th-case6``, ``th-multi``: job
-    files in :mod:`akf.examples`), optionally with another sensor count; the trial-and-error
-    layout of TH case 2 is its reference."""
-    job = example_place_job(name)
-    if n_sensors is not None:
-        if job.spec.place.budget is not None:
-            raise AKFInputError(f"{name} has a fixed budget {job.spec.place.budget}; --sensors does not apply")
-        job = example_place_job(name, {"place.sensors": int(n_sensors)})
+    """The built-in placement problem ``name`` (``th-case5``, ``th-case6``, ``th-multi``,
+    ``footbridge-place``: job files in :mod:`akf.examples`), optionally with another sensor
+    count; the trial-and-error layout of TH case 2 is the reference of the thesis' problems."""
+    data = load_example(name, "place")
+    if n_sensors is not None and "budget" in data["place"]:
+        raise AKFInputError(f"{name} has a fixed budget {data['place']['budget']}; --sensors does not apply")
+    job = Job.from_dict(data, "place", overrides=None if n_sensors is None else {"place.sensors": int(n_sensors)})
     problem, _ = problem_from_job(job)
-    if name.startswith("th-"):
-        problem.reference_layouts = {"TH case 2 (trial and error)": list(TH_CASE2)}
+    problem.reference_layouts = reference_layouts(name)
     return problem
 
 
-def example_place_job(name, overrides=None):
-    """The built-in place job ``name`` (a :class:`~akf.job.Job`); an example of another command is
-    refused naming the right one."""
-    from .examples import load_example
-
-    load_example(name, "place")
-    return example(name, overrides)
+def reference_layouts(name):
+    """The layouts a built-in place example is compared with: TH case 2's trial-and-error layout
+    for the thesis' problems, none for the others."""
+    return {"TH case 2 (trial and error)": list(TH_CASE2)} if name.startswith("th-") else {}
 
 
 def example_settings(name):
     """The GA settings a built-in place example sets in its ``[place]`` table (the thesis'
     defaults for the rest)."""
-    return ga_settings(example_place_job(name))
+    return ga_settings(Job.from_dict(load_example(name, "place"), "place"))
 
 
 GA_KEYS = ("population", "generations", "elite", "crossover", "mutation", "tournament", "stall_generations", "operators")

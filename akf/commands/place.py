@@ -12,7 +12,6 @@ import sys
 from core_akf.exceptions import AKFInputError
 from core_akf.outputs import write_csv
 
-from ..job import load_job
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, check_scheduler
 from .common import add_print_job, print_job, print_written, seed
@@ -21,7 +20,9 @@ from .common import add_print_job, print_job, print_written, seed
 def _place(args):
     from sensoropt.ga import THESIS
 
-    from ..placement import example_problem, example_settings, problem_from_job
+    from ..examples import load_example
+    from ..job import Job, load_job_file
+    from ..placement import problem_from_job, reference_layouts
     from .common import check_job_or_example, print_examples
 
     if args.list_examples:
@@ -31,25 +32,17 @@ def _place(args):
         return print_job(args)
     check_job_or_example(args, "place job file")
     check_scheduler(args.scheduler)          # before the problem is built
+    data = load_example(args.example, "place") if args.example else load_job_file(args.job)
+    overrides = {f"place.{k}": getattr(args, k) for k in ("sensors", "window", "generations", "population", "operators")
+                 if getattr(args, k) is not None}
+    if args.sensors is not None and isinstance(data, dict) and "budget" in (data.get("place") or {}):
+        raise AKFInputError("--sensors does not apply to a job with a budget per sensor type")
+    job = Job.from_dict(data, "place", source=args.job, overrides=overrides)      # checked once
+    problem, ga = problem_from_job(job)
     if args.example:
-        problem, ga = example_problem(args.example, args.sensors), example_settings(args.example)
-    else:
-        job = load_job(args.job, "place")
-        if args.sensors is not None:
-            if job.spec.place.budget is not None:
-                raise AKFInputError("--sensors does not apply to a job with a budget per sensor type")
-        problem, ga = problem_from_job(job)
-        if args.sensors is not None:
-            problem.n_sensors = args.sensors
-    if args.window is not None:
-        problem.window = args.window
+        problem.reference_layouts = reference_layouts(args.example)
     settings = dict(THESIS)
     settings.update(ga)
-    for key in ("generations", "population"):
-        if getattr(args, key) is not None:
-            settings[key] = getattr(args, key)
-    if args.operators:
-        settings["operators"] = args.operators
     out = args.out or os.path.join("akf-out", "place", f"{problem.name}-{problem.n_sensors or 'budget'}-seed{args.seed}")
     with OutputFolder(out, "--out"):      # checked and locked before the work starts
         return _run_place(args, problem, settings, out)
