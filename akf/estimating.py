@@ -5,7 +5,7 @@ A simulated job is one chunk: its whole record, with the truth beside the estima
 record is read in chunks and filtered with the state carried over (constant memory), the results
 written as they come, and a checkpoint after every chunk so that an interrupted run continues
 where it ended (``akf estimate JOB --resume``).  Without an output folder the whole record is
-held in memory and the :class:`EstimateResult` carries the :class:`~core_akf.akf.Estimate`.
+held in memory and the :class:`EstimateResult` carries the :class:`~core_akf.filter.Estimate`.
 
 The time series go to ``timeseries.csv`` (appended) or ``timeseries.parquet`` (a folder of one
 Parquet file per chunk: a dataset that ``pandas.read_parquet`` reads whole): tidy, one row per
@@ -102,7 +102,7 @@ class EstimateResult:
         The step a resumed run went on from (0: from the start).
     complete : bool
         False for a run stopped before its end (``stop_after``).
-    estimate : core_akf.akf.Estimate or None
+    estimate : core_akf.filter.Estimate or None
         The whole record's estimate, when it was filtered in one chunk (a simulated job, or any
         job without an output folder).
     simulation : core_akf.simulate.Simulation or None

@@ -116,7 +116,7 @@ def gemm_rate(n, repeat=200):
 def filter_rows():
     from akf.examples import S17_FORCES, S17_MULTI, example_job
     from akf.job import Job
-    from core_akf import akf
+    from core_akf import filter as akf
     from core_akf.models import s17_truss
     from core_akf.recursion import lti_response
     from core_akf.riccati import steady_gain
@@ -202,7 +202,7 @@ def filter_rows():
 
 def _switch_step(akf, A, G, Q, R, Y):
     """Step at which the time-varying filter switches to its converged gain."""
-    from core_akf import akf as mod
+    from core_akf import filter as mod
     calls = []
     original = mod.lti_response
 

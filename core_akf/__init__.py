@@ -5,8 +5,8 @@ The most used names are importable from here::
     from core_akf import models, estimate, simulate, detectability, rms_error
 """
 from . import loads, models
-from .akf import Estimate, estimate, estimate_batch, run
 from .exceptions import AKFInputError, ModelError, UndetectableError
+from .filter import Estimate, estimate, estimate_batch, run
 from .metrics import average_strain_error, rms_error
 from .sensors import Sensor
 from .simulate import Simulation, simulate

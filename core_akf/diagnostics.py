@@ -97,7 +97,7 @@ class RunningDiagnostics:
         self.sum_f2, self.peak, self.peak_step = np.zeros(p), np.zeros(p), np.zeros(p, int)
 
     def update(self, est):
-        """Add one chunk's :class:`~core_akf.akf.Estimate`."""
+        """Add one chunk's :class:`~core_akf.filter.Estimate`."""
         if self.last is None:
             self._start(est)
         k = est.forces.shape[0]
@@ -236,8 +236,8 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     [1/3, 3] (or negative) with a correlation above 0.7 is reported with the unit it looks like.
     All hold-outs run as one batched steady-state filter.  Returns a list of warnings (str).
     """
-    from .akf import FilterSetup
     from .covariances import noise_covariance
+    from .filter import FilterSetup
     from .sensors import as_layout, parse_force_locations
     from .statespace import detectability
     from .steady import steady_outputs

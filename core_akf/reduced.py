@@ -26,7 +26,7 @@ from .steady import steady_outputs  # noqa: F401  (re-exported here for the opti
 
 class ModalFilterModel:
     """Augmented AKF model of ``structure`` with forces at ``forces``, in modal coordinates: the
-    one builder of the filter's transition matrix (used by :func:`core_akf.akf.estimate_batch`
+    one builder of the filter's transition matrix (used by :func:`core_akf.filter.estimate_batch`
     for the full model and by the optimisers, reduced).
 
     Parameters

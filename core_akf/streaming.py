@@ -2,7 +2,7 @@
 
 :class:`Estimator` holds one filter (its matrices, the steady-state gain, the last filtered state
 and, for the time-varying form, the covariance) and turns each chunk of measurements into an
-:class:`~core_akf.akf.Estimate` of that chunk alone.  Feeding a record in chunks of any sizes
+:class:`~core_akf.filter.Estimate` of that chunk alone.  Feeding a record in chunks of any sizes
 gives the estimate of the whole record (to rounding: the fixed-gain recursion is the same
 recursion, only started at other steps).  :meth:`Estimator.state` / :meth:`Estimator.restore`
 save and reload what is carried over, so a run stopped after any chunk continues where it ended.
@@ -22,9 +22,9 @@ import hashlib
 
 import numpy as np
 
-from .akf import FilterSetup, ModalBlockTransition, time_varying_filter
 from .checks import as_finite_array
 from .exceptions import AKFInputError
+from .filter import FilterSetup, ModalBlockTransition, time_varying_filter
 from .recursion import lti_response
 from .riccati import RiccatiError, steady_gain
 from .sensors import as_layout, parse_force_locations
@@ -39,16 +39,16 @@ class CheckpointError(AKFInputError):
 class Estimator:
     """The AKF over a record delivered in chunks.
 
-    Parameters are those of :func:`core_akf.akf.estimate` without the measurements, plus
+    Parameters are those of :func:`core_akf.filter.estimate` without the measurements, plus
 
     t0 : float
-        Time of the record's first step (s); the chunks' :attr:`~core_akf.akf.Estimate.time`
+        Time of the record's first step (s); the chunks' :attr:`~core_akf.filter.Estimate.time`
         continues from it.
     switch_tol : float
         The time-varying filter continues with its (then constant) gain once its covariance
-        changes by less than this, relatively (as :func:`core_akf.akf.filter_states`).
+        changes by less than this, relatively (as :func:`core_akf.filter.filter_states`).
 
-    Each :meth:`update` returns the :class:`~core_akf.akf.Estimate` of its chunk; the memory
+    Each :meth:`update` returns the :class:`~core_akf.filter.Estimate` of its chunk; the memory
     held between chunks is the filter's matrices and one state, whatever the record's length.
     """
 
@@ -100,7 +100,7 @@ class Estimator:
 
     def update(self, chunk):
         """Filter the next ``chunk`` (k, m) of measurements (SI, columns in sensor order) and
-        return its :class:`~core_akf.akf.Estimate` (``time`` continues the record)."""
+        return its :class:`~core_akf.filter.Estimate` (``time`` continues the record)."""
         Y = np.asarray(chunk, dtype=float)
         if Y.ndim != 2 or Y.shape[1] != self.n_channels:
             raise AKFInputError(f"a chunk must have shape (steps, {self.n_channels}) for the sensors "
@@ -119,7 +119,7 @@ class Estimator:
         x = self._prior()
         if self._switched:
             L = self._L
-            I_LG = np.eye(x.size) - L @ s.G_a[0]        # as core_akf.akf._steady_filter forms them
+            I_LG = np.eye(x.size) - L @ s.G_a[0]        # as core_akf.filter._steady_filter forms them
             first = L @ Y[0] + I_LG @ x
             X = lti_response((I_LG @ s.A_a)[None], L[None], Y[None], first[None])[0]
             innov = np.empty_like(Y)

@@ -5,8 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core_akf.akf import estimate
 from core_akf.exceptions import AKFInputError
+from core_akf.filter import estimate
 
 
 @dataclass
@@ -46,7 +46,7 @@ def force_summary(force, dt, level=0.1):
 class Reconstruction:
     """The AKF with all installed sensors at the identified location.
 
-    estimate : :class:`core_akf.akf.Estimate` (force, states, strains at every member/node)
+    estimate : :class:`core_akf.filter.Estimate` (force, states, strains at every member/node)
     force : ndarray (N,) -- N;  summary : :class:`ForceSummary`
     """
 

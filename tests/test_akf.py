@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from core_akf import akf, recursion
+from core_akf import filter as akf
+from core_akf import recursion
 from core_akf.models import s17_truss
 from core_akf.riccati import dare_residual, solve_filter_dare, steady_gain
 from core_akf.simulate import simulate
@@ -320,7 +321,7 @@ def test_estimate_batch_with_noise_per_layout():
 def test_structured_time_varying_update_equals_dense():
     """ModalBlockTransition's A P A^T (used by estimate for classically damped structures)
     gives the same time-varying filter as the dense product."""
-    from core_akf.akf import ModalBlockTransition
+    from core_akf.filter import ModalBlockTransition
     from core_akf.models import th_plate
     from core_akf.statespace import augment, modal_state_transform, modal_zoh, observation
     s = th_plate().reduce(30)

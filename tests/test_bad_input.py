@@ -15,8 +15,9 @@ import pytest
 from helpers import run_estimate
 
 from akf.cli import main
-from core_akf import AKFInputError, UndetectableError, akf
-from core_akf.akf import estimate
+from core_akf import AKFInputError, UndetectableError
+from core_akf import filter as akf
+from core_akf.filter import estimate
 from core_akf.models import s17_truss
 from core_akf.structure import Structure
 

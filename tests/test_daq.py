@@ -12,9 +12,9 @@ from helpers import run_estimate
 
 from akf.cli import main
 from akf.job import load_job_file
-from core_akf.akf import estimate
 from core_akf.diagnostics import RunningDiagnostics, force_statistics, sensor_diagnostics
 from core_akf.exceptions import AKFInputError
+from core_akf.filter import estimate
 from core_akf.io import Reader, Record, Timing, conversion, register_reader
 from core_akf.io import readers as readers_module
 from core_akf.models import s17_truss
@@ -71,7 +71,7 @@ def test_each_format_with_channel_map_gives_the_si_estimate(name, tmp_path, si_f
 
 
 def test_streamed_estimate_equals_the_one_piece_estimate(tmp_path, si_forces):
-    """The SI record streamed in chunks of 100 steps against core_akf.akf.estimate on the whole array."""
+    """The SI record streamed in chunks of 100 steps against core_akf.filter.estimate on the whole array."""
     df = pd.read_csv(DAQ / "record-si.csv")
     ref = estimate(s17_truss().scaled(1.05), SENSORS, FORCES, df[SENSORS].to_numpy(), df.time[1], **KW)
     np.testing.assert_allclose(si_forces, ref.forces, rtol=0, atol=1e-12 * np.max(np.abs(ref.forces)))

@@ -10,7 +10,7 @@ import pytest
 from akf.cli import main
 from akf.examples.impact import example_scenario  # noqa: E402
 from core_akf import AKFInputError
-from core_akf.akf import estimate
+from core_akf.filter import estimate
 from core_akf.metrics import rms_error
 from impactloc import (
     Covariances,

@@ -6,7 +6,7 @@ import pytest
 import scipy.linalg
 
 from akf.examples import TH_CASE3
-from core_akf.akf import filter_states
+from core_akf.filter import filter_states
 from core_akf.models import s17_truss, th_plate
 from core_akf.reduced import ModalFilterModel
 from core_akf.riccati import RiccatiError, RiccatiWarning, dare_residual, solve_filter_dare

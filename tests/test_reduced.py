@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from core_akf.akf import estimate
+from core_akf.filter import estimate
 from core_akf.models import s17_truss, th_plate
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.simulate import simulate

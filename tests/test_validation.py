@@ -5,7 +5,7 @@ import pytest
 
 from akf.job import read_measurements
 from core_akf import AKFInputError, ModelError, Structure, UndetectableError
-from core_akf.akf import estimate, run
+from core_akf.filter import estimate, run
 from core_akf.models import plate, s17_truss, th_plate
 from core_akf.sensors import Sensor, as_layout
 from core_akf.simulate import simulate
