@@ -7,7 +7,37 @@ from .exceptions import AKFInputError, ModelError
 
 
 def as_finite_array(value, name, ndim=None, shape=None, dtype=float):
-    """Return ``value`` as a float array, raising :class:`AKFInputError` naming ``name``."""
+    """Return ``value`` as a finite float array, or raise :class:`AKFInputError` naming it.
+
+    Parameters
+    ----------
+    value : array_like
+        The values to check.
+    name : str
+        What the values are, for the message ("measurements", "x0").
+    ndim : int, optional
+        The number of dimensions the array must have.
+    shape : tuple of int, optional
+        The shape the array must have.
+    dtype : type, optional
+        The type to convert to (default float).
+
+    Returns
+    -------
+    ndarray
+        ``value`` as an array of ``dtype``.
+
+    Raises
+    ------
+    AKFInputError
+        For values that are not numbers, NaN or infinite values (the first one located), or
+        another dimension or shape.
+
+    Examples
+    --------
+    >>> as_finite_array([1, 2], "dt").tolist()
+    [1.0, 2.0]
+    """
     if np.iscomplexobj(value):
         raise AKFInputError(f"{name} is complex; the filter works on real data (take .real, or the magnitude, first)")
     try:
@@ -33,7 +63,17 @@ def as_finite_array(value, name, ndim=None, shape=None, dtype=float):
 
 
 def check_square_symmetric(mat, name, rtol=1e-9):
-    """Raise :class:`ModelError` unless ``mat`` is a square symmetric matrix."""
+    """Raise :class:`ModelError` unless ``mat`` is a square symmetric matrix.
+
+    Parameters
+    ----------
+    mat : array_like (n, n)
+        The matrix (a stiffness, mass or damping matrix).
+    name : str
+        Its name in the message ("K", "M").
+    rtol : float
+        Largest asymmetry accepted, relative to the largest magnitude of ``mat``.
+    """
     if mat.ndim != 2 or mat.shape[0] != mat.shape[1]:
         raise ModelError(f"{name} must be square, got shape {mat.shape}")
     scale = np.max(np.abs(mat)) if mat.size else 0.0
@@ -44,7 +84,15 @@ def check_square_symmetric(mat, name, rtol=1e-9):
 
 
 def check_positive_definite(mat, name):
-    """Raise :class:`ModelError` unless ``mat`` is symmetric positive definite."""
+    """Raise :class:`ModelError` unless ``mat`` is symmetric positive definite.
+
+    Parameters
+    ----------
+    mat : array_like (n, n)
+        The matrix (a mass matrix).
+    name : str
+        Its name in the message.
+    """
     check_square_symmetric(mat, name)
     try:
         np.linalg.cholesky(mat)
@@ -61,9 +109,7 @@ _MAX_VARIANCE = 1e100
 
 
 def check_covariance(mat, name, definite=False):
-    """Check a covariance matrix (or a stack of them, leading batch axes): finite, real, square,
-    symmetric and positive semi-definite (``definite=True``: positive definite, as a measurement
-    noise covariance must be).  Returns it as a float array.
+    """Check a covariance matrix, or a stack of them.
 
     The tests are free of units (strain variances of 1e-16 next to acceleration variances of 1
     are common): a diagonal entry must be >= 0 (> 0 if definite), and the correlation matrix
@@ -71,6 +117,26 @@ def check_covariance(mat, name, definite=False):
     below ``n eps``), the rounding level of an eigenvalue solver on it (Weyl).  An asymmetry above
     1e-9 of the larger diagonal entry of the pair is a mistake, not the rounding of the products
     that formed the matrix (about n eps).
+
+    Parameters
+    ----------
+    mat : array_like (..., n, n)
+        The covariance (leading batch axes allowed), in squared units of its variables.
+    name : str
+        Its name in the message ("R", "initial covariance P0").
+    definite : bool
+        Require positive definiteness, as a measurement-noise covariance must be (default:
+        semi-definite).
+
+    Returns
+    -------
+    ndarray (..., n, n)
+        ``mat`` as a float array.
+
+    Raises
+    ------
+    AKFInputError
+        For a matrix that is not finite, real, square, symmetric or (semi-)definite.
     """
     arr = as_finite_array(mat, name)
     if arr.ndim < 2 or arr.shape[-1] != arr.shape[-2]:
@@ -130,8 +196,26 @@ def available_memory():
 
 
 def check_memory(n_steps, floats_per_step, what, fix, items="time steps"):
-    """Refuse, before allocating, a record of ``n_steps`` time steps (or other ``items``) that
-    needs more than 80 % of the available memory at ``floats_per_step`` float64 values each."""
+    """Refuse, before allocating, a record that would not fit in memory.
+
+    Parameters
+    ----------
+    n_steps : float
+        Time steps (or other ``items``) of the record.
+    floats_per_step : float
+        float64 values held per step.
+    what : str
+        What the record is, for the message ("a 2 s record at dt = 0.001 s").
+    fix : str
+        What to do instead, for the message.
+    items : str
+        What ``n_steps`` counts (default "time steps").
+
+    Raises
+    ------
+    AKFInputError
+        When the record needs more than 80 % of the available memory.
+    """
     need = 8.0 * float(n_steps) * float(floats_per_step)
     have = available_memory()
     if have is not None and need > 0.8 * have:
@@ -140,8 +224,24 @@ def check_memory(n_steps, floats_per_step, what, fix, items="time steps"):
 
 
 def first_repeat(values):
-    """``(i, j, value)`` for the first value that repeats, at positions ``i < j`` (0-based), or
-    ``None`` when every value is distinct."""
+    """The first value that repeats.
+
+    Parameters
+    ----------
+    values : sequence
+        Hashable values (sensor labels, node ids).
+
+    Returns
+    -------
+    tuple or None
+        ``(i, j, value)`` with positions ``i < j`` (0-based) of the first value that repeats, or
+        ``None`` when every value is distinct.
+
+    Examples
+    --------
+    >>> first_repeat(["strain:5", "acc:4:y", "strain:5"])
+    (0, 2, 'strain:5')
+    """
     seen = {}
     for j, v in enumerate(values):
         if v in seen:

@@ -18,9 +18,29 @@ from .sensors import as_layout
 
 
 def diag_levels(level, size, name, definite=False):
-    """A covariance matrix (size x size) from a scalar level, a vector of variances or a full
-    matrix, checked by :func:`~core_akf.checks.check_covariance` (symmetric, PSD; PD with
-    ``definite=True``)."""
+    """A covariance matrix from a level, variances or a matrix, checked.
+
+    Parameters
+    ----------
+    level : float, array_like (size,) or array_like (size, size)
+        One variance for all, a variance per variable, or the full matrix.
+    size : int
+        The number of variables.
+    name : str
+        Its name in a message ("Q", "P0").
+    definite : bool
+        Require positive definiteness (default: semi-definite).
+
+    Returns
+    -------
+    ndarray (size, size)
+        The covariance, checked by :func:`~core_akf.checks.check_covariance`.
+
+    Examples
+    --------
+    >>> diag_levels(2.0, 3, "S").diagonal().tolist()
+    [2.0, 2.0, 2.0]
+    """
     if isinstance(level, (bool, np.bool_)):
         raise AKFInputError(f"{name} must be a number, a vector of variances or a matrix, got {level!r}")
     arr = as_finite_array(level, name)
@@ -38,8 +58,27 @@ def diag_levels(level, size, name, definite=False):
 
 
 def noise_covariance(sensors, noise_cov):
-    """Measurement-noise covariance (m x m) from a scalar, per-channel variances, a matrix,
-    or a dict of variances per sensor kind, e.g. ``{"strain": 1e-12, "acc": 1e-4}``."""
+    """Measurement-noise covariance ``R`` of a sensor layout.
+
+    Parameters
+    ----------
+    sensors : sequence of sensor specs
+        The layout (strings such as ``"acc:4:y"`` or :class:`~core_akf.sensors.Sensor`), m channels.
+    noise_cov : float, array_like (m,), array_like (m, m) or dict
+        One variance for all channels, a variance per channel, the matrix, or a variance per
+        sensor kind, e.g. ``{"strain": 1e-12, "acc": 1e-4}`` (SI units squared: (m/m)^2,
+        (m/s^2)^2, (m/s)^2, m^2).
+
+    Returns
+    -------
+    ndarray (m, m)
+        ``R``, positive definite.
+
+    Examples
+    --------
+    >>> noise_covariance(["strain:5", "acc:4:y"], {"strain": 1e-12, "acc": 1e-4}).diagonal().tolist()
+    [1e-12, 0.0001]
+    """
     layout = as_layout(sensors)
     m = len(layout)
     if isinstance(noise_cov, dict):
@@ -58,10 +97,21 @@ def state_covariance(structure, model_error_cov):
     """Model-error covariance ``Q`` (2n x 2n) in the structure's generalised coordinates.
 
     ``model_error_cov`` is given per *physical* free DOF for the displacements and the
-    velocities (a scalar level, a vector of 2 n_phys variances or a matrix), so the same level
-    means the same thing for a full and a modally reduced model (``Q_q = P Q_u P^T`` with the
-    structure's projection ``P``).  For a reduced structure a matrix of the generalised size
-    (2n x 2n) is also accepted and used as it is.
+    velocities, so the same level means the same thing for a full and a modally reduced model
+    (``Q_q = P Q_u P^T`` with the structure's projection ``P``).
+
+    Parameters
+    ----------
+    structure : Structure
+        The filter's model (n generalised coordinates, n_phys physical free DOFs).
+    model_error_cov : float, array_like (2 n_phys,) or array_like (2 n_phys, 2 n_phys)
+        A level (m^2 and (m/s)^2 per step), a variance per displacement then velocity, or the
+        matrix.  For a reduced structure a matrix of the generalised size (2n x 2n) is also
+        accepted and used as it is.
+
+    Returns
+    -------
+    ndarray (2n, 2n)
     """
     if not structure.is_reduced:
         return diag_levels(model_error_cov, 2 * structure.n, "model_error_cov")
@@ -88,7 +138,23 @@ def state_covariance(structure, model_error_cov):
 
 
 def augmented_covariance(n_states, n_forces, model_error_cov, force_increment_cov):
-    """``Q_a = blockdiag(Q, S)`` from levels (scalar, vector of variances or matrix)."""
+    """The augmented process covariance ``Q_a = blockdiag(Q, S)``.
+
+    Parameters
+    ----------
+    n_states : int
+        States of the structural model (2n).
+    n_forces : int
+        Unknown forces n_p.
+    model_error_cov : float, array_like (n_states,) or array_like (n_states, n_states)
+        ``Q``: state model-error level(s) per step.
+    force_increment_cov : float, array_like (n_forces,) or array_like (n_forces, n_forces)
+        ``S``: force-increment level(s) per step (N^2).
+
+    Returns
+    -------
+    ndarray (n_states + n_forces, n_states + n_forces)
+    """
     Q = diag_levels(model_error_cov, n_states, "model_error_cov")
     S = diag_levels(force_increment_cov, n_forces, "force_increment_cov")
     Q_a = np.zeros((n_states + n_forces,) * 2)

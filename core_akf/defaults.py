@@ -34,7 +34,25 @@ DEFAULTS = {
 
 
 def default(name, value=None):
-    """``value`` if it is not None, else the registered default ``name``."""
+    """A value, or its registered default.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`DEFAULTS`.
+    value : object, optional
+        The value given by the user; None takes the default.
+
+    Returns
+    -------
+    object
+        ``value`` if it is not None, else ``DEFAULTS[name][0]``.
+
+    Examples
+    --------
+    >>> default("stiffness_factor"), default("stiffness_factor", 1.05)
+    (1.0, 1.05)
+    """
     if value is not None:
         return value
     return DEFAULTS[name][0]

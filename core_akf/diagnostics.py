@@ -29,8 +29,23 @@ def _skip(n):
 
 
 def whiteness(e, lags=WHITENESS_LAGS):
-    """Share of the autocorrelation lags ``1..lags`` of ``e`` (N,) inside the 95 % band
-    ``+-1.96 / sqrt(N)`` of white noise (about 0.95 for white innovations), and the lag-1 value."""
+    """How white a sequence of innovations is.
+
+    Parameters
+    ----------
+    e : ndarray (N,)
+        Innovations of one channel (its unit).
+    lags : int
+        Autocorrelation lags tested, ``1..lags``.
+
+    Returns
+    -------
+    share : float
+        Share of the lags inside the 95 % band ``+-1.96 / sqrt(N)`` of white noise (about 0.95
+        for white innovations); NaN for a constant sequence.
+    lag1 : float
+        The lag-1 autocorrelation.
+    """
     e = np.asarray(e, float) - np.mean(e)
     n = e.size
     denom = float(e @ e)
@@ -42,9 +57,21 @@ def whiteness(e, lags=WHITENESS_LAGS):
 
 
 def sensor_diagnostics(est):
-    """One record per sensor: ``channel``, ``unit``, ``measured_rms``, ``innovation_rms``,
-    ``predicted_innovation_std`` (``sqrt(S_ii)``), ``consistency`` (their ratio), ``whiteness`` and
-    ``lag1_autocorrelation``, over the record after the first 5 %."""
+    """Innovation statistics per sensor, over the record after its first 5 %.
+
+    Parameters
+    ----------
+    est : Estimate
+        An estimate (:func:`core_akf.filter.estimate`).
+
+    Returns
+    -------
+    list of dict
+        One per sensor: ``channel``, ``unit``, ``measured_rms``, ``innovation_rms``,
+        ``predicted_innovation_std`` (``sqrt(S_ii)``), ``consistency`` (their ratio, about 1 when
+        the model and the covariances fit the data), ``whiteness`` and ``lag1_autocorrelation``
+        (:func:`whiteness`).
+    """
     Y, E = est.measurements, est.innovations
     k0 = _skip(Y.shape[0])
     out = []
@@ -61,8 +88,19 @@ def sensor_diagnostics(est):
 
 
 def force_statistics(est):
-    """One record per force location: ``channel``, ``unit`` (N), ``rms``, ``peak`` (signed value of
-    the largest magnitude) and ``time_of_peak`` (s), after the first 5 %."""
+    """Statistics of the estimated forces, after the first 5 % of the record.
+
+    Parameters
+    ----------
+    est : Estimate
+        An estimate (:func:`core_akf.filter.estimate`).
+
+    Returns
+    -------
+    list of dict
+        One per force location: ``channel`` ("8:y"), ``unit`` (N), ``rms`` (N), ``peak`` (N, the
+        signed value of the largest magnitude) and ``time_of_peak`` (s).
+    """
     k0 = _skip(est.forces.shape[0])
     out = []
     for j, (node, d) in enumerate(est.force_locations):
@@ -74,12 +112,19 @@ def force_statistics(est):
 
 
 class RunningDiagnostics:
-    """:func:`sensor_diagnostics` and :func:`force_statistics` of a record estimated chunk by chunk
-    (:class:`core_akf.streaming.Estimator`), accumulated in constant memory: sums, the extreme
-    force, and the lag products of the innovations across chunk boundaries.
+    """The diagnostics of a record estimated chunk by chunk, in constant memory.
 
-    ``n_steps``: the record's length, to leave out the same first 5 % as the one-piece functions
-    (None: nothing is left out).  Feed each chunk's estimate to :meth:`update` in order.
+    :func:`sensor_diagnostics` and :func:`force_statistics` of the whole record from the chunks of
+    a :class:`core_akf.streaming.Estimator`: sums, the extreme force, and the lag products of the
+    innovations across chunk boundaries.  Feed each chunk's estimate to :meth:`update` in order.
+
+    Parameters
+    ----------
+    n_steps : int or None
+        The record's length, to leave out the same first 5 % as the one-piece functions (None:
+        nothing is left out).
+    lags : int
+        Autocorrelation lags of the whiteness test.
     """
 
     def __init__(self, n_steps=None, lags=WHITENESS_LAGS):
@@ -97,7 +142,13 @@ class RunningDiagnostics:
         self.sum_f2, self.peak, self.peak_step = np.zeros(p), np.zeros(p), np.zeros(p, int)
 
     def update(self, est):
-        """Add one chunk's :class:`~core_akf.filter.Estimate`."""
+        """Add one chunk.
+
+        Parameters
+        ----------
+        est : Estimate
+            The chunk's :class:`~core_akf.filter.Estimate`, in record order.
+        """
         if self.last is None:
             self._start(est)
         k = est.forces.shape[0]
@@ -153,7 +204,17 @@ class RunningDiagnostics:
         return out
 
     def forces(self, t0=0.0):
-        """As :func:`force_statistics` of the whole record (``time_of_peak`` from ``t0``)."""
+        """:func:`force_statistics` of the whole record.
+
+        Parameters
+        ----------
+        t0 : float
+            Time of the record's first step (s); ``time_of_peak`` counts from it.
+
+        Returns
+        -------
+        list of dict
+        """
         est = self.last
         return [{"channel": f"{node}:{d}", "unit": "N", "rms": float(np.sqrt(self.sum_f2[j] / self.n)),
                  "peak": float(self.peak[j]), "time_of_peak": float(t0 + self.peak_step[j] * est.dt)}
@@ -165,7 +226,20 @@ class RunningDiagnostics:
                 ("skip", "step", "n", "sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step")}
 
     def restore(self, state, est):
-        """Continue from :meth:`state`; ``est`` any chunk estimate of the run (for its shapes)."""
+        """Continue from a saved :meth:`state`.
+
+        Parameters
+        ----------
+        state : mapping of str to ndarray
+            What :meth:`state` returned (as loaded from a checkpoint).
+        est : Estimate
+            Any chunk estimate of the run (for its shapes).
+
+        Returns
+        -------
+        RunningDiagnostics
+            ``self``.
+        """
         self._start(est)
         for k in ("sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step"):
             setattr(self, k, np.array(state[f"diag_{k}"]))
@@ -175,9 +249,23 @@ class RunningDiagnostics:
 
 
 def warnings_for(est, sensors=None, duration=None):
-    """Plain-language warnings about an estimate (list of str): channels whose innovations do not
-    fit their predicted size, and a record shorter than the filter's transient.  ``duration``: the
-    record's length (s) when ``est`` is its last chunk (default the length of ``est``)."""
+    """Plain-language warnings about an estimate.
+
+    Parameters
+    ----------
+    est : Estimate
+        The estimate, or the last chunk of a streamed record.
+    sensors : list of dict, optional
+        Its :func:`sensor_diagnostics` (computed if not given).
+    duration : float, optional
+        The record's length (s) when ``est`` is its last chunk (default the length of ``est``).
+
+    Returns
+    -------
+    list of str
+        Channels whose innovations do not fit their predicted size, a filter whose error does not
+        decay (an undetectable set), and a record shorter than the filter's transient.
+    """
     sensors = sensor_diagnostics(est) if sensors is None else sensors
     notes = []
     off = sorted((d for d in sensors if d["consistency"] > CONSISTENCY_LIMIT), key=lambda d: -d["consistency"])
@@ -234,7 +322,27 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     other sensors imply for them (one-step predictions): ``y ~ c y_hat``.  A hold-out whose other
     sensors are not detectable (say, accelerations alone) is skipped.  A factor ``c`` outside
     [1/3, 3] (or negative) with a correlation above 0.7 is reported with the unit it looks like.
-    All hold-outs run as one batched steady-state filter.  Returns a list of warnings (str).
+    All hold-outs run as one batched steady-state filter.
+
+    Parameters
+    ----------
+    structure : Structure
+        The filter's model.
+    sensors : sequence of sensor specs
+        The layout, m channels.
+    forces : sequence of force specs
+        The unknown force locations.
+    measurements : array_like (N, m)
+        The record (SI), columns in sensor order.
+    dt : float
+        Time step (s).
+    model_error_cov, force_increment_cov, noise_cov
+        Q, S and R as in :func:`core_akf.filter.estimate`.
+
+    Returns
+    -------
+    list of str
+        One warning per channel or kind that looks scaled, naming the unit it looks like.
     """
     from .covariances import noise_covariance
     from .filter import FilterSetup

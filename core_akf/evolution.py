@@ -34,9 +34,19 @@ CHECKPOINT_FORMAT = ["akf-toolkit GA checkpoint", 2]
 
 
 class Individual(list):
-    """A genome (a list of genes) with its fitness: ``fitness.values`` (a tuple, lower is better
-    in every objective) once evaluated.  The fitness is a :class:`deap.base.Fitness`, so DEAP's
-    selection tools (``selNSGA2``, ``sortNondominated``) work on populations of them."""
+    """A genome (a list of genes) with its fitness.
+
+    The fitness is a :class:`deap.base.Fitness`, so DEAP's selection tools (``selNSGA2``,
+    ``sortNondominated``) work on populations of them.
+
+    Parameters
+    ----------
+    genes : iterable
+        The genes.
+    fitness : tuple of float, optional
+        The fitness values if known (lower is better in every objective); ``fitness.values`` once
+        evaluated.
+    """
 
     weights = (-1.0,)
 
@@ -68,7 +78,18 @@ def _fitness_class(n_objectives):
 
 
 def individual_class(n_objectives):
-    """The :class:`Individual` class for ``n_objectives`` objectives."""
+    """The :class:`Individual` class for a number of objectives.
+
+    Parameters
+    ----------
+    n_objectives : int
+        Objectives, each minimised.
+
+    Returns
+    -------
+    type
+        A subclass of :class:`Individual` (one per number of objectives, made once).
+    """
     if n_objectives == 1:
         return Individual
     return type(f"Individual{n_objectives}", (Individual,), {"weights": (-1.0,) * n_objectives})
@@ -78,11 +99,27 @@ def individual_class(n_objectives):
 class Evaluator:
     """Cached, batched, optionally parallel fitness evaluation.
 
-    ``evaluate_batch(items) -> list of fitness`` evaluates a list of decoded genomes (one joblib
-    task per batch of ``batch`` genomes); ``decode(key)`` turns a genome key into what it takes.
-    A fitness that is not a finite number (or tuple of them) is replaced by ``penalty`` and
-    counted as infeasible (and so is one for which ``infeasible_if(fitness)`` is true).  Batches
-    have a fixed composition, whatever ``n_jobs``.
+    Batches have a fixed composition, whatever ``n_jobs``, so a run gives the same results on
+    any number of workers.
+
+    Parameters
+    ----------
+    evaluate_batch : callable
+        ``evaluate_batch(items) -> list of fitness``: evaluates a list of decoded genomes (one
+        joblib task per batch).
+    decode : callable, optional
+        ``decode(key)`` turns a genome key into what ``evaluate_batch`` takes (default: the key).
+    n_jobs : int
+        joblib workers (1: in this process; -1: all cores).
+    batch : int
+        Genomes per task.
+    penalty : float
+        The fitness given to a genome whose fitness is not a finite number (or tuple of them),
+        counted as infeasible.
+    n_objectives : int
+        Objectives per fitness.
+    infeasible_if : callable, optional
+        ``infeasible_if(fitness) -> bool``: a fitness to replace by ``penalty`` as well.
     """
 
     def __init__(self, evaluate_batch, *, decode=None, n_jobs=1, batch=10, penalty=math.inf, n_objectives=1,
@@ -142,22 +179,76 @@ class Algorithm:
     individual = Individual
 
     def initial(self, rng, pyrng):
-        """The first population: a list of genomes (lists of genes)."""
+        """The first population.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            The run's generator (owned and checkpointed by the engine).
+        pyrng : random.Random
+            A private :class:`random.Random` for DEAP-style operators.
+
+        Returns
+        -------
+        list of list
+            Genomes (lists of genes).
+        """
         raise NotImplementedError
 
     def after_initial(self, population):
-        """The first population once evaluated (e.g. NSGA-II ranks it); default: unchanged."""
+        """The first population once evaluated (e.g. NSGA-II ranks it).
+
+        Parameters
+        ----------
+        population : list of Individual
+            The evaluated first population.
+
+        Returns
+        -------
+        list of Individual
+            Unchanged by default.
+        """
         return population
 
     def next_generation(self, population, generation, rng, pyrng, evaluate):
-        """The next population from the evaluated ``population``; ``evaluate(individuals)``
-        gives fitness to individuals that lack it (call it on offspring when survival selection
-        needs their fitness; the engine evaluates whatever is left unevaluated)."""
+        """The next population from the evaluated one.
+
+        Parameters
+        ----------
+        population : list of Individual
+            The evaluated population.
+        generation : int
+            The number of the generation to make (1-based).
+        rng : numpy.random.Generator
+            The run's generator.
+        pyrng : random.Random
+            The run's private :class:`random.Random`.
+        evaluate : callable
+            ``evaluate(individuals)`` gives fitness to individuals that lack it: call it on offspring
+            when survival selection needs their fitness; the engine evaluates whatever is left
+            unevaluated.
+
+        Returns
+        -------
+        list of Individual
+        """
         raise NotImplementedError
 
     def record(self, population):
-        """Logbook columns of a generation (the engine adds generation, evaluations, cache hits,
-        infeasible and seconds); default: best, mean and std of the first objective."""
+        """Logbook columns of a generation.
+
+        The engine adds generation, evaluations, cache hits, infeasible and seconds.
+
+        Parameters
+        ----------
+        population : list of Individual
+            The evaluated population.
+
+        Returns
+        -------
+        dict
+            Default: ``best``, ``mean`` and ``std`` of the first objective.
+        """
         f = np.array([i.fitness.values[0] for i in population])
         finite = f[np.isfinite(f)]
         return {"best": float(f.min()), "mean": float(finite.mean()) if finite.size else math.inf,
@@ -168,10 +259,24 @@ class Algorithm:
 class GAResult:
     """Outcome of :meth:`GeneticAlgorithm.run`.
 
-    population : the last population (evaluated);  logbook : DataFrame, one row per generation;
-    hall_of_fame : list of (genome key, fitness tuple), best first (every genome evaluated);
-    evaluations, cache_hits, infeasible : counters;  stopped : why the run ended;  evaluator : the
-    :class:`Evaluator` (its ``cache`` holds every fitness computed)
+    Attributes
+    ----------
+    population : list of Individual
+        The last population (evaluated).
+    logbook : pandas.DataFrame
+        One row per generation.
+    hall_of_fame : list of tuple
+        ``(genome key, fitness tuple)``, best first, among every genome evaluated.
+    evaluations, cache_hits, infeasible : int
+        Counters.
+    stopped : str
+        Why the run ended ("generations", "stall").
+    evaluator : Evaluator
+        Its ``cache`` holds every fitness computed.
+    seed : int
+        The run's seed.
+    settings : dict
+        The settings stored with the run's checkpoint.
     """
 
     population: list
@@ -191,17 +296,33 @@ class GeneticAlgorithm:
 
     Parameters
     ----------
-    algorithm : :class:`Algorithm` -- the configuration (initial population, one generation)
-    evaluator : :class:`Evaluator`
-    generations : int -- generations after the initial one
-    seed : int -- the whole run, whatever the number of workers
-    stall_generations, stall_tol : stop when the logbook's ``stall_column`` changed by less than
-        ``stall_tol`` (relative) over ``stall_generations`` generations (0: never)
-    checkpoint : path of a JSON checkpoint written every ``checkpoint_every`` generations (the
-        previous one is kept as ``PATH.bak``); ``resume=True`` continues from it
-    settings : dict -- stored in the checkpoint; a resume with other settings is refused
-    progress : str or None -- the progress bar's label (None: no bar)
-    hall_of_fame : int -- how many of the best genomes the result lists
+    algorithm : Algorithm
+        The configuration (initial population, one generation).
+    evaluator : Evaluator
+    generations : int
+        Generations after the initial one.
+    seed : int
+        Seeds the whole run, whatever the number of workers.
+    stall_generations : int
+        Stop when the logbook's ``stall_column`` changed by less than ``stall_tol`` (relative)
+        over this many generations (0: never).
+    stall_tol : float
+        See ``stall_generations``.
+    stall_column : str
+        The logbook column watched for a stall ("mean", "best").
+    checkpoint : str, optional
+        Path of a JSON checkpoint written every ``checkpoint_every`` generations (the previous
+        one is kept as ``PATH.bak``).
+    checkpoint_every : int
+        Generations between checkpoints.
+    resume : bool
+        Continue from ``checkpoint``.
+    settings : dict, optional
+        Stored in the checkpoint; a resume with other settings is refused.
+    progress : str or None
+        The progress bar's label (None: no bar).
+    hall_of_fame : int
+        How many of the best genomes the result lists.
     """
 
     def __init__(self, algorithm, evaluator, *, generations, seed=0, stall_generations=0, stall_tol=1e-6,
@@ -332,7 +453,15 @@ def _tuples(x):
 
 # ---------------------------------------------------------------------------------- checkpoints
 def save_checkpoint(path, data):
-    """Write a checkpoint (JSON) atomically; the previous one is kept as ``PATH.bak``."""
+    """Write a checkpoint (JSON) atomically; the previous one is kept as ``PATH.bak``.
+
+    Parameters
+    ----------
+    path : str
+        The checkpoint file.
+    data : dict
+        JSON-serialisable contents.
+    """
     text = json.dumps(data, allow_nan=True, default=_plain)
     with atomic_path(path) as tmp:          # a kill mid-write leaves the previous checkpoint
         with open(tmp, "w", encoding="utf-8") as fh:
@@ -342,9 +471,24 @@ def save_checkpoint(path, data):
 
 
 def load_checkpoint(path):
-    """Read and check a checkpoint written by :class:`GeneticAlgorithm`; a missing, truncated or
-    foreign file is an :class:`AKFInputError` that names the backup to use instead.  Checkpoints
-    are JSON: loading one never runs code."""
+    """Read and check a checkpoint written by :class:`GeneticAlgorithm`.
+
+    Checkpoints are JSON: loading one never runs code.
+
+    Parameters
+    ----------
+    path : str
+        The checkpoint file.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    AKFInputError
+        For a missing, truncated or foreign file, naming the backup to use instead.
+    """
     if not path or not os.path.exists(path):
         raise AKFInputError(f"no checkpoint to resume from at {path!r}")
     backup = f" (the previous checkpoint is kept at {path}.bak: rename it to {os.path.basename(path)} to resume from it)" \
@@ -364,8 +508,25 @@ def load_checkpoint(path):
 
 # ------------------------------------------------------------------------------- operators
 def tournament(population, k, size, pyrng):
-    """``k`` winners of tournaments of ``size`` random individuals (with replacement), compared on
-    the first objective (lower is better); the same draws as DEAP's ``selTournament``."""
+    """Tournament selection on the first objective (lower is better).
+
+    The same draws as DEAP's ``selTournament``.
+
+    Parameters
+    ----------
+    population : list of Individual
+        Evaluated individuals.
+    k : int
+        Winners to select.
+    size : int
+        Individuals per tournament (drawn with replacement).
+    pyrng : random.Random
+        The random stream.
+
+    Returns
+    -------
+    list of Individual
+    """
     def contest():
         aspirants = [pyrng.choice(population) for _ in range(size)]
         return max(aspirants, key=lambda i: i.fitness.wvalues)     # the first best, as DEAP's max
@@ -374,12 +535,39 @@ def tournament(population, k, size, pyrng):
 
 
 def best(population, k):
-    """The ``k`` best individuals (first objective), stable for ties (DEAP's ``selBest``)."""
+    """The best individuals on the first objective, stable for ties (DEAP's ``selBest``).
+
+    Parameters
+    ----------
+    population : list of Individual
+        Evaluated individuals.
+    k : int
+        How many.
+
+    Returns
+    -------
+    list of Individual
+    """
     return sorted(population, key=lambda i: i.fitness.wvalues, reverse=True)[:k]
 
 
 def blend(a, b, alpha, pyrng):
-    """Blend crossover of two real genomes in place (DEAP's ``cxBlend``, with a private stream)."""
+    """Blend crossover of two real genomes in place (DEAP's ``cxBlend``, with a private stream).
+
+    Parameters
+    ----------
+    a, b : Individual
+        The parents, changed in place into the children.
+    alpha : float
+        Extent of the interval beyond the parents' genes.
+    pyrng : random.Random
+        The random stream.
+
+    Returns
+    -------
+    tuple of Individual
+        ``(a, b)``.
+    """
     for i, (x1, x2) in enumerate(zip(a, b)):
         gamma = (1.0 + 2.0 * alpha) * pyrng.random() - alpha
         a[i] = (1.0 - gamma) * x1 + gamma * x2
@@ -388,7 +576,26 @@ def blend(a, b, alpha, pyrng):
 
 
 def gaussian(ind, sigma, indpb, pyrng, mu=0.0):
-    """Gaussian mutation of a real genome in place (DEAP's ``mutGaussian``, private stream)."""
+    """Gaussian mutation of a real genome in place (DEAP's ``mutGaussian``, private stream).
+
+    Parameters
+    ----------
+    ind : Individual
+        The genome, changed in place.
+    sigma : float
+        Standard deviation of the change of a gene.
+    indpb : float
+        Probability that a gene changes.
+    pyrng : random.Random
+        The random stream.
+    mu : float
+        Mean of the change of a gene.
+
+    Returns
+    -------
+    tuple of Individual
+        ``(ind,)``.
+    """
     for i in range(len(ind)):
         if pyrng.random() < indpb:
             ind[i] += pyrng.gauss(mu, sigma)
@@ -396,9 +603,23 @@ def gaussian(ind, sigma, indpb, pyrng, mu=0.0):
 
 
 def tournament_dcd(population, k, pyrng):
-    """NSGA-II binary tournament on dominance and crowding distance (DEAP's
-    ``selTournamentDCD``, with a private random stream); ``population`` must carry the crowding
-    distances of ``deap.tools.selNSGA2``."""
+    """NSGA-II binary tournament on dominance and crowding distance.
+
+    DEAP's ``selTournamentDCD``, with a private random stream.
+
+    Parameters
+    ----------
+    population : list of Individual
+        Individuals carrying the crowding distances of ``deap.tools.selNSGA2``.
+    k : int
+        Individuals to select.
+    pyrng : random.Random
+        The random stream.
+
+    Returns
+    -------
+    list of Individual
+    """
     if len(population) % 4 != 0:
         raise AKFInputError("the NSGA-II tournament needs a population size that is a multiple of 4")
 

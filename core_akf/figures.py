@@ -11,8 +11,24 @@ import os
 
 
 def subplots(nrows=1, ncols=1, *, figsize=None, **kw):
-    """A new figure and its axes, like ``pyplot.subplots`` but not registered with pyplot (so it
-    needs no backend and is never left open): ``(Figure, Axes or array of Axes)``."""
+    """A new figure and its axes, like ``pyplot.subplots`` but not registered with pyplot.
+
+    It needs no display backend and is never left open.
+
+    Parameters
+    ----------
+    nrows, ncols : int
+        The grid of axes.
+    figsize : tuple of float, optional
+        Width and height (inches).
+    **kw
+        Further arguments of :meth:`matplotlib.figure.Figure.subplots` (``squeeze``, ``sharex``).
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+    axes : Axes or ndarray of Axes
+    """
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=figsize)
@@ -20,16 +36,43 @@ def subplots(nrows=1, ncols=1, *, figsize=None, **kw):
 
 
 def figure(figsize=None):
-    """A new :class:`~matplotlib.figure.Figure` (not registered with pyplot)."""
+    """A new :class:`~matplotlib.figure.Figure`, not registered with pyplot.
+
+    Parameters
+    ----------
+    figsize : tuple of float, optional
+        Width and height (inches).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     from matplotlib.figure import Figure
 
     return Figure(figsize=figsize)
 
 
 def save_figure(fig, path, dpi=110, tight=True, crop=False):
-    """Lay out ``fig`` (``tight``: :meth:`~matplotlib.figure.Figure.tight_layout`) and write it to
-    ``path`` (creating the folder; complete or absent, also on Ctrl-C); ``crop``: cut the empty
-    margins off the written image (3-D axes).  Returns ``path``."""
+    """Lay out a figure and write it, complete or not at all.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str
+        The image file (its folder is created); written atomically, also on Ctrl-C.
+    dpi : int
+        Resolution (dots per inch).
+    tight : bool
+        :meth:`~matplotlib.figure.Figure.tight_layout` first.
+    crop : bool
+        Cut the empty margins off the written image (3-D axes).
+
+    Returns
+    -------
+    str
+        ``path``.
+    """
     from .outputs import atomic_path
 
     if tight:
@@ -42,9 +85,30 @@ def save_figure(fig, path, dpi=110, tight=True, crop=False):
 
 
 def plot_structure(structure, path=None, title=None, numbers=True, forces=(), sensors=()):
-    """The structure with its user-facing numbers: node ids, member ids (truss, in boxes), the
-    supports (grey squares), and optionally force locations (red crosses, in the legend) and
-    sensors (blue circles).  Returns the Figure; writes it to ``path`` if given."""
+    """The structure with its user-facing numbers.
+
+    Node ids, member ids (truss, in boxes), the supports (grey squares), and optionally force
+    locations (red crosses, in the legend) and sensors (blue circles).
+
+    Parameters
+    ----------
+    structure : Structure
+        A planar or 3-D structure (3-D: :func:`plot_layout_3d`).
+    path : str, optional
+        Write the figure here.
+    title : str, optional
+        The title (default the structure's name).
+    numbers : bool
+        Write the node and member numbers.
+    forces : sequence of force specs
+        Force locations to mark ("8:y").
+    sensors : sequence of sensor specs
+        Sensors to mark ("strain:13", "acc:8:y").
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     import numpy as np
 
     from .sensors import as_layout, strain_ends
@@ -112,12 +176,32 @@ SENSOR_STYLE = {"strain": ("s", "tab:blue"), "acc": ("o", "tab:red"), "vel": ("^
 
 
 def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exaggerate=None):
-    """A 3-D structure with a sensor layout: members (grey lines), supports (grey squares), strain
-    gauges (their member drawn thick in blue, a square at its middle), accelerometers and other
-    point sensors (a marker at the node and an arrow along the measured direction), forces (red
-    arrows).  The cross-section (y and z) is drawn ``exaggerate`` times larger than the length
-    when the structure is slender (default: chosen to make it readable; the axis labels say so).
-    Returns the Figure; writes it to ``path`` if given."""
+    """A 3-D structure with a sensor layout.
+
+    Members (grey lines), supports (grey squares), strain gauges (their member drawn thick in
+    blue, a square at its middle), accelerometers and other point sensors (a marker at the node
+    and an arrow along the measured direction), forces (red arrows).
+
+    Parameters
+    ----------
+    structure : Structure
+        A structure with 3-D node coordinates.
+    sensors : sequence of sensor specs
+        The layout to draw.
+    forces : sequence of force specs
+        Force locations to draw.
+    path : str, optional
+        Write the figure here.
+    title : str, optional
+        The title.
+    exaggerate : float, optional
+        Draw the cross-section (y and z) this many times larger than the length when the structure
+        is slender (default: chosen to make it readable; the axis labels say so).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     import numpy as np
 
     from .sensors import as_layout, strain_ends

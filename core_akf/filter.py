@@ -79,8 +79,16 @@ def _batchify(A_a, G_a, Q_a, R, Y, check=True):
 class FilterResult:
     """Raw output of :func:`filter_states` (leading batch axis kept if the input had one).
 
-    ``states`` (N, n_a) filtered, ``innovations`` (N, m) ``y_k - G_a X_k^-``;
-    ``gain`` (n_a, m) and ``P_prior`` (n_a, n_a) for the steady-state filter, else the last ones.
+    Attributes
+    ----------
+    states : ndarray (N, n_a)
+        Filtered (posterior) augmented states.
+    innovations : ndarray (N, m)
+        ``y_k - G_a X_k^-``, in the sensors' units.
+    gain : ndarray (n_a, m)
+        The steady-state gain, or the last one of the time-varying filter.
+    P_prior : ndarray (n_a, n_a)
+        The steady-state prior covariance, or the last one.
     """
 
     states: np.ndarray
@@ -90,13 +98,22 @@ class FilterResult:
 
 
 class ModalBlockTransition:
-    """``A_a = [[A_z, B_z], [0, I]]`` whose structural part ``A_z`` consists of four diagonal
-    blocks -- the ZOH transition of a classically damped structure in modal coordinates
-    ``z = [omega q; q']`` (see :func:`core_akf.statespace.modal_state_transform`).
+    """The augmented transition of a classically damped structure in modal coordinates.
 
-    ``left(X)`` applies ``A_a`` from the left in ``O(n_a (1 + n_p))`` operations per column
-    instead of ``O(n_a^2)``, which makes the time-varying covariance update ``A_a P A_a^T``
-    ``O(n_a^2)`` instead of ``O(n_a^3)`` per step.
+    ``A_a = [[A_z, B_z], [0, I]]`` whose structural part ``A_z`` consists of four diagonal
+    blocks -- the ZOH transition in modal coordinates ``z = [omega q; q']`` (see
+    :func:`core_akf.statespace.modal_state_transform`).  :meth:`left` applies ``A_a`` from the
+    left in ``O(n_a (1 + n_p))`` operations per column instead of ``O(n_a^2)``, which makes the
+    time-varying covariance update ``A_a P A_a^T`` ``O(n_a^2)`` instead of ``O(n_a^3)`` per step.
+
+    Parameters
+    ----------
+    A_a : ndarray (n_a, n_a)
+        The augmented transition, ``n_a = 2 n_modes + n_p``.
+    n_modes : int
+        Modes of the structural part.
+    rtol : float
+        Tolerance of the structure test (:meth:`detect`).
     """
 
     def __init__(self, A_a, n_modes, rtol=1e-12):
@@ -116,14 +133,37 @@ class ModalBlockTransition:
 
     @classmethod
     def detect(cls, A_a, n_modes, rtol=1e-12):
-        """The structured form if ``A_a`` has it (to ``rtol``), else ``None``."""
+        """The structured form of ``A_a`` if it has it.
+
+        Parameters
+        ----------
+        A_a : ndarray (n_a, n_a)
+            An augmented transition.
+        n_modes : int
+            Modes of its structural part.
+        rtol : float
+            Largest entry outside the four diagonal blocks, relative to the largest entry.
+
+        Returns
+        -------
+        ModalBlockTransition or None
+        """
         try:
             return cls(A_a, n_modes, rtol)
         except ValueError:
             return None
 
     def left(self, X):
-        """``A_a @ X`` for ``X`` of shape (..., n_a, k)."""
+        """``A_a @ X``.
+
+        Parameters
+        ----------
+        X : ndarray (..., n_a, k)
+
+        Returns
+        -------
+        ndarray (..., n_a, k)
+        """
         n, nx = self.n, self.nx
         q, v, f = X[..., :n, :], X[..., n:nx, :], X[..., nx:, :]
         out = np.empty(X.shape)
@@ -136,8 +176,23 @@ class ModalBlockTransition:
         return out
 
     def propagate(self, P, Q):
-        """``A_a P A_a^T + Q``, symmetrised: two left products on contiguous data
-        (``A (A P)^T`` is the transpose of the wanted symmetric matrix)."""
+        """``A_a P A_a^T + Q``, symmetrised.
+
+        Two left products on contiguous data (``A (A P)^T`` is the transpose of the wanted
+        symmetric matrix).
+
+        Parameters
+        ----------
+        P : ndarray (B, n_a, n_a)
+            Posterior covariances.
+        Q : ndarray (B, n_a, n_a)
+            Process covariances.
+
+        Returns
+        -------
+        ndarray (B, n_a, n_a)
+            The prior covariances of the next step.
+        """
         out = self.left(np.ascontiguousarray(np.swapaxes(self.left(P), -1, -2)))
         out += np.swapaxes(out, -1, -2)
         out *= 0.5
@@ -146,17 +201,46 @@ class ModalBlockTransition:
 
 
 def time_varying_filter(A, G, Q, R, Y, x, P, switch_tol, transition=None):
-    """Time-varying AKF on a batch of B filters: ``A`` (B, n, n), ``G`` (B, m, n), ``Q`` (B, n, n),
-    ``R`` (B, m, m), ``Y`` (B, N, m), the prior mean ``x`` (B, n) and covariance ``P`` (B, n, n)
-    of the first step.  Once the prior covariance has stopped changing (relative change over
-    ``_CHECK_EVERY`` steps below ``switch_tol``, every filter of the batch), the gain is
-    constant to that precision and the rest of the record runs as the fixed-gain recursion.
-    ``transition`` (e.g. :class:`ModalBlockTransition`) applies ``A`` cheaply in the
-    covariance update.
+    """Time-varying AKF on a batch of B filters.
 
-    Returns ``(X, E, L, P, switched)``: filtered states, innovations, the last gain, the prior
-    covariance of the next step (or, ``switched``, the converged one) and whether the filter went
-    over to the fixed gain."""
+    Once the prior covariance has stopped changing (relative change over ``_CHECK_EVERY`` steps
+    below ``switch_tol``, every filter of the batch), the gain is constant to that precision and
+    the rest of the record runs as the fixed-gain recursion.
+
+    Parameters
+    ----------
+    A : ndarray (B, n, n)
+        Transition matrices.
+    G : ndarray (B, m, n)
+        Observation matrices.
+    Q : ndarray (B, n, n)
+        Process covariances.
+    R : ndarray (B, m, m)
+        Measurement-noise covariances.
+    Y : ndarray (B, N, m)
+        Measurements.
+    x : ndarray (B, n)
+        Prior mean of the first step.
+    P : ndarray (B, n, n)
+        Prior covariance of the first step.
+    switch_tol : float
+        Relative change of the covariance below which the gain is held (0: never).
+    transition : ModalBlockTransition, optional
+        Applies ``A`` cheaply in the covariance update.
+
+    Returns
+    -------
+    X : ndarray (B, N, n)
+        Filtered states.
+    E : ndarray (B, N, m)
+        Innovations.
+    L : ndarray (B, n, m)
+        The last gain.
+    P : ndarray (B, n, n)
+        The prior covariance of the next step (or, ``switched``, the converged one).
+    switched : bool
+        Whether the filter went over to the fixed gain.
+    """
     B, N, m = Y.shape
     n = A.shape[-1]
     out = np.empty((B, N, n))
@@ -206,14 +290,30 @@ def _steady(A, G, Q, R, Y, x):
 
 def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_tol=1e-14, transition=None,
                   check=True):
-    """Run one AKF or a batch of them; see :func:`run`.  Returns a :class:`FilterResult`.
+    """Run one AKF or a batch of them (see :func:`run`).
 
-    ``switch_tol``: the time-varying filter continues with its (then constant) gain once its
-    covariance changes by less than this, relatively; 0 keeps it time-varying to the end.
-    ``transition``: a structured form of a shared ``A_a`` (:class:`ModalBlockTransition`)
-    for a cheaper time-varying covariance update.
-    ``check``: check that Q_a, R and P0 are symmetric PSD (R PD); ``False`` for matrices the
-    caller has already checked (as :func:`estimate_batch` does).
+    Parameters
+    ----------
+    A_a, G_a, Q_a, R, Y
+        As in :func:`run`.
+    x0 : ndarray (n_a,) or (B, n_a), optional
+        Prior mean at step 0 (default zero).
+    P0 : ndarray (n_a, n_a) or (B, n_a, n_a), optional
+        Prior covariance at step 0 (default ``Q_a``); not used by the steady-state filter.
+    steady : bool
+        The steady-state gain instead of the time-varying filter.
+    switch_tol : float
+        The time-varying filter continues with its (then constant) gain once its covariance
+        changes by less than this, relatively; 0 keeps it time-varying to the end.
+    transition : ModalBlockTransition, optional
+        A structured form of a shared ``A_a`` for a cheaper time-varying covariance update.
+    check : bool
+        Check that Q_a, R and P0 are symmetric PSD (R PD); False for matrices the caller has
+        already checked (as :func:`estimate_batch` does).
+
+    Returns
+    -------
+    FilterResult
     """
     A, G, Q, Rb, Yb, batched = _batchify(A_a, G_a, Q_a, R, Y, check)
     B, n = Yb.shape[0], A.shape[-1]
@@ -279,19 +379,37 @@ class Estimate:
 
     Attributes
     ----------
-    time : ndarray (N,)  -- s
-    forces : ndarray (N, n_p)  -- N, at ``force_locations``
-    states : ndarray (N, 2n)  -- ``[u; u']`` in generalised coordinates
+    structure : Structure
+        The filter's model.
+    sensors : tuple of Sensor
+        The layout, m channels.
+    force_locations : list of tuple
+        The unknown force locations, 1-based ``(node, direction)``.
+    dt : float
+        Time step (s).
+    time : ndarray (N,)
+        Time of each step (s).
+    forces : ndarray (N, n_p)
+        Estimated forces (N) at ``force_locations``.
+    states : ndarray (N, 2n)
+        ``[u; u']`` in generalised coordinates (m, m/s for a full model).
     innovations : ndarray (N, m)
-    gain : ndarray (n_a, m) -- steady-state (or last) Kalman gain for ``[u; u'; f]``
-    detectability : DetectabilityReport -- the PBH test of the sensor layout
-    measurements : ndarray (N, m) -- the data the filter ran on (SI)
-    innovation_cov : ndarray (m, m) -- predicted innovation covariance ``G_a P G_a^T + R`` of the
-        steady-state (or last) prior covariance ``P``, in squared sensor units
-    filter_matrices : tuple -- ``(A_a, G_a, L)`` in the filter's internal coordinates, with the
-        steady-state (or last) gain ``L``; the closed loop ``(I - L G_a) A_a`` sets the transient
-    t0 : float -- time of the first step (s); 0 except for chunks of a streamed record
-        (:class:`core_akf.streaming.Estimator`)
+        ``y_k - G_a X_k^-``, in the sensors' units.
+    gain : ndarray (n_a, m)
+        Steady-state (or last) Kalman gain for ``[u; u'; f]``.
+    detectability : DetectabilityReport
+        The PBH test of the sensor layout.
+    measurements : ndarray (N, m)
+        The data the filter ran on (SI).
+    innovation_cov : ndarray (m, m)
+        Predicted innovation covariance ``G_a P G_a^T + R`` of the steady-state (or last) prior
+        covariance ``P``, in squared sensor units.
+    filter_matrices : tuple
+        ``(A_a, G_a, L)`` in the filter's internal coordinates, with the steady-state (or last)
+        gain ``L``; the closed loop ``(I - L G_a) A_a`` sets the transient.
+    t0 : float
+        Time of the first step (s); 0 except for chunks of a streamed record
+        (:class:`core_akf.streaming.Estimator`).
     """
 
     structure: object
@@ -335,18 +453,37 @@ class Estimate:
         return out if extra is None else out + self.forces @ extra.T
 
     def response(self, sensors):
-        """Estimated response at any sensors (e.g. held-back validation sensors), shape (N, k)."""
+        """Estimated response at any sensors (e.g. held-back validation sensors).
+
+        Parameters
+        ----------
+        sensors : sequence of sensor specs
+            k sensors on the filter's model.
+
+        Returns
+        -------
+        ndarray (N, k)
+            In the sensors' SI units.
+        """
         G, D = observation(self.structure, sensors, self.force_locations)
         return self.states @ G.T + self.forces @ D.T
 
     def to_frame(self, wide=False):
         """The estimated forces and strains as a :class:`pandas.DataFrame`.
 
-        Tidy (default): one row per time step and channel, columns ``time`` (s), ``quantity``
-        ("force" or "strain"), ``channel`` (``"8:y"``, ``"strain:13"``, ``"strain:70:ex"``: the
-        names of force locations and sensors), ``unit`` ("N", "m/m") and ``value``.
-        ``wide=True``: one row per time step and one column per channel (``force:8:y``,
-        ``strain:13``), for spreadsheets."""
+        Parameters
+        ----------
+        wide : bool
+            False (default), tidy: one row per time step and channel, columns ``time`` (s),
+            ``quantity`` ("force" or "strain"), ``channel`` (``"8:y"``, ``"strain:13"``,
+            ``"strain:70:ex"``: the names of force locations and sensors), ``unit`` ("N", "m/m") and
+            ``value``.  True: one row per time step and one column per channel (``force:8:y``,
+            ``strain:13``), for spreadsheets.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
         import pandas as pd
 
         forces = [f"{node}:{d}" for node, d in self.force_locations]
@@ -371,20 +508,36 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
                    dt: float, *, model_error_cov: Covariance, force_increment_cov: Covariance,
                    noise_cov: NoiseCovariance, steady: bool | None = None, allow_undetectable: bool = False,
                    x0: ArrayLike | None = None, P0: ArrayLike | None = None) -> list[Estimate]:
-    """AKF estimates for many sensor layouts (all with the same number of sensors) in one
-    batched filter call.
+    """AKF estimates for many sensor layouts of one structure in one batched filter call.
 
     Parameters
     ----------
+    structure : Structure
+        The filter's model.
     layouts : sequence of sensor layouts
+        B layouts, all with the same number m of sensors.
+    forces : sequence of force specs
+        The unknown force locations (shared).
     measurements : ndarray (B, N, m) or sequence of (N, m)
-        One measurement set per layout, columns in layout order.
-    noise_cov : as in :func:`estimate`, applied to every layout; or one entry per layout
-        (a (B, m, m) array or a list of B dicts of variances per sensor kind).
+        One measurement set per layout, columns in layout order (SI).
+    dt : float
+        Time step (s).
+    model_error_cov, force_increment_cov
+        Q and S, as in :func:`estimate`.
+    noise_cov : float, ndarray, dict, or one per layout
+        R as in :func:`estimate`, applied to every layout; or one entry per layout (a (B, m, m)
+        array or a list of B dicts of variances per sensor kind).
+    steady : bool or None
+        As in :func:`estimate` (None: steady where every layout is detectable).
+    allow_undetectable : bool
+        Run layouts that fail the PBH test.
+    x0, P0 : optional
+        Prior mean (n_a,) and covariance of the physical augmented state ``[u; u'; f]``.
 
     Returns
     -------
-    list of :class:`Estimate`
+    list of Estimate
+        One per layout.
     """
     layouts = [as_layout(l) for l in layouts]
     if not layouts:
@@ -417,14 +570,39 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
 
 
 class FilterSetup:
-    """The filter's matrices for sensor layouts of one structure and force set, in energy-normalised
-    modal coordinates ``x = T z`` (see :func:`~core_akf.statespace.modal_state_transform`),
-    discretised there mode by mode when the damping is classical: the one builder behind
-    :func:`estimate_batch` and :class:`core_akf.streaming.Estimator`.
+    """The filter's matrices for sensor layouts of one structure and force set.
 
-    Attributes: ``A_a`` (n_a, n_a); ``G_a`` (B, m, n_a); ``R`` (B, m, m); ``Q_a`` (n_a, n_a);
-    ``z0`` / ``Pz0`` the prior (None: zero / ``Q_a``); ``Ta``, ``Ta_inv`` the transforms of the
-    augmented state."""
+    They are built in energy-normalised modal coordinates ``x = T z`` (see
+    :func:`~core_akf.statespace.modal_state_transform`), discretised there mode by mode when the
+    damping is classical: the one builder behind :func:`estimate_batch` and
+    :class:`core_akf.streaming.Estimator`.
+
+    Parameters
+    ----------
+    structure : Structure
+        The filter's model.
+    layouts : list of list of Sensor
+        B layouts of m sensors each.
+    locs : list of tuple
+        Force locations, 1-based ``(node, direction)``.
+    dt : float
+        Time step (s).
+    model_error_cov, force_increment_cov, noise_cov
+        Q, S and R as in :func:`estimate` (``noise_cov`` may give one entry per layout).
+    x0, P0 : optional
+        Prior mean and covariance of the physical augmented state.
+
+    Attributes
+    ----------
+    A_a : ndarray (n_a, n_a)
+    G_a : ndarray (B, m, n_a)
+    R : ndarray (B, m, m)
+    Q_a : ndarray (n_a, n_a)
+    z0, Pz0 : ndarray or None
+        The prior in modal coordinates (None: zero / ``Q_a``).
+    Ta, Ta_inv : ndarray (n_a, n_a)
+        The transforms of the augmented state, ``x_a = Ta z_a``.
+    """
 
     def __init__(self, structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0=None, P0=None):
         from .reduced import ModalFilterModel
@@ -450,13 +628,43 @@ class FilterSetup:
         self.Pz0 = None if P0 is None else Ta_inv @ diag_levels(P0, self.nx + nf, "P0") @ Ta_inv.T
 
     def riccati_error(self, exc):
-        """A :class:`RiccatiError` naming the layouts whose gain failed."""
+        """A :class:`RiccatiError` naming the layouts whose gain failed.
+
+        Parameters
+        ----------
+        exc : RiccatiError
+            The error of the batched Riccati solve (its ``problems`` are batch indices).
+
+        Returns
+        -------
+        RiccatiError
+        """
         names = "; ".join(", ".join(s.label for s in self.layouts[b]) for b in exc.problems)
         return RiccatiError(f"steady-state gain failed for the layout(s) [{names}]: {exc}", exc.problems)
 
     def estimates(self, states, innovations, gain, P_prior, Y, reports, t0=0.0):
-        """One :class:`Estimate` per layout from the filter's modal-coordinate output (leading
-        batch axis): states back to physical ``[u; u'; f]``, gains for the physical state."""
+        """One :class:`Estimate` per layout from the filter's output in modal coordinates.
+
+        States go back to physical ``[u; u'; f]`` and gains to the physical state.
+
+        Parameters
+        ----------
+        states : ndarray (B, N, n_a)
+            Filtered modal states.
+        innovations : ndarray (B, N, m)
+        gain : ndarray (B, n_a, m)
+        P_prior : ndarray (B, n_a, n_a)
+        Y : ndarray (B, N, m)
+            The measurements.
+        reports : list of DetectabilityReport
+            One per layout.
+        t0 : float
+            Time of the first step (s).
+
+        Returns
+        -------
+        list of Estimate
+        """
         nx = self.nx
         states = states @ self.Ta.T
         gains = self.Ta @ gain
@@ -497,10 +705,24 @@ def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements
         an undetectable set run with ``allow_undetectable`` (no steady state exists there).
     allow_undetectable : bool
         Run even if the PBH test fails (the estimate will drift).
+    x0 : array_like (2n + n_p,), optional
+        Prior mean of the augmented state ``[u; u'; f]`` at step 0 (default zero).
+    P0 : float or array_like, optional
+        Prior covariance at step 0 (a level, variances or the matrix; default ``Q_a``); the
+        steady-state filter does not use it.
 
     Returns
     -------
     Estimate
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from core_akf.models import s17_truss
+    >>> est = estimate(s17_truss(), ["strain:13", "acc:8:y"], ["8:y"], np.zeros((100, 2)), 1e-3,
+    ...                model_error_cov=1e-16, force_increment_cov=1e4, noise_cov={"strain": 1e-14, "acc": 1e-4})
+    >>> est.forces.shape, est.strains.shape
+    ((100, 1), (100, 34))
     """
     layout = as_layout(sensors)
     Y = as_finite_array(measurements, "measurements", ndim=2)

@@ -8,7 +8,19 @@ from .exceptions import AKFInputError
 
 
 def time_grid(n_steps, dt):
-    """``t_k = k dt`` for ``k = 0..n_steps-1`` (s)."""
+    """The time of each step, ``t_k = k dt`` for ``k = 0..n_steps-1``.
+
+    Parameters
+    ----------
+    n_steps : int
+    dt : float
+        Time step (s).
+
+    Returns
+    -------
+    ndarray (n_steps,)
+        Time (s).
+    """
     n_steps = int(n_steps)
     if n_steps < 1:
         raise AKFInputError(f"n_steps must be >= 1, got {n_steps}")
@@ -22,7 +34,24 @@ def _rng(seed):
 
 
 def half_sine_pulse(t, start, duration, peak):
-    """Impact: one half sine of ``duration`` (s) starting at ``start`` (s), amplitude ``peak`` (N)."""
+    """An impact: one half sine.
+
+    Parameters
+    ----------
+    t : ndarray (N,)
+        Time (s).
+    start : float
+        Start of the pulse (s).
+    duration : float
+        Length of the pulse (s).
+    peak : float
+        Amplitude (N).
+
+    Returns
+    -------
+    ndarray (N,)
+        Force (N).
+    """
     if duration <= 0:
         raise AKFInputError(f"pulse duration must be positive, got {duration!r}")
     t = np.asarray(t, float)
@@ -31,7 +60,22 @@ def half_sine_pulse(t, start, duration, peak):
 
 
 def ramp(t, start, end, peak):
-    """Zero until ``start``, linear to ``peak`` (N) at ``end``, then held."""
+    """Zero until ``start``, linear to ``peak`` at ``end``, then held.
+
+    Parameters
+    ----------
+    t : ndarray (N,)
+        Time (s).
+    start, end : float
+        Start and end of the rise (s).
+    peak : float
+        Final value (N).
+
+    Returns
+    -------
+    ndarray (N,)
+        Force (N).
+    """
     if end <= start:
         raise AKFInputError(f"ramp end ({end}) must be after its start ({start})")
     t = np.asarray(t, float)
@@ -39,26 +83,97 @@ def ramp(t, start, end, peak):
 
 
 def half_sine(t, start, end, peak):
-    """A slow half sine: zero, rising to ``peak`` (N) mid-way between ``start`` and ``end``, back to zero."""
+    """A slow half sine: zero, rising to ``peak`` mid-way between ``start`` and ``end``, back to zero.
+
+    Parameters
+    ----------
+    t : ndarray (N,)
+        Time (s).
+    start, end : float
+        Start and end of the half sine (s).
+    peak : float
+        Amplitude (N).
+
+    Returns
+    -------
+    ndarray (N,)
+        Force (N).
+    """
     if end <= start:
         raise AKFInputError(f"half-sine end ({end}) must be after its start ({start})")
     return half_sine_pulse(t, start, end - start, peak)
 
 
 def sine(t, frequency, amplitude, phase=0.0):
-    """``amplitude sin(2 pi f t + phase)`` (N)."""
+    """``amplitude sin(2 pi frequency t + phase)``.
+
+    Parameters
+    ----------
+    t : ndarray (N,)
+        Time (s).
+    frequency : float
+        Hz.
+    amplitude : float
+        N.
+    phase : float
+        rad.
+
+    Returns
+    -------
+    ndarray (N,)
+        Force (N).
+    """
     return amplitude * np.sin(2 * np.pi * frequency * np.asarray(t, float) + phase)
 
 
 def white_noise(n_steps, std, seed=None):
-    """Gaussian white noise with standard deviation ``std`` (N)."""
+    """Gaussian white noise.
+
+    Parameters
+    ----------
+    n_steps : int
+    std : float
+        Standard deviation (N).
+    seed : int or numpy.random.Generator, optional
+        The random stream (None: fresh entropy, not repeatable).
+
+    Returns
+    -------
+    ndarray (n_steps,)
+        Force (N).
+    """
     return _rng(seed).normal(0.0, std, int(n_steps))
 
 
 def band_limited_white_noise(n_steps, dt, rms, f_low=0.0, f_high=None, seed=None):
-    """Gaussian noise with a flat spectrum between ``f_low`` and ``f_high`` (Hz), scaled to ``rms`` (N).
+    """Gaussian noise with a flat spectrum in a band, scaled to an RMS value.
 
     Built in the frequency domain (zero outside the band), so the band edges are sharp.
+
+    Parameters
+    ----------
+    n_steps : int
+    dt : float
+        Time step (s).
+    rms : float
+        RMS of the result (N).
+    f_low : float
+        Lower band edge (Hz).
+    f_high : float, optional
+        Upper band edge (Hz; default the Nyquist frequency).
+    seed : int or numpy.random.Generator, optional
+        The random stream (None: fresh entropy, not repeatable).
+
+    Returns
+    -------
+    ndarray (n_steps,)
+        Force (N).
+
+    Examples
+    --------
+    >>> f = band_limited_white_noise(4096, 1e-3, 50.0, 0.0, 100.0, seed=1)
+    >>> round(float(np.sqrt(np.mean(f ** 2))), 6)
+    50.0
     """
     n_steps = int(n_steps)
     nyq = 0.5 / dt

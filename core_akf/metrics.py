@@ -11,7 +11,22 @@ from .types import ArrayLike
 def rms_error(estimate: ArrayLike, reference: ArrayLike, axis: int = 0) -> np.ndarray:
     """RMS error per channel: ``sqrt(sum_k (est_k - ref_k)^2 / N)`` (S17 eq. 38, IMP eq. 31, TH eq. 29).
 
-    ``estimate`` and ``reference`` have the same shape, time along ``axis``.
+    Parameters
+    ----------
+    estimate, reference : array_like
+        The same shape, time along ``axis`` (SI).
+    axis : int
+        The time axis.
+
+    Returns
+    -------
+    ndarray
+        One value per channel, in the channels' unit.
+
+    Examples
+    --------
+    >>> rms_error([[1.0, 0.0], [3.0, 0.0]], [[0.0, 0.0], [0.0, 0.0]]).tolist()
+    [2.23606797749979, 0.0]
     """
     est = as_finite_array(estimate, "estimate")
     ref = as_finite_array(reference, "reference")
@@ -21,13 +36,35 @@ def rms_error(estimate: ArrayLike, reference: ArrayLike, axis: int = 0) -> np.nd
 
 
 def rms(signal, axis=0):
-    """RMS value per channel."""
+    """RMS value per channel.
+
+    Parameters
+    ----------
+    signal : array_like
+        Time along ``axis``.
+    axis : int
+        The time axis.
+
+    Returns
+    -------
+    ndarray
+    """
     return np.sqrt(np.mean(np.asarray(signal, float) ** 2, axis=axis))
 
 
 def average_strain_error(estimate: ArrayLike, reference: ArrayLike, axis: int = 0) -> float:
-    """Mean of the per-component RMS strain errors (TH's "average strain error"), in strain.
+    """Mean of the per-component RMS strain errors (TH's "average strain error").
 
-    For ``(N, n_strain)`` inputs this is one number; a leading batch axis gives one per batch.
+    Parameters
+    ----------
+    estimate, reference : array_like (N, n_strain) or (B, N, n_strain)
+        Strains (m/m).
+    axis : int
+        The time axis.
+
+    Returns
+    -------
+    float or ndarray (B,)
+        In m/m: one number, or one per batch for a leading batch axis.
     """
     return np.mean(rms_error(estimate, reference, axis=axis), axis=-1)

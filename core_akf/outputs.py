@@ -32,9 +32,26 @@ def _umask():
 
 
 def confined(path):
-    """``path``, after checking that no symbolic link inside an output folder in use
-    (:func:`confine_writes`) leads it outside that folder: a write or a delete through such a link
-    would change a file elsewhere.  Paths outside every folder in use are returned unchecked."""
+    """A path, checked not to lead out of an output folder in use.
+
+    No symbolic link inside an output folder in use (:func:`confine_writes`) may lead the path
+    outside that folder: a write or a delete through such a link would change a file elsewhere.
+    Paths outside every folder in use are returned unchecked.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    str
+        ``path``.
+
+    Raises
+    ------
+    AKFInputError
+        For a path that a link leads out of the folder.
+    """
     absolute = os.path.abspath(path)
     for root, real_root in _ACTIVE:
         if absolute != root and not absolute.startswith(root + os.sep):
@@ -48,9 +65,21 @@ def confined(path):
 
 @contextlib.contextmanager
 def confine_writes(path):
-    """Inside the ``with`` block, :func:`confined` (and so every :func:`atomic_path` write) refuses
-    a path under the folder ``path`` that a symbolic link leads out of it.  Yields the folder's
-    absolute path."""
+    """Inside the ``with`` block, refuse writes through links that lead out of a folder.
+
+    :func:`confined` (and so every :func:`atomic_path` write) refuses a path under the folder
+    ``path`` that a symbolic link leads out of it.
+
+    Parameters
+    ----------
+    path : str
+        The output folder.
+
+    Yields
+    ------
+    str
+        The folder's absolute path.
+    """
     entry = (os.path.abspath(path), os.path.realpath(path))
     _ACTIVE.append(entry)
     try:
@@ -62,11 +91,23 @@ def confine_writes(path):
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path next to ``path``; on success rename it to ``path`` (atomic on one
-    file system), on any error or interruption remove it, leaving ``path`` as it was.  The file
-    gets the permissions of a plain ``open`` (0666 less the umask), not the 0600 of a temporary
-    file; a path that a symbolic link leads out of the output folder in use is refused
-    (:func:`confined`)."""
+    """A temporary path that becomes ``path`` when the block ends without an error.
+
+    On success it is renamed to ``path`` (atomic on one file system); on any error or
+    interruption it is removed, leaving ``path`` as it was.  The file gets the permissions of a
+    plain ``open`` (0666 less the umask), not the 0600 of a temporary file; a path that a
+    symbolic link leads out of the output folder in use is refused (:func:`confined`).
+
+    Parameters
+    ----------
+    path : str
+        The file to write.
+
+    Yields
+    ------
+    str
+        The temporary path to write to.
+    """
     confined(path)
     folder = os.path.dirname(os.path.abspath(path)) or "."
     base, ext = os.path.splitext(os.path.basename(path))
@@ -83,7 +124,21 @@ def atomic_path(path):
 
 
 def write_csv(frame, path, **kwargs):
-    """Write a DataFrame to CSV atomically (``index=False`` unless given); returns ``path``."""
+    """Write a DataFrame to CSV atomically (:func:`atomic_path`).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+    path : str
+        The CSV file.
+    **kwargs
+        Arguments of :meth:`pandas.DataFrame.to_csv` (``index=False`` unless given).
+
+    Returns
+    -------
+    str
+        ``path``.
+    """
     kwargs.setdefault("index", False)
     with atomic_path(path) as tmp:
         frame.to_csv(tmp, **kwargs)

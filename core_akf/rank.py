@@ -53,12 +53,22 @@ CRITICAL_RTOL = 1e-9
 
 
 def stiffness_factorisation(structure):
-    """Cholesky factor of ``K`` (SPD for a supported structure), computed once per structure."""
+    """Cholesky factor of ``K`` (SPD for a supported structure), computed once per structure.
+
+    Parameters
+    ----------
+    structure : Structure
+
+    Returns
+    -------
+    tuple
+        The factor of :func:`scipy.linalg.cho_factor`.
+    """
     return structure.memo("stiffness_cholesky", lambda: scipy.linalg.cho_factor(structure.K))
 
 
 def is_supported(structure):
-    """True if ``K`` is positive definite (no rigid-body mode).
+    """Whether ``K`` is positive definite (no rigid-body mode).
 
     Decided on the Jacobi-scaled stiffness ``K_s = D^-1/2 K D^-1/2`` (unit diagonal): its
     smallest eigenvalue is independent of units and of the spread of the frequencies (a thin
@@ -67,6 +77,14 @@ def is_supported(structure):
     Cholesky factor with ``tol = SAFETY MODEL_RTOL ||K_s||`` (``||K_s||`` bounded by its largest
     absolute row sum), the most a perturbation of the entries within the model's accuracy can
     move an eigenvalue (Weyl).
+
+    Parameters
+    ----------
+    structure : Structure
+
+    Returns
+    -------
+    bool
     """
     def decide():
         K = np.asarray(structure.K, float)
@@ -84,10 +102,20 @@ def is_supported(structure):
 
 
 def zero_rows(mat):
-    """Boolean mask of the rows of ``mat`` that are zero up to rounding: every entry below
-    ``SAFETY MODEL_RTOL`` times the largest entry of the matrix.  Used for outputs that are
-    identically zero by construction (strain ``e_x`` along a clamped edge), whose computed rows
-    hold at most a few rounding errors of the assembly."""
+    """The rows of a matrix that are zero up to rounding.
+
+    Every entry below ``SAFETY MODEL_RTOL`` times the largest entry of the matrix.  Used for
+    outputs that are identically zero by construction (strain ``e_x`` along a clamped edge),
+    whose computed rows hold at most a few rounding errors of the assembly.
+
+    Parameters
+    ----------
+    mat : ndarray (rows, cols)
+
+    Returns
+    -------
+    ndarray (rows,) of bool
+    """
     mat = np.abs(np.asarray(mat, float))
     scale = np.max(mat, initial=0.0)
     return np.max(mat, axis=1, initial=0.0) <= SAFETY * MODEL_RTOL * scale
@@ -123,7 +151,17 @@ class StaticGain:
     bound: np.ndarray
 
     def rows(self, idx):
-        """The gain of a subset of the sensors (row indices)."""
+        """The gain of a subset of the sensors.
+
+        Parameters
+        ----------
+        idx : sequence of int
+            Row indices (0-based).
+
+        Returns
+        -------
+        StaticGain
+        """
         idx = list(idx)
         return StaticGain(self.gain[idx], self.bound[idx])
 
@@ -159,11 +197,24 @@ class StaticGain:
 
 
 def static_gain(structure, S_static, S_p, extra=None):
-    """:class:`StaticGain` of sensor rows ``S_static`` (m x n, strain plus displacement
-    selection in generalised coordinates) for the force selection ``S_p`` (n x n_p); ``extra``
-    (m x n_p) is a static feed-through added to it (the static correction of a reduced model).
+    """The static gain from unit forces to sensors, with its rounding bound.
 
-    Needs a supported structure (``K`` positive definite); see :func:`is_supported`."""
+    Needs a supported structure (``K`` positive definite); see :func:`is_supported`.
+
+    Parameters
+    ----------
+    structure : Structure
+    S_static : ndarray (m, n)
+        Strain plus displacement selection rows in generalised coordinates.
+    S_p : ndarray (n, n_p)
+        Force selection.
+    extra : ndarray (m, n_p), optional
+        A static feed-through added to the gain (the static correction of a reduced model).
+
+    Returns
+    -------
+    StaticGain
+    """
     S = np.asarray(S_static, float)
     cf = stiffness_factorisation(structure)
     X = scipy.linalg.cho_solve(cf, np.asarray(S_p, float))           # (n, n_p) static displacements
@@ -179,14 +230,27 @@ def static_gain(structure, S_static, S_p, extra=None):
 
 
 def column_rank_test(mat):
-    """Column-rank decision for a PBH matrix whose rows mix units (strain, acceleration, rows of
-    ``sI - A``): rows, then columns scaled to unit 2-norm.
+    """Column-rank decision for a PBH matrix whose rows mix units.
 
-    Returns ``(rel, null, deficient)``: the smallest singular value relative to the largest, the
-    right singular vector of the smallest one (in the scaled coordinates, so its blocks compare),
-    and whether the matrix is rank deficient.  A perturbation of every entry of the scaled matrix
-    within the model's accuracy has a Frobenius norm of at most ``MODEL_RTOL sqrt(rows cols)``; the
-    matrix counts as deficient below ``SAFETY`` times that, or below ``RANK_FLOOR`` (see there).
+    Rows (strain, acceleration, rows of ``sI - A``), then columns, are scaled to unit 2-norm.
+    A perturbation of every entry of the scaled matrix within the model's accuracy has a
+    Frobenius norm of at most ``MODEL_RTOL sqrt(rows cols)``; the matrix counts as deficient below
+    ``SAFETY`` times that, or below ``RANK_FLOOR`` (see there).
+
+    Parameters
+    ----------
+    mat : ndarray (rows, cols)
+        The PBH matrix (real or complex).
+
+    Returns
+    -------
+    rel : float
+        The smallest singular value relative to the largest.
+    null : ndarray (cols,)
+        The right singular vector of the smallest one (in the scaled coordinates, so its blocks
+        compare).
+    deficient : bool
+        Whether the matrix is rank deficient.
     """
     mat = np.asarray(mat)
     _, sv, vh = np.linalg.svd(_unit_scale(mat)[0])

@@ -31,8 +31,19 @@ _BOUNDARY_STEPWISE = 48
 
 
 def recursion_stepwise(F, U, x_first):
-    """Reference: all states of ``x_k = F x_{k-1} + U_k`` (k >= 1), ``x_0 = x_first``, one
-    step at a time.  F (B, n, n), U (B, N, n), x_first (B, n) -> (B, N, n)."""
+    """Reference: all states of ``x_k = F x_{k-1} + U_k`` (k >= 1), ``x_0 = x_first``, one step at a time.
+
+    Parameters
+    ----------
+    F : ndarray (B, n, n)
+    U : ndarray (B, N, n)
+    x_first : ndarray (B, n)
+        ``x_0``.
+
+    Returns
+    -------
+    ndarray (B, N, n)
+    """
     B, N, n = U.shape
     out = np.empty((B, N, n))
     out[:, 0] = x_first
@@ -51,11 +62,23 @@ def recursion_stepwise(F, U, x_first):
 
 
 def recursion_chunked(F, U, x_first):
-    """The same recursion with the record cut into ~sqrt(N) chunks run as one batch: each
-    chunk's zero-state response, then the chunk-boundary states in sequence, then their free
-    response added back -- about 3 sqrt(N) matrix products instead of N (twice the
-    arithmetic; used for the boundary recursion of :func:`lti_response`, whose input has full
-    rank)."""
+    """All states of ``x_k = F x_{k-1} + U_k``, with the record cut into ~sqrt(N) chunks run as one batch.
+
+    Each chunk's zero-state response, then the chunk-boundary states in sequence, then their free
+    response added back -- about 3 sqrt(N) matrix products instead of N (twice the arithmetic;
+    used for the boundary recursion of :func:`lti_response`, whose input has full rank).
+
+    Parameters
+    ----------
+    F : ndarray (B, n, n)
+    U : ndarray (B, N, n)
+    x_first : ndarray (B, n)
+        ``x_0``.
+
+    Returns
+    -------
+    ndarray (B, N, n)
+    """
     B, N, n = U.shape
     out = np.empty((B, N, n))
     out[:, 0] = x_first

@@ -28,8 +28,14 @@ from .threads import split_stack
 
 
 class RiccatiError(AKFInputError):
-    """The filter DARE has no accurate stabilising solution (typically an undetectable sensor
-    set).  ``problems`` holds the indices of the failing problems in the (flattened) batch."""
+    """The filter DARE has no accurate stabilising solution (typically an undetectable sensor set).
+
+    Parameters
+    ----------
+    message : str
+    problems : sequence of int
+        The indices of the failing problems in the (flattened) batch.
+    """
 
     def __init__(self, message, problems=()):
         super().__init__(message)
@@ -58,8 +64,22 @@ def _solve_each(S, B):
 
 
 def dare_residual(A, G, Q, R, P):
-    """Relative residual of the filter DARE for each problem in the stack (``inf`` where ``P``
-    makes the innovation covariance singular or is not finite)."""
+    """Relative residual of the filter DARE for each problem in a stack.
+
+    Parameters
+    ----------
+    A : ndarray (..., n, n)
+    G : ndarray (..., m, n)
+    Q : ndarray (..., n, n)
+    R : ndarray (..., m, m)
+    P : ndarray (..., n, n)
+        The candidate prior covariance.
+
+    Returns
+    -------
+    ndarray (...)
+        ``inf`` where ``P`` makes the innovation covariance singular or is not finite.
+    """
     APGt = A @ P @ np.swapaxes(G, -1, -2)
     S = G @ P @ np.swapaxes(G, -1, -2) + R
     with np.errstate(all="ignore"):
@@ -96,6 +116,8 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
     check : bool
         Check the DARE residual of each solution; polish a poor one with up to
         ``newton_steps`` Newton (Hewer) steps, and re-solve one that is still poor with scipy.
+    newton_steps : int
+        See ``check``.
 
     Returns
     -------
@@ -234,9 +256,24 @@ _RESIDUAL_POLISH = 1e-13
 
 
 def stein_doubling(F, E, tol=1e-14, max_iter=60):
-    """Solution ``X`` of the Stein equation ``X = F X F^T + E`` (``rho(F) < 1``) by Smith's
-    doubling, ``X <- X + F_j X F_j^T``, ``F_j <- F_j^2``: every term is added, none
-    subtracted, so nothing cancels.  Stacks of problems along leading axes."""
+    """Solution ``X`` of the Stein equation ``X = F X F^T + E`` (``rho(F) < 1``) by Smith's doubling.
+
+    ``X <- X + F_j X F_j^T``, ``F_j <- F_j^2``: every term is added, none subtracted, so nothing
+    cancels.
+
+    Parameters
+    ----------
+    F : ndarray (..., n, n)
+    E : ndarray (..., n, n)
+    tol : float
+        Relative size of the last term added.
+    max_iter : int
+        Doublings at most.
+
+    Returns
+    -------
+    ndarray (..., n, n)
+    """
     X = np.array(E, dtype=float)
     Fj = np.array(F, dtype=float)
     if X.ndim == 2:
@@ -262,6 +299,20 @@ def newton_step(A, G, Q, R, P):
     ``P = F P F^T + A K R K^T A^T + Q`` holds at the solution; the correction ``D`` solves
     ``D = F D F^T + (Joseph residual)``, so P converges quadratically and the large terms of
     the DARE never cancel.
+
+    Parameters
+    ----------
+    A : ndarray (..., n, n)
+    G : ndarray (..., m, n)
+    Q : ndarray (..., n, n)
+    R : ndarray (..., m, m)
+    P : ndarray (..., n, n)
+        The estimate.
+
+    Returns
+    -------
+    ndarray (..., n, n)
+        The improved estimate.
     """
     n = A.shape[-1]
     Gt = np.swapaxes(G, -1, -2)
@@ -274,7 +325,24 @@ def newton_step(A, G, Q, R, P):
 
 
 def steady_gain(A, G, Q, R, **kwargs):
-    """Steady-state prior covariance ``P`` and Kalman gain ``L = P G^T (G P G^T + R)^-1``."""
+    """Steady-state prior covariance and Kalman gain of a stack of filters.
+
+    Parameters
+    ----------
+    A : ndarray (..., n, n)
+    G : ndarray (..., m, n)
+    Q : ndarray (..., n, n)
+    R : ndarray (..., m, m)
+    **kwargs
+        Options of :func:`solve_filter_dare` (``tol``, ``max_iter``, ``check``, ``newton_steps``).
+
+    Returns
+    -------
+    P : ndarray (..., n, n)
+        The prior covariance.
+    L : ndarray (..., n, m)
+        ``P G^T (G P G^T + R)^-1``.
+    """
     P = solve_filter_dare(A, G, Q, R, **kwargs)
     S = G @ P @ np.swapaxes(G, -1, -2) + R
     L = np.swapaxes(np.linalg.solve(S, G @ P), -1, -2)  # S symmetric

@@ -45,10 +45,21 @@ def single_threaded_blas():
 
 
 def split_stack(fn, size):
-    """Run ``fn(part)`` on parts of a stack of ``size`` problems (``part`` a slice), one part per
-    thread, with single-threaded BLAS.  Returns ``[(part, result, exception), ...]`` in stack
-    order (one of ``result`` and ``exception`` is None).  ``fn`` must treat its problems
-    independently."""
+    """Run a function on parts of a stack of problems, one part per thread, single-threaded BLAS.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(part)`` with ``part`` a slice of the stack; it must treat its problems independently.
+    size : int
+        Problems in the stack.
+
+    Returns
+    -------
+    list of tuple
+        ``[(part, result, exception), ...]`` in stack order (one of ``result`` and
+        ``exception`` is None).
+    """
     threads = max(1, min(solver_threads(), size))
     parts = [slice(int(p[0]), int(p[-1]) + 1) for p in np.array_split(np.arange(size), threads)]
     with single_threaded_blas():

@@ -38,7 +38,17 @@ TIME_GRID_RTOL = 0.01
 
 @dataclass(frozen=True)
 class Timing:
-    """A file's time grid: first time ``start`` (s), step ``dt`` (s) and ``n_steps``."""
+    """A file's time grid.
+
+    Attributes
+    ----------
+    start : float
+        Time of the first step (s).
+    dt : float
+        Time step (s).
+    n_steps : int
+        Steps in the file.
+    """
 
     start: float
     dt: float
@@ -55,8 +65,20 @@ class MissingExtraError(AKFInputError):
 
 
 class Reader(ABC):
-    """One data file.  Subclasses set ``format`` (a name), ``extensions`` and, for a format that
-    needs an optional library, ``module`` (its import name) and ``extra`` (the pip extra)."""
+    """One data file.
+
+    Subclasses set ``format`` (a name), ``extensions`` and, for a format that needs an optional
+    library, ``module`` (its import name) and ``extra`` (the pip extra).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    time_column : str
+        The time column or channel (s).
+    group : str, optional
+        The group holding the channels (TDMS, HDF5; default all groups / the root).
+    """
 
     format: str = ""
     extensions: tuple = ()
@@ -89,8 +111,20 @@ class Reader(ABC):
 
     @abstractmethod
     def chunks(self, channels, size):
-        """Samples of ``channels`` (in the file's units) as arrays (k <= size, len(channels)), in
-        time order, covering the whole file."""
+        """The file's samples in time order, chunk by chunk, covering the whole file.
+
+        Parameters
+        ----------
+        channels : sequence of str
+            The channels to read, in this order.
+        size : int
+            Steps per chunk at most.
+
+        Yields
+        ------
+        ndarray (k, len(channels))
+            Samples in the file's units, ``k <= size``.
+        """
 
     def _check_channels(self, channels):
         known = self.channels()
@@ -111,9 +145,29 @@ def _require(module, extra, fmt):
 
 
 def check_time_grid(t, path, dt=None, offset=0):
-    """``Timing`` of time stamps ``t`` (s), or a located error: a time that repeats or goes back,
-    or a stamp off the uniform grid (a gap or jitter).  ``dt``: the step if known (else the mean
-    step); ``offset``: the row number of ``t[0]`` in the file (for messages)."""
+    """The time grid of time stamps, or a located error.
+
+    Parameters
+    ----------
+    t : ndarray (N,)
+        Time stamps (s).
+    path : str
+        The file, for messages.
+    dt : float, optional
+        The step if known (else the mean step).
+    offset : int
+        The row number of ``t[0]`` in the file (for messages).
+
+    Returns
+    -------
+    Timing
+
+    Raises
+    ------
+    AKFInputError
+        For a time that repeats or goes back, or a stamp off the uniform grid (a gap or jitter)
+        by more than :data:`TIME_GRID_RTOL` of a step.
+    """
     t = np.asarray(t, float)
     if t.size < 1:
         raise AKFInputError(f"{path}: 0 data rows; a record needs at least two time steps")
@@ -149,7 +203,13 @@ def check_time_grid(t, path, dt=None, offset=0):
 
 # ------------------------------------------------------------------------------------- tables
 class CsvReader(Reader):
-    """CSV: a header row, a time column and one numeric column per channel."""
+    """CSV: a header row, a time column and one numeric column per channel.
+
+    Parameters
+    ----------
+    path, time_column, group
+        As :class:`Reader`.
+    """
 
     format, extensions = "csv", (".csv", ".txt")
 
@@ -231,7 +291,13 @@ def _numeric(column, path, name, row0):
 
 
 class ParquetReader(Reader):
-    """Parquet (pyarrow): a time column and one numeric column per channel; read by row batches."""
+    """Parquet (pyarrow): a time column and one numeric column per channel; read by row batches.
+
+    Parameters
+    ----------
+    path, time_column, group
+        As :class:`Reader`.
+    """
 
     format, extensions = "parquet", (".parquet", ".pq")
 
@@ -334,7 +400,14 @@ class _SlicedReader(Reader):
 
 
 class TdmsReader(_SlicedReader):
-    """LabVIEW TDMS (npTDMS), opened for streaming: only the chunks asked for are read."""
+    """LabVIEW TDMS (npTDMS), opened for streaming: only the chunks asked for are read.
+
+    Parameters
+    ----------
+    path, time_column, group
+        As :class:`Reader`; the time comes from a time channel or from the waveform properties
+        (``wf_start_time``, ``wf_increment``).
+    """
 
     format, extensions, module, extra = "tdms", (".tdms",), "nptdms", "tdms"
 
@@ -397,7 +470,13 @@ UFF_FUNCTION_TYPES = {0: "general or unknown function", 2: "auto spectrum", 3: "
 
 
 class Uff58Reader(Reader):
-    """Universal File Format data sets 58 (pyuff): one set per channel, evenly spaced."""
+    """Universal File Format data sets 58 (pyuff): one set per channel, evenly spaced.
+
+    Parameters
+    ----------
+    path, time_column, group
+        As :class:`Reader` (the time comes from the sets' abscissa).
+    """
 
     format, extensions, module, extra = "uff", (".uff", ".unv"), "pyuff", "uff"
 
@@ -459,7 +538,13 @@ class Uff58Reader(Reader):
 
 
 class Hdf5Reader(_SlicedReader):
-    """HDF5 (h5py): 1-D datasets per channel in a group; read by slices."""
+    """HDF5 (h5py): 1-D datasets per channel in a group; read by slices.
+
+    Parameters
+    ----------
+    path, time_column, group
+        As :class:`Reader`.
+    """
 
     format, extensions, module, extra = "hdf5", (".h5", ".hdf5", ".hdf"), "h5py", "hdf5"
 
@@ -550,7 +635,19 @@ def formats():
 
 
 def reader_class(path, format=None):
-    """The :class:`Reader` class for ``path``: the named ``format`` or the one of its extension."""
+    """The :class:`Reader` class of a file.
+
+    Parameters
+    ----------
+    path : str
+        The file.
+    format : str, optional
+        A registered format name; default the one of the file's extension.
+
+    Returns
+    -------
+    type
+    """
     _load_entry_points()
     if format is not None:
         if format not in _READERS:
@@ -566,5 +663,19 @@ def reader_class(path, format=None):
 
 
 def open_file(path, format=None, time_column="time", group=None):
-    """A :class:`Reader` for one file."""
+    """A :class:`Reader` for one file.
+
+    Parameters
+    ----------
+    path : str
+        The file.
+    format : str, optional
+        A registered format name; default the one of the file's extension.
+    time_column, group
+        As :class:`Reader`.
+
+    Returns
+    -------
+    Reader
+    """
     return reader_class(path, format)(path, time_column=time_column, group=group)

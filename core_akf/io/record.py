@@ -33,8 +33,19 @@ _CONSTANT_MIN_STEPS = 16
 
 
 def record_files(spec):
-    """The files of a record from a path, a glob pattern, a folder (every file of a registered
-    format in it) or a list of those; sorted by name (:class:`Record` orders them by time)."""
+    """The files of a record.
+
+    Parameters
+    ----------
+    spec : str, os.PathLike or list of those
+        A path, a glob pattern, a folder (every file of a registered format in it) or a list of
+        those.
+
+    Returns
+    -------
+    list of str
+        Sorted by name (:class:`Record` orders them by time).
+    """
     specs = [spec] if isinstance(spec, (str, os.PathLike)) else list(spec)
     if not specs:
         raise AKFInputError("no measurement files given")
@@ -62,7 +73,21 @@ def record_files(spec):
 
 @dataclass(frozen=True)
 class Channel:
-    """One sensor's source: the file channel, its conversion to SI and its sign."""
+    """One sensor's source.
+
+    Attributes
+    ----------
+    sensor : str
+        The sensor label ("strain:13").
+    name : str
+        The file channel.
+    unit : str
+        The unit the channel is recorded in.
+    convert : Conversion
+        Its conversion to SI.
+    sign : float
+        +1, or -1 for an inverted channel.
+    """
 
     sensor: str
     name: str
@@ -72,22 +97,35 @@ class Channel:
 
 
 class Record:
-    """A measured record for ``sensors``.
+    """A measured record for a sensor layout, from one file or many.
 
     Parameters
     ----------
-    files : path, glob pattern, folder or list of those
-    sensors : sensor layout (labels such as ``"strain:13"``); the columns of every chunk, in order
-    channels : dict, optional -- file channel -> sensor label; default: each sensor's channel is
-        named like the sensor
-    units : dict, optional -- file channel -> unit (``"microstrain"``, ``"g"``, ``"mV/V"``, ...);
-        default the unit the file records, else SI
-    gauge_factor, bridge : number / str or dict per channel -- for bridge outputs (mV/V)
-    invert : channels whose sign is flipped
-    remove_offset : False, True (subtract each channel's mean over the record: one extra pass) or
-        a time in s (subtract the mean over the record's first that many seconds: zero drift of
-        gauges measured at rest)
-    format, time_column, group : passed to the readers (:mod:`core_akf.io.readers`)
+    files : str, os.PathLike or list of those
+        A path, glob pattern, folder or list of those (:func:`record_files`).
+    sensors : sequence of sensor specs
+        The layout (labels such as ``"strain:13"``): the columns of every chunk, in order.
+    channels : dict, optional
+        File channel -> sensor label; default: each sensor's channel is named like the sensor.
+    units : dict, optional
+        File channel -> unit (``"microstrain"``, ``"g"``, ``"mV/V"``, ...); default the unit the
+        file records, else SI.
+    gauge_factor : float or dict, optional
+        Gauge factor of bridge outputs (mV/V), one for all or per channel.
+    bridge : str or dict, optional
+        "quarter" (default), "half" or "full", one for all or per channel.
+    invert : sequence of str
+        Channels whose sign is flipped.
+    remove_offset : bool or float
+        False; True (subtract each channel's mean over the record: one extra pass); or a time in
+        s (subtract the mean over the record's first that many seconds: zero drift of gauges
+        measured at rest).
+    format : str, optional
+        The file format (default from the extension).
+    time_column : str
+        The time column or channel.
+    group : str, optional
+        TDMS or HDF5 group holding the channels.
     """
 
     def __init__(self, files, sensors, *, channels=None, units=None, gauge_factor=None, bridge=None, invert=(),
@@ -209,7 +247,18 @@ class Record:
         return sum(t.n_steps for t in self.timings)
 
     def check_dt(self, dt):
-        """Error unless the record's time step matches ``dt`` (s) to :data:`TIME_GRID_RTOL`."""
+        """Check the record's time step.
+
+        Parameters
+        ----------
+        dt : float
+            The job's time step (s).
+
+        Raises
+        ------
+        AKFInputError
+            Unless the record's step matches ``dt`` to :data:`TIME_GRID_RTOL`.
+        """
         if abs(self.dt - dt) > TIME_GRID_RTOL * dt:
             raise AKFInputError(f"{self.files[0]}: sampling interval {self.dt:.9g} s (median step) does not match the job's "
                                 f"dt = {dt:.9g} s ({self.dt / dt:.4g} x dt)")
@@ -264,9 +313,24 @@ class Record:
         return self.offsets
 
     def chunks(self, size=65536, start=0):
-        """``(first step, Y (k, m) in SI)`` for the record in chunks of ``size`` steps (the last
-        one shorter), from step ``start`` (a multiple of ``size``: where a resumed run continues).
-        Each chunk is checked: strain plausible in m/m, no channel constant over the chunk."""
+        """The record in chunks, in SI.
+
+        Each chunk is checked: strain plausible in m/m, no channel constant over the chunk.
+
+        Parameters
+        ----------
+        size : int
+            Steps per chunk (the last one shorter).
+        start : int
+            The first step, a multiple of ``size`` (where a resumed run continues).
+
+        Yields
+        ------
+        step : int
+            The record step of the chunk's first row.
+        Y : ndarray (k, m)
+            The samples in SI, columns in sensor order.
+        """
         if size < 1:
             raise AKFInputError(f"chunk size must be at least one step, got {size}")
         if start % size:
@@ -299,7 +363,20 @@ class Record:
         return repr(name) if name == label else f"{name!r} ({label})"
 
     def read(self, size=65536):
-        """The whole record in memory: ``(t (N,), Y (N, m) SI)``."""
+        """The whole record in memory.
+
+        Parameters
+        ----------
+        size : int
+            Steps read per chunk.
+
+        Returns
+        -------
+        t : ndarray (N,)
+            Time (s).
+        Y : ndarray (N, m)
+            Samples in SI, columns in sensor order.
+        """
         parts = [Y for _, Y in self.chunks(size)]
         Y = np.vstack(parts)
         return self.start + self.dt * np.arange(Y.shape[0]), Y

@@ -49,8 +49,22 @@ def registry():
 
 @dataclass(frozen=True)
 class Conversion:
-    """How one channel becomes SI: ``si = sign * scale * raw`` or, for a bridge, strain from the
-    bridge output ``r = scale * raw`` in V/V."""
+    """How one channel becomes SI.
+
+    ``si = sign * scale * raw`` or, for a bridge, strain from the bridge output
+    ``r = scale * raw`` in V/V.
+
+    Attributes
+    ----------
+    unit : str
+        The channel's unit.
+    scale : float
+        Factor to SI (or to V/V for a bridge output).
+    bridge : str or None
+        "quarter", "half" or "full" for a bridge output.
+    gauge_factor : float or None
+        Gauge factor of a bridge output.
+    """
 
     unit: str
     scale: float
@@ -71,9 +85,30 @@ _SIMPLE = {("strain", u): 1.0 for u in ("m/m", "strain")} | {("acc", "m/s^2"): 1
 
 
 def conversion(unit, kind, channel, gauge_factor=None, bridge=None):
-    """The :class:`Conversion` of ``channel`` (a name for messages) given in ``unit`` to the SI
-    unit of sensor ``kind``; a bridge unit (a voltage ratio) needs ``gauge_factor`` and takes
-    ``bridge`` (default "quarter")."""
+    """The :class:`Conversion` of a channel to the SI unit of its sensor kind.
+
+    Parameters
+    ----------
+    unit : str
+        The channel's unit (pint: "microstrain", "g", "mm/s", "mV/V").
+    kind : str
+        The sensor kind: "strain", "acc", "vel" or "disp".
+    channel : str
+        The channel's name, for messages.
+    gauge_factor : float, optional
+        Needed for a bridge unit (a voltage ratio).
+    bridge : str, optional
+        "quarter" (default), "half" or "full".
+
+    Returns
+    -------
+    Conversion
+
+    Examples
+    --------
+    >>> conversion("microstrain", "strain", "SG1")(1.0)
+    1e-06
+    """
     text = "" if unit is None else str(unit).strip()
     if (is_unset(text) or (kind, text) in _SIMPLE) and gauge_factor is None:
         return Conversion(SI_UNITS[kind] if is_unset(text) else text, 1.0)
@@ -131,7 +166,16 @@ def _has_dimension(parsed, unit, whole=False):
 
 
 def is_bridge_unit(unit):
-    """Whether ``unit`` is a bridge output (a voltage over a voltage: mV/V, V/V, µV/V)."""
+    """Whether a unit is a bridge output (a voltage over a voltage: mV/V, V/V, µV/V).
+
+    Parameters
+    ----------
+    unit : str
+
+    Returns
+    -------
+    bool
+    """
     if is_unset(unit) or str(unit).strip() in _GRAVITY:
         return False
     if re.fullmatch(r"[a-zA-Zµμ]?V\s*/\s*V", str(unit).strip()):      # V/V itself parses to a plain number
@@ -150,5 +194,14 @@ def _examples(kind):
 
 
 def is_unset(unit):
-    """A unit a file writes when it has none (``""``, ``"NONE"``, ``"-"``)."""
+    """Whether a unit is what a file writes when it has none (``""``, ``"NONE"``, ``"-"``).
+
+    Parameters
+    ----------
+    unit : str or None
+
+    Returns
+    -------
+    bool
+    """
     return unit is None or re.fullmatch(r"\s*(none|-|n/a|)\s*", str(unit), flags=re.I) is not None

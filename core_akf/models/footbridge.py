@@ -28,8 +28,28 @@ FOOTBRIDGE = dict(n_panels=84, panel=0.5, width=2.0, height=1.5, E=210e9, rho=78
 
 
 def footbridge_geometry(n_panels, panel, width, height):
-    """Node coordinates (n_nodes, 3) in m and members (n_members, 2, 1-based) with their group
-    ("chord", "web" or "bracing")."""
+    """The bridge's nodes and members.
+
+    Parameters
+    ----------
+    n_panels : int
+        Panels along the span (at least 2).
+    panel : float
+        Panel length (m).
+    width : float
+        Deck width (m).
+    height : float
+        Truss height (m).
+
+    Returns
+    -------
+    nodes : ndarray (n_nodes, 3)
+        Coordinates (m).
+    members : ndarray (n_members, 2)
+        End nodes, 1-based.
+    groups : ndarray of str
+        Each member's group: "chord", "web" or "bracing".
+    """
     if int(n_panels) < 2:
         raise ModelError(f"the bridge needs at least 2 panels, got {n_panels}")
     for label, v in (("panel", panel), ("width", width), ("height", height)):
@@ -70,9 +90,22 @@ def footbridge_geometry(n_panels, panel, width, height):
 
 
 def footbridge_matrices(**overrides):
-    """The bridge as an FE program would export it: ``K``, ``M`` (sparse CSR over all 3 DOFs of
-    every node, N/m and kg), ``dofs`` (node, direction per row), ``nodes`` (id -> (x, y, z)),
-    ``fixed`` (the supports), ``members`` (n_members x 2, 1-based) and ``groups``."""
+    """The bridge as an FE program would export it.
+
+    Parameters
+    ----------
+    **overrides
+        Keys of :data:`FOOTBRIDGE` to change (``n_panels``, ``panel``, ``width``, ``height`` in m,
+        ``E`` in Pa, ``rho`` in kg/m^3, the areas ``area_chord``, ``area_web``, ``area_bracing``
+        in m^2, ``deck_mass`` in kg per m^2 of deck).
+
+    Returns
+    -------
+    dict
+        ``K``, ``M`` (sparse CSR over all 3 DOFs of every node, N/m and kg), ``dofs`` (node,
+        direction per row), ``nodes`` (id -> (x, y, z)), ``fixed`` (the supports), ``members``
+        (n_members x 2, 1-based) and ``groups``.
+    """
     import scipy.sparse
 
     p = dict(FOOTBRIDGE)
@@ -112,9 +145,23 @@ def footbridge_matrices(**overrides):
 
 
 def footbridge(damping=0.005, n_modes=None, **overrides):
-    """The 3-D truss footbridge (:data:`FOOTBRIDGE`, parameters overridable) read through
-    :func:`~core_akf.models.from_matrices`: 340 nodes, 1011 free DOFs, 1097 members as strain
-    outputs ``strain:1..1097``; 0.5 % modal damping."""
+    """The 3-D truss footbridge, read through :func:`~core_akf.models.from_matrices`.
+
+    340 nodes, 1011 free DOFs, 1097 members as strain outputs ``strain:1..1097``.
+
+    Parameters
+    ----------
+    damping : float
+        Modal damping ratio (default 0.5 %).
+    n_modes : int, optional
+        Keep the lowest modes with a static correction.
+    **overrides
+        Keys of :data:`FOOTBRIDGE` to change (see :func:`footbridge_matrices`).
+
+    Returns
+    -------
+    Structure
+    """
     from .matrices import from_matrices
 
     parts = footbridge_matrices(**overrides)

@@ -50,9 +50,19 @@ class ModelWarning(UserWarning):
 
 
 def load_matrix(path):
-    """A matrix from a file: Matrix Market (``.mtx``, ``.mtx.gz``; what ANSYS HBMAT conversions,
-    Abaqus matrix output and OpenSees ``printA`` give), a scipy sparse ``.npz``
-    (``scipy.sparse.save_npz``), a NumPy ``.npz`` with one array, or ``.npy``."""
+    """A matrix from a file.
+
+    Parameters
+    ----------
+    path : str
+        Matrix Market (``.mtx``, ``.mtx.gz``; what ANSYS HBMAT conversions, Abaqus matrix output
+        and OpenSees ``printA`` give), a scipy sparse ``.npz`` (``scipy.sparse.save_npz``), a
+        NumPy ``.npz`` with one array, or ``.npy``.
+
+    Returns
+    -------
+    ndarray or scipy.sparse matrix
+    """
     import scipy.io
     import scipy.sparse
 
@@ -80,7 +90,17 @@ def load_matrix(path):
 
 
 def read_dof_map(path):
-    """The DOF map from a CSV file with columns ``node`` and ``direction``, one row per matrix row."""
+    """The DOF map from a CSV file.
+
+    Parameters
+    ----------
+    path : str
+        A CSV with columns ``node`` and ``direction``, one row per matrix row.
+
+    Returns
+    -------
+    list of (int, str)
+    """
     import pandas as pd
 
     table = _read_table(path, ["node", "direction"])
@@ -92,7 +112,18 @@ def read_dof_map(path):
 
 
 def read_nodes(path):
-    """Node coordinates from a CSV file with columns ``node``, ``x``, ``y`` and optionally ``z`` (m)."""
+    """Node coordinates from a CSV file.
+
+    Parameters
+    ----------
+    path : str
+        A CSV with columns ``node``, ``x``, ``y`` and optionally ``z`` (m).
+
+    Returns
+    -------
+    dict
+        Node id -> coordinates (m).
+    """
     import pandas as pd
 
     table = _read_table(path, ["node", "x", "y"])
@@ -115,8 +146,18 @@ def read_nodes(path):
 
 
 def read_extensometers(path):
-    """Extensometers (or truss members) from a CSV file with columns ``a`` and ``b`` (node ids), one
-    strain output per row in order: ``strain:1`` is the first row."""
+    """Extensometers (or truss members) from a CSV file.
+
+    Parameters
+    ----------
+    path : str
+        A CSV with columns ``a`` and ``b`` (node ids), one strain output per row in order:
+        ``strain:1`` is the first row.
+
+    Returns
+    -------
+    list of (int, int)
+    """
     import pandas as pd
 
     table = _read_table(path, ["a", "b"])
@@ -175,30 +216,53 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
                   name="imported model", n_modes=None):
     """A :class:`~core_akf.structure.Structure` from stiffness and mass matrices.
 
-    Parameters
-    ----------
-    K, M : (n, n) arrays or scipy sparse matrices -- N/m (N m/rad) and kg (kg m^2), one row per DOF
-    dofs : sequence of (node id, direction) -- the DOF of every matrix row, directions in
-        :data:`DIRECTIONS`
-    nodes : dict node id -> (x, y) or (x, y, z) in m -- every node of ``dofs``
-    fixed : sequence of (node, direction), ``"node:direction"`` or node ids (all of a node's DOFs)
-        -- constrained DOFs, removed from the model
-    damping : modal ratio (one or one per mode), ``("rayleigh", alpha, beta)`` or None; or ``C``
-        (n, n) a damping matrix in N s/m
-    extensometers : sequence of (node a, node b) -- strain outputs ``strain:1``, ``strain:2``, ...
-    strain_rows : (k, n) array or sparse matrix, optional -- strain outputs of one's own (a strain
-        operator from the FE program: strain = row . u over the matrix rows); they come first,
-        ``strain:1`` .. ``strain:k``, then the extensometers
-    n_modes : int, optional -- keep only the lowest ``n_modes`` modes, found by shift-invert
-        Lanczos on the sparse matrices, with a static correction for the others
-        (:mod:`core_akf.models.sparse`).  Models above :data:`~core_akf.models.sparse.DENSE_LIMIT` DOFs are always reduced
-        this way (default :data:`~core_akf.models.sparse.DEFAULT_MODES` modes); no dense n x n
-        matrix is formed then.
-
     Checks, each a clear error: sizes, symmetry, finite entries, a DOF map that covers the matrix
     once, known directions and nodes, positive definite M, and no rigid-body mode left (a model
     without enough constraints).  The first frequencies outside :data:`FREQUENCY_RANGE` give a
     :class:`ModelWarning` (units that look wrong).
+
+    Parameters
+    ----------
+    K, M : array_like (n, n) or scipy.sparse matrix
+        Stiffness (N/m, N m/rad) and mass (kg, kg m^2), one row per DOF.
+    dofs : sequence of (node id, direction)
+        The DOF of every matrix row, directions in :data:`DIRECTIONS`.
+    nodes : dict
+        Node id -> (x, y) or (x, y, z) in m, for every node of ``dofs``.
+    fixed : sequence, optional
+        Constrained DOFs, removed from the model: (node, direction), ``"node:direction"`` or node
+        ids (all of a node's DOFs).
+    damping : float, sequence of float, tuple or None
+        A modal ratio (one, or one per mode), ``("rayleigh", alpha, beta)``, or None (with ``C``).
+    C : array_like (n, n) or scipy.sparse matrix, optional
+        A damping matrix (N s/m) instead of ``damping``.
+    extensometers : sequence of (node a, node b), optional
+        Strain outputs ``strain:1``, ``strain:2``, ... between node pairs.
+    strain_rows : array_like (k, n) or scipy.sparse matrix, optional
+        Strain outputs of one's own (a strain operator from the FE program: strain = row . u over
+        the matrix rows); they come first, ``strain:1`` .. ``strain:k``, then the extensometers.
+    name : str
+        The model's name.
+    n_modes : int, optional
+        Keep only the lowest ``n_modes`` modes, found by shift-invert Lanczos on the sparse
+        matrices, with a static correction for the others (:mod:`core_akf.models.sparse`).
+        Models above :data:`~core_akf.models.sparse.DENSE_LIMIT` DOFs are always reduced this way
+        (default :data:`~core_akf.models.sparse.DEFAULT_MODES` modes); no dense n x n matrix is
+        formed then.
+
+    Returns
+    -------
+    Structure
+
+    Examples
+    --------
+    A two-storey shear frame (1 N/m springs, 1 kg masses):
+
+    >>> import numpy as np
+    >>> s = from_matrices(np.array([[2.0, -1.0], [-1.0, 1.0]]), np.eye(2), [(1, "x"), (2, "x")],
+    ...                   {1: (0.0, 1.0), 2: (0.0, 2.0)}, damping=0.02)
+    >>> [round(float(f), 4) for f in s.frequencies()]
+    [0.0984, 0.2575]
     """
     if n_modes is not None:
         n_modes = check_n_modes(n_modes)
@@ -303,12 +367,35 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
 
 def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, strains=None, name=None,
                n_modes=None):
-    """:func:`from_matrices` with the matrices and tables given as files: ``K``, ``M`` (and
-    ``C``) as :func:`load_matrix` reads them, ``dofs`` a CSV of columns node, direction
-    (:func:`read_dof_map`), ``nodes`` a CSV of columns node, x, y[, z] (:func:`read_nodes`),
-    ``strains`` a strain operator (k x n) as :func:`load_matrix` reads it, ``extensometers`` a list
-    of node pairs or a CSV of columns a, b (:func:`read_extensometers`).
-    ``damping`` may also be ``["rayleigh", alpha, beta]`` as a job file writes it."""
+    """:func:`from_matrices` with the matrices and tables given as files.
+
+    Parameters
+    ----------
+    K, M : str
+        Files as :func:`load_matrix` reads them (Matrix Market, ``.npz``, ``.npy``).
+    dofs : str
+        A CSV of columns node, direction (:func:`read_dof_map`).
+    nodes : str
+        A CSV of columns node, x, y[, z] (:func:`read_nodes`).
+    fixed : sequence, optional
+        As :func:`from_matrices`.
+    damping : float, sequence or None
+        As :func:`from_matrices`; also ``["rayleigh", alpha, beta]`` as a job file writes it.
+    C : str, optional
+        A damping matrix file (:func:`load_matrix`).
+    extensometers : str or sequence of (node a, node b), optional
+        Node pairs, or a CSV of columns a, b (:func:`read_extensometers`).
+    strains : str, optional
+        A strain operator (k x n) as :func:`load_matrix` reads it.
+    name : str, optional
+        The model's name (default the stiffness file's stem).
+    n_modes : int, optional
+        As :func:`from_matrices`.
+
+    Returns
+    -------
+    Structure
+    """
     if isinstance(damping, list):
         damping = tuple(damping)
     if isinstance(extensometers, (str, os.PathLike)):

@@ -46,8 +46,29 @@ def _bending_B(dNx, dNy):
 
 
 def rectangular_element(a, b, thickness, E, nu, rho, shear_factor=5.0 / 6.0):
-    """Stiffness and mass (12 x 12) of an a x b rectangular Mindlin element (m, Pa, kg/m^3),
-    DOFs ``[w1, rx1, ry1, ..., w4, rx4, ry4]`` counter-clockwise from the lower-left corner."""
+    """Stiffness and mass of a rectangular Mindlin element.
+
+    Parameters
+    ----------
+    a, b : float
+        Element size along x and y (m).
+    thickness : float
+        m.
+    E : float
+        Young's modulus (Pa).
+    nu : float
+        Poisson's ratio.
+    rho : float
+        Density (kg/m^3).
+    shear_factor : float
+        Shear correction factor (5/6).
+
+    Returns
+    -------
+    K, M : ndarray (12, 12)
+        DOFs ``[w1, rx1, ry1, ..., w4, rx4, ry4]`` counter-clockwise from the lower-left corner
+        (N/m, N, N m/rad; kg, kg m, kg m^2).
+    """
     t = thickness
     Db = E * t ** 3 / (12 * (1 - nu ** 2)) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
     Ds = shear_factor * E / (2 * (1 + nu)) * t * np.eye(2)
@@ -118,7 +139,8 @@ def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01
     clamped_edge : str or sequence of str or None
         Edge(s) with all DOFs fixed: ``"x0"`` (x = 0), ``"x1"`` (x = lx), ``"y0"`` (y = 0),
         ``"y1"`` (y = ly).
-    damping : see :class:`~core_akf.structure.Structure` (default 1 % modal, TH)
+    damping : float, sequence, tuple or None
+        As :class:`~core_akf.structure.Structure` (default 1 % modal, TH).
     simply_supported_edges : str or sequence of str, optional
         Hard simple supports: ``w`` and the rotation along the edge fixed.
     n_modes : int, optional
@@ -126,6 +148,20 @@ def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01
         (:mod:`core_akf.models.sparse`).  A mesh of more than
         :data:`~core_akf.models.sparse.DENSE_LIMIT` DOFs is always built this way (default
         :data:`~core_akf.models.sparse.DEFAULT_MODES` modes).
+    name : str, optional
+        The model's name (default "plate NXxNY").
+
+    Returns
+    -------
+    Structure
+        Nodes numbered row by row from (0, 0), 1-based; strain outputs ``strain:NODE:ex``,
+        ``ey`` and ``gxy`` (surface strains) at every node.
+
+    Examples
+    --------
+    >>> s = plate(4, 2, 0.4, 0.2, 0.002, 200e9, 0.3, 7800.0)
+    >>> s.n_nodes, s.n, s.n_strain
+    (15, 30, 45)
     """
     if n_modes is not None:
         n_modes = check_n_modes(n_modes)
@@ -204,11 +240,22 @@ def _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_suppor
 
 
 def plate_matrices(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", simply_supported_edges=None):
-    """The sparse matrices of :func:`plate` as an FE program would export them, for
-    :func:`~core_akf.models.from_matrices`: ``K``, ``M`` (N/m, kg; all DOFs, CSR), ``strains``
-    (3 n_nodes x n_dofs: all e_x, then e_y, then g_xy at the nodes), ``dofs`` (node id, direction
-    per row: ``z`` for w, ``rx``, ``ry``), ``nodes`` (id -> (x, y), m) and ``fixed`` (the
-    constrained DOFs), node ids 1-based as in :func:`plate`."""
+    """The sparse matrices of :func:`plate` as an FE program would export them.
+
+    For :func:`~core_akf.models.from_matrices`; node ids 1-based as in :func:`plate`.
+
+    Parameters
+    ----------
+    nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges
+        As :func:`plate`.
+
+    Returns
+    -------
+    dict
+        ``K``, ``M`` (N/m, kg; all DOFs, CSR), ``strains`` (3 n_nodes x n_dofs: all e_x, then
+        e_y, then g_xy at the nodes), ``dofs`` (node id, direction per row: ``z`` for w, ``rx``,
+        ``ry``), ``nodes`` (id -> (x, y), m) and ``fixed`` (the constrained DOFs).
+    """
     K, M, S, nodes, free = _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges,
                                      True)
     n_nodes = nodes.shape[0]
@@ -236,7 +283,20 @@ def _sparse_assembly(rows, cols, Ke, Me, Bc, conn, edofs, count, n_full):
 
 
 def uniform_pressure_load(structure, q):
-    """Consistent nodal forces (N) of a uniform pressure ``q`` (Pa) on a plate, in free DOFs."""
+    """Consistent nodal forces of a uniform pressure on a plate.
+
+    Parameters
+    ----------
+    structure : Structure
+        A plate of :func:`plate`.
+    q : float
+        Pressure (Pa).
+
+    Returns
+    -------
+    ndarray (n,)
+        Forces (N) and moments (N m) in the free DOFs.
+    """
     meta = structure.meta
     nx, ny = meta["nx"], meta["ny"]
     area = meta["lx"] / nx * meta["ly"] / ny
@@ -255,7 +315,21 @@ TH_PLATE = dict(lx=0.4064, ly=0.3048, thickness=0.003175, E=200e9, nu=0.3, rho=7
 
 
 def th_plate(nx=10, ny=10, rho=TH_PLATE["rho"], damping=0.01):
-    """The thesis plate: 10 x 10 mesh, clamped long edge (nodes 1-11), 1 % modal damping."""
+    """The thesis plate: clamped long edge (nodes 1-11), 1 % modal damping.
+
+    Parameters
+    ----------
+    nx, ny : int
+        The mesh (10 x 10 in the thesis).
+    rho : float
+        Density (kg/m^3).
+    damping : float
+        Modal damping ratio.
+
+    Returns
+    -------
+    Structure
+    """
     p = dict(TH_PLATE, rho=rho)
     return plate(nx, ny, p["lx"], p["ly"], p["thickness"], p["E"], p["nu"], p["rho"],
                  clamped_edge="y0", damping=damping, name=f"TH plate {nx}x{ny}")
@@ -264,8 +338,17 @@ def th_plate(nx=10, ny=10, rho=TH_PLATE["rho"], damping=0.01):
 def imp_plate(damping=0.01):
     """The IMP cantilever plate: 5 x 5 elements (36 nodes, 108 DOFs before supports).
 
-    IMP gives no dimensions; we take the thesis plate's size, material and thickness with
-    the short edge x = lx clamped (nodes 6, 12, ..., 36 as in IMP Fig. 18).
+    IMP gives no dimensions; we take the thesis plate's size, material and thickness with the
+    short edge x = lx clamped (nodes 6, 12, ..., 36 as in IMP Fig. 18).
+
+    Parameters
+    ----------
+    damping : float
+        Modal damping ratio.
+
+    Returns
+    -------
+    Structure
     """
     p = TH_PLATE
     return plate(5, 5, p["lx"], p["ly"], p["thickness"], p["E"], p["nu"], p["rho"],

@@ -23,8 +23,22 @@ DEFAULT_MODES = 100
 
 
 def refuse_complex(A, name):
-    """A complex matrix (hysteretic or structural damping as ``K (1 + i eta)``) is refused: the
-    models here are real, their damping a ratio, Rayleigh coefficients or ``C``."""
+    """Refuse a complex matrix.
+
+    Hysteretic or structural damping as ``K (1 + i eta)`` is not modelled: the models here are
+    real, their damping a ratio, Rayleigh coefficients or ``C``.
+
+    Parameters
+    ----------
+    A : array_like or scipy.sparse matrix
+    name : str
+        Its name in the message.
+
+    Raises
+    ------
+    ModelError
+        For complex entries.
+    """
     if np.iscomplexobj(A.data if hasattr(A, "tocsr") and hasattr(A, "data") else A):
         raise AKFInputError(f"{name} is complex; the state-space models here are real: give the real part as {name} "
                             "and the damping as a modal ratio (damping = 0.02), Rayleigh coefficients or a damping "
@@ -32,7 +46,19 @@ def refuse_complex(A, name):
 
 
 def check_n_modes(n_modes, name="n_modes"):
-    """``n_modes`` as an int >= 1; ``2.5``, ``"all"`` or ``True`` are clear errors."""
+    """A number of modes, checked.
+
+    Parameters
+    ----------
+    n_modes : int
+    name : str
+        Its name in the message.
+
+    Returns
+    -------
+    int
+        ``n_modes`` as an int >= 1; ``2.5``, ``"all"`` or ``True`` are clear errors.
+    """
     if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise AKFInputError(f"{name} must be a whole number of modes >= 1, got {n_modes!r} (leave it out for the full "
                             "model up to the size where it is reduced anyway)")
@@ -40,7 +66,18 @@ def check_n_modes(n_modes, name="n_modes"):
 
 
 def as_sparse(A, name):
-    """``A`` as a CSR matrix of floats, checked square and finite."""
+    """A matrix as CSR of floats, checked square and finite.
+
+    Parameters
+    ----------
+    A : array_like (n, n) or scipy.sparse matrix
+    name : str
+        Its name in a message.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix
+    """
     import scipy.sparse
 
     refuse_complex(A, name)
@@ -54,7 +91,21 @@ def as_sparse(A, name):
 
 
 def check_symmetric(A, name, rtol):
-    """The symmetric part of a sparse ``A``; an error names the worst asymmetric pair."""
+    """The symmetric part of a sparse matrix, checked nearly symmetric.
+
+    Parameters
+    ----------
+    A : scipy.sparse matrix (n, n)
+    name : str
+        Its name in a message.
+    rtol : float
+        Largest asymmetry accepted, relative to the largest entry.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix
+        ``(A + A^T) / 2``; an error names the worst asymmetric pair.
+    """
     if A.nnz == 0:
         raise AKFInputError(f"{name} is all zeros")
     scale = float(np.max(np.abs(A.data)))
@@ -69,8 +120,24 @@ def check_symmetric(A, name, rtol):
 
 
 def factorise(K, name="model"):
-    """Sparse LU factorisation of ``K`` (SuperLU); a singular ``K`` (a model free to
-    move as a rigid body) is an :class:`AKFInputError`."""
+    """Sparse LU factorisation (SuperLU).
+
+    Parameters
+    ----------
+    K : scipy.sparse matrix (n, n)
+        Stiffness of the free DOFs.
+    name : str
+        The model's name in a message.
+
+    Returns
+    -------
+    scipy.sparse.linalg.SuperLU
+
+    Raises
+    ------
+    AKFInputError
+        For a singular ``K`` (a model free to move as a rigid body).
+    """
     import scipy.sparse.linalg
 
     try:
@@ -83,10 +150,25 @@ def factorise(K, name="model"):
 
 
 def lowest_modes(K, M, n_modes, name="model"):
-    """The ``n_modes`` lowest modes of sparse ``K`` and ``M`` (n x n, free DOFs).
+    """The lowest modes of a sparse model (shift-invert Lanczos).
 
-    Returns ``omega`` (rad/s, ascending), ``phi`` (n, n_modes, mass-normalised) and ``solve``
-    (``K^-1`` applied to an (n, k) array, from one sparse factorisation)."""
+    Parameters
+    ----------
+    K, M : scipy.sparse matrix (n, n)
+        Stiffness (N/m) and mass (kg) of the free DOFs.
+    n_modes : int
+    name : str
+        The model's name in a message.
+
+    Returns
+    -------
+    omega : ndarray (n_modes,)
+        Circular frequencies (rad/s), ascending.
+    phi : ndarray (n, n_modes)
+        Mass-normalised modes.
+    solve : callable
+        ``K^-1`` applied to an (n, k) array, from one sparse factorisation.
+    """
     import scipy.sparse.linalg
 
     n = K.shape[0]
@@ -122,9 +204,30 @@ def lowest_modes(K, M, n_modes, name="model"):
 
 
 def modal_parts(K, M, n_modes, C=None, name="model"):
-    """What a reduced :class:`~core_akf.structure.Structure` of a sparse model holds: ``K_r``
-    (diag omega^2), ``basis`` (n, n_modes), the projection ``Phi^T M``, ``C_r = Phi^T C Phi``
-    (None without ``C``) and the :class:`StaticCorrection`."""
+    """What a reduced :class:`~core_akf.structure.Structure` of a sparse model holds.
+
+    Parameters
+    ----------
+    K, M : scipy.sparse matrix (n, n)
+        Stiffness (N/m) and mass (kg) of the free DOFs.
+    n_modes : int
+    C : scipy.sparse matrix (n, n), optional
+        Damping (N s/m).
+    name : str
+        The model's name in a message.
+
+    Returns
+    -------
+    K_r : ndarray (n_modes, n_modes)
+        ``diag(omega^2)``.
+    basis : ndarray (n, n_modes)
+        The mass-normalised modes.
+    projection : ndarray (n_modes, n)
+        ``Phi^T M``.
+    C_r : ndarray (n_modes, n_modes) or None
+        ``Phi^T C Phi`` (None without ``C``).
+    static : StaticCorrection
+    """
     omega, phi, solve = lowest_modes(K, M, n_modes, name)
     P = np.asarray((M @ phi).T)
     Cr = None if C is None else np.asarray(phi.T @ (C @ phi))

@@ -46,7 +46,20 @@ S17_VERTICAL = (5, 9, 13, 17, 19, 22, 26, 30)
 
 
 def s17_joint_coordinates(panel=1.0, height=1.0):
-    """Joint coordinates (m), shape (18, 2): joint 1 at (0, 0), joint 18 at (9 panel, 0)."""
+    """Joint coordinates of the S17 truss: joint 1 at (0, 0), joint 18 at (9 panel, 0).
+
+    Parameters
+    ----------
+    panel : float
+        Panel length (m).
+    height : float
+        Truss height (m).
+
+    Returns
+    -------
+    ndarray (18, 2)
+        Coordinates (m); joint ``i`` is row ``i - 1``.
+    """
     xy = np.zeros((18, 2))
     xy[0] = (0.0, 0.0)
     xy[17] = (9 * panel, 0.0)
@@ -57,8 +70,33 @@ def s17_joint_coordinates(panel=1.0, height=1.0):
 
 
 def bar_matrices(xy_i, xy_j, E, A, rho, lumped=False):
-    """Stiffness and mass (4 x 4) of a 2-node planar bar, DOFs ``[u_i, v_i, u_j, v_j]``,
-    and its strain row (1 x 4): ``eps = [-c, -s, c, s] / L . d`` (S17 eq. 35-36)."""
+    """Stiffness, mass and strain row of a 2-node planar bar.
+
+    DOFs ``[u_i, v_i, u_j, v_j]``; the strain row gives ``eps = [-c, -s, c, s] / L . d``
+    (S17 eq. 35-36).
+
+    Parameters
+    ----------
+    xy_i, xy_j : array_like (2,)
+        End coordinates (m).
+    E : float
+        Young's modulus (Pa).
+    A : float
+        Cross-section area (m^2).
+    rho : float
+        Density (kg/m^3).
+    lumped : bool
+        Lumped instead of consistent mass.
+
+    Returns
+    -------
+    K : ndarray (4, 4)
+        N/m.
+    M : ndarray (4, 4)
+        kg.
+    strain_row : ndarray (4,)
+        1/m.
+    """
     d = np.asarray(xy_j, float) - np.asarray(xy_i, float)
     L = float(np.hypot(*d))
     if L <= 0:
@@ -89,9 +127,17 @@ def planar_truss(nodes, members, areas, E, rho, supports, damping=None, lumped=F
         Young's modulus (Pa) and density (kg/m^3).
     supports : dict {joint: directions}
         Constrained DOFs, e.g. ``{1: "xy", 18: "y"}``.
-    damping : see :class:`~core_akf.structure.Structure`
+    damping : float, sequence, tuple or None
+        As :class:`~core_akf.structure.Structure`.
     lumped : bool
         Lumped instead of consistent mass.
+    name : str
+        The model's name.
+
+    Returns
+    -------
+    Structure
+        Strain outputs ``strain:1`` .. ``strain:K``: the members in order.
     """
     nodes = np.asarray(nodes, float)
     n_nodes = nodes.shape[0]
@@ -136,16 +182,52 @@ def s17_areas():
 
 
 def s17_truss(E=200e9, rho=7800.0, damping=0.007, panel=1.0, height=1.0, lumped=False):
-    """The S17 / IMP planar truss: 18 joints, 34 members, pin at joint 1, roller at joint 18."""
+    """The S17 / IMP planar truss: 18 joints, 34 members, pin at joint 1, roller at joint 18.
+
+    Parameters
+    ----------
+    E : float
+        Young's modulus (Pa).
+    rho : float
+        Density (kg/m^3).
+    damping : float
+        Modal damping ratio.
+    panel, height : float
+        Panel length and truss height (m).
+    lumped : bool
+        Lumped instead of consistent mass.
+
+    Returns
+    -------
+    Structure
+        Strain outputs ``strain:1`` .. ``strain:34`` (the members).
+
+    Examples
+    --------
+    >>> s = s17_truss()
+    >>> s.n, s.n_strain, round(float(s.frequencies(1)[0]), 2)
+    (33, 34, 30.37)
+    """
     return planar_truss(s17_joint_coordinates(panel, height), S17_MEMBERS, s17_areas(), E, rho,
                  supports={1: "xy", 18: "y"}, damping=damping, lumped=lumped, name="S17 truss")
 
 
 def member_strain_exact(structure, u_free):
-    """Exact geometric member strains ``(|x_j + d_j - x_i - d_i| - L) / L`` (S17), shape (..., n_members).
+    """Exact geometric member strains ``(|x_j + d_j - x_i - d_i| - L) / L`` (S17).
 
-    ``u_free`` holds free physical displacements (m), shape (..., n_phys); for small
-    displacements this equals ``structure.strain_matrix @ u_free`` (S17 eq. 35-36).
+    For small displacements this equals ``structure.strain_matrix @ u_free`` (S17 eq. 35-36).
+
+    Parameters
+    ----------
+    structure : Structure
+        A truss of :func:`planar_truss`.
+    u_free : ndarray (..., n_phys)
+        Free physical displacements (m).
+
+    Returns
+    -------
+    ndarray (..., n_members)
+        Strains (m/m).
     """
     u_free = np.asarray(u_free, float)
     d = np.zeros(u_free.shape[:-1] + (2 * structure.n_nodes,))

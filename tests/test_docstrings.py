@@ -1,0 +1,115 @@
+"""Every public function, method and class of the library packages documents every parameter in
+numpydoc form (``name : type``), as python-control's ``docstrings_test.py`` checks its own.
+
+Public: a name without a leading underscore, defined in a module of ``core_akf``, ``sensoropt``
+or ``impactloc`` (re-exports are checked where they are defined).  A class documents the
+parameters of its constructor in its own docstring (or its ``__init__``'s); a method's docstring
+may be inherited from the method it overrides.  ``*args`` and ``**kwargs`` are documented as
+``*args`` / ``**kwargs``.
+"""
+import importlib
+import inspect
+import pkgutil
+import re
+
+import pytest
+
+PACKAGES = ("core_akf", "sensoropt", "impactloc")
+
+
+def _modules():
+    for name in PACKAGES:
+        package = importlib.import_module(name)
+        yield package
+        for info in pkgutil.walk_packages(package.__path__, name + "."):
+            yield importlib.import_module(info.name)
+
+
+def _callables():
+    """``(qualified name, callable for the signature, docstring)`` of every public function,
+    method and class."""
+    seen = set()
+    for module in _modules():
+        for name, obj in sorted(vars(module).items()):
+            if name.startswith("_") or getattr(obj, "__module__", None) != module.__name__ or id(obj) in seen:
+                continue
+            if inspect.isfunction(obj):
+                seen.add(id(obj))
+                yield f"{module.__name__}.{name}", obj, inspect.getdoc(obj)
+            elif inspect.isclass(obj):
+                seen.add(id(obj))
+                if obj.__doc__ is None or (issubclass(obj, BaseException) and "__init__" not in vars(obj)):
+                    yield f"{module.__name__}.{name}", None, obj.__doc__      # an exception: a docstring is enough
+                else:
+                    init = vars(obj).get("__init__")
+                    doc = (inspect.getdoc(obj) or "") + "\n" + (inspect.getdoc(init) or "" if init else "")
+                    takes = init if init is not None else (obj if "__dataclass_fields__" in vars(obj) else None)
+                    yield f"{module.__name__}.{name}", takes, doc
+                for attr, member in sorted(vars(obj).items()):
+                    if attr.startswith("_"):
+                        continue
+                    func = member.__func__ if isinstance(member, (staticmethod, classmethod)) else member
+                    if inspect.isfunction(func):
+                        yield f"{module.__name__}.{name}.{attr}", func, inspect.getdoc(getattr(obj, attr))
+
+
+CALLABLES = list(_callables())
+
+
+def _documented(name, doc):
+    """``name`` in a numpydoc parameter line: ``name : type``, also in a list ``a, name : type``,
+    or a line of names alone (the type left out)."""
+    names = r"((\*{0,2}\w+), )*"
+    return re.search(r"(^|\n)[ ]*" + names + re.escape(name) + r"(, \*{0,2}\w+)*( :|\n|$)", doc) is not None
+
+
+def _parameters(func):
+    try:
+        signature = inspect.signature(func)
+    except (TypeError, ValueError):
+        return []
+    out = []
+    for name, p in signature.parameters.items():
+        if name in ("self", "cls") or name.startswith("_"):
+            continue
+        out.append({p.VAR_POSITIONAL: f"*{name}", p.VAR_KEYWORD: f"**{name}"}.get(p.kind, name))
+    return out
+
+
+def test_the_packages_have_public_callables():
+    assert len(CALLABLES) > 300
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_every_public_callable_has_a_docstring(package):
+    missing = [q for q, _, doc in CALLABLES if q.startswith(package + ".") and not (doc or "").strip()]
+    assert not missing, missing
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_every_parameter_is_documented(package):
+    undocumented = []
+    for qualified, func, doc in CALLABLES:
+        if not qualified.startswith(package + ".") or func is None:
+            continue
+        bad = [p for p in _parameters(func) if not _documented(p, doc or "")]
+        if bad:
+            undocumented.append(f"{qualified}: {', '.join(bad)}")
+    assert not undocumented, f"{len(undocumented)} callables with undocumented parameters:\n" + "\n".join(undocumented)
+
+
+def test_the_check_finds_an_undocumented_parameter():
+    def documented(a, b):
+        """Parameters
+        ----------
+        a, b : float
+        """
+
+    def half(a, b):
+        """Parameters
+        ----------
+        a : float
+            Mentions b in prose only.
+        """
+    assert all(_documented(p, inspect.getdoc(documented)) for p in _parameters(documented))
+    assert [p for p in _parameters(half) if not _documented(p, inspect.getdoc(half))] == ["b"]
