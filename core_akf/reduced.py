@@ -76,8 +76,19 @@ class ModalFilterModel:
         return self.A_a.shape[0]
 
     def observation(self, sensors):
-        """Augmented observation rows ``[G T, D]`` (m x n_a) for a sensor layout, with the
-        static correction of a reduced model on strain and displacement rows."""
+        """Augmented observation rows ``[G T, D]`` for a sensor layout.
+
+        Strain and displacement rows carry the static correction of a reduced model.
+
+        Parameters
+        ----------
+        sensors : sequence of sensor specs
+            m sensors.
+
+        Returns
+        -------
+        ndarray (m, n_a)
+        """
         G, D = observation(self.structure, as_layout(sensors), self.forces)
         return np.hstack([G @ self.T, D])
 
@@ -92,7 +103,19 @@ class ModalFilterModel:
         return out
 
     def Q_a(self, model_error_cov, force_increment_cov):
-        """``blockdiag(q Q_unit, S)`` for a scalar state level and a scalar or per-force S."""
+        """The augmented process covariance ``blockdiag(q Q_unit, S)`` in modal coordinates.
+
+        Parameters
+        ----------
+        model_error_cov : float
+            A scalar state level ``q`` (per physical DOF, as :func:`~core_akf.covariances.state_covariance`).
+        force_increment_cov : float or array_like (n_p,)
+            ``S`` (N^2 per step), one for all forces or one per force.
+
+        Returns
+        -------
+        ndarray (n_a, n_a)
+        """
         Q = np.zeros((self.n_a, self.n_a))
         Q[:self.n_states, :self.n_states] = float(model_error_cov) * self.Q_unit
         S = np.broadcast_to(np.asarray(force_increment_cov, float), (len(self.forces),))

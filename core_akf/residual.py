@@ -40,8 +40,18 @@ class StaticCorrection:
         return self.phi.shape[0]
 
     def residual(self, dofs):
-        """Residual displacement (n_phys, len(dofs)) in m/N for unit forces at the physical free
-        DOF indices ``dofs`` (0-based)."""
+        """Residual displacement for unit forces at physical free DOFs.
+
+        Parameters
+        ----------
+        dofs : sequence of int
+            Physical free DOF indices (0-based).
+
+        Returns
+        -------
+        ndarray (n_phys, len(dofs))
+            m/N (cached per set of DOFs).
+        """
         key = tuple(int(d) for d in dofs)
         if key not in self._cache:
             unit = np.zeros((self.n_phys, len(key)))
@@ -52,14 +62,35 @@ class StaticCorrection:
         return self._cache[key]
 
     def scaled(self, stiffness_factor=1.0, mass_factor=1.0):
-        """The correction of the model with ``K`` times ``stiffness_factor`` and ``M`` times
-        ``mass_factor`` (modes ``phi / sqrt(mass_factor)``, frequencies times
-        ``sqrt(stiffness_factor / mass_factor)``, ``K^-1`` over ``stiffness_factor``)."""
+        """The correction of the model with ``K`` times ``stiffness_factor`` and ``M`` times ``mass_factor``.
+
+        Modes ``phi / sqrt(mass_factor)``, frequencies times ``sqrt(stiffness_factor / mass_factor)``,
+        ``K^-1`` over ``stiffness_factor``.
+
+        Parameters
+        ----------
+        stiffness_factor, mass_factor : float
+
+        Returns
+        -------
+        StaticCorrection
+        """
         return StaticCorrection(self.solve, self.phi / np.sqrt(mass_factor),
                                 self.omega * np.sqrt(stiffness_factor / mass_factor),
                                 self.flexibility_scale / stiffness_factor)
 
     def keeping(self, phi, omega):
-        """The correction of the same model reduced to fewer modes: ``phi`` (n_phys, k) and
-        ``omega`` (k,) are the modes it keeps now; the others join the residual."""
+        """The correction of the same model reduced to fewer modes; the others join the residual.
+
+        Parameters
+        ----------
+        phi : ndarray (n_phys, k)
+            The modes it keeps now (mass-normalised).
+        omega : ndarray (k,)
+            Their circular frequencies (rad/s).
+
+        Returns
+        -------
+        StaticCorrection
+        """
         return StaticCorrection(self.solve, phi, omega, self.flexibility_scale)

@@ -29,7 +29,24 @@ _ALIASES = {"accel": "acc", "acceleration": "acc", "a": "acc", "velocity": "vel"
 
 @dataclass(frozen=True)
 class Sensor:
-    """One sensor: ``kind`` in ``("strain", "acc", "vel", "disp")`` plus its location."""
+    """One sensor: its kind and its location.
+
+    Build it from a string with :meth:`parse` (``"acc:4:y"``, ``"strain:5"``,
+    ``"strain:70:ex"``).
+
+    Parameters
+    ----------
+    kind : str
+        "strain", "acc", "vel" or "disp".
+    node : int, optional
+        The node id (1-based; point sensors and plate strains).
+    direction : str, optional
+        The measured direction of a point sensor ("x", "y", "z", "w").
+    member : int, optional
+        The strain output of a truss member, an extensometer or a strain row (1-based).
+    component : str, optional
+        The plate strain component: "ex", "ey" or "gxy".
+    """
 
     kind: str
     node: int | None = None
@@ -54,7 +71,22 @@ class Sensor:
 
     @classmethod
     def parse(cls, spec):
-        """Build a sensor from ``"acc:4:y"``, ``"strain:5"``, ``"strain:70:ex"``, a dict or a Sensor."""
+        """A sensor from its spec.
+
+        Parameters
+        ----------
+        spec : str, dict or Sensor
+            ``"acc:4:y"``, ``"strain:5"``, ``"strain:70:ex"``, a dict of the fields, or a Sensor.
+
+        Returns
+        -------
+        Sensor
+
+        Examples
+        --------
+        >>> Sensor.parse("acc:4:y").label
+        'acc:4:y'
+        """
         if isinstance(spec, Sensor):
             return spec
         if isinstance(spec, dict):
@@ -93,7 +125,21 @@ class Sensor:
 
 
 def as_layout(sensors):
-    """A tuple of :class:`Sensor` from any sensor specs; rejects empty and duplicate sets."""
+    """A tuple of :class:`Sensor` from any sensor specs.
+
+    Parameters
+    ----------
+    sensors : sequence of str, dict or Sensor
+
+    Returns
+    -------
+    tuple of Sensor
+
+    Raises
+    ------
+    AKFInputError
+        For an empty set or a sensor given twice.
+    """
     if isinstance(sensors, (str, Sensor, dict)):
         sensors = [sensors]
     layout = tuple(Sensor.parse(s) for s in sensors)
@@ -110,10 +156,22 @@ def as_layout(sensors):
 def selection_matrices(structure, sensors):
     """The observation selection matrices of S17 eq. 27-30 for a layout.
 
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+        m sensors.
+
     Returns
     -------
-    dict with ``"acc"``, ``"vel"``, ``"disp"``, ``"strain"`` -> ndarray, shape (n_m, n)
-        One row per sensor (in layout order), zero where the sensor is of another kind.
+    dict
+        ``"acc"``, ``"vel"``, ``"disp"``, ``"strain"`` -> ndarray (m, n): one row per sensor (in
+        layout order), zero where the sensor is of another kind.
+
+    Raises
+    ------
+    AKFInputError
+        For a sensor that is not on the structure (an unknown node, member or component).
     """
     layout = as_layout(sensors)
     n = structure.n
@@ -131,9 +189,22 @@ def selection_matrices(structure, sensors):
 
 
 def parse_force_locations(structure, forces):
-    """Force locations as ``[(node, direction), ...]`` from ``"4:y"`` strings or pairs.
+    """Force locations, checked against a structure.
 
-    Checks each against the structure (unknown node, constrained DOF) and for duplicates.
+    Parameters
+    ----------
+    structure : Structure
+    forces : sequence of str or (int, str)
+        ``"4:y"`` strings or ``(node, direction)`` pairs (1-based node ids).
+
+    Returns
+    -------
+    list of (int, str)
+
+    Raises
+    ------
+    AKFInputError
+        For an unknown node, a constrained DOF or a location given twice.
     """
     if isinstance(forces, str):
         forces = [forces]
@@ -161,9 +232,19 @@ def parse_force_locations(structure, forces):
 
 
 def strain_ends(structure, member):
-    """The two node ids a member-addressed strain output ``member`` (1-based) spans: a truss
-    member or a virtual extensometer; ``None`` for a row of a strain operator of one's own, which
-    has no place of its own."""
+    """The two nodes a member-addressed strain output spans.
+
+    Parameters
+    ----------
+    structure : Structure
+    member : int
+        The strain output (1-based): a truss member or a virtual extensometer.
+
+    Returns
+    -------
+    tuple of int or None
+        The two node ids; ``None`` for a row of a strain operator of one's own, which has no place.
+    """
     if structure.members is not None and 1 <= member <= len(structure.members):
         a, b = structure.members[member - 1]
         return int(a), int(b)
@@ -174,12 +255,20 @@ def strain_ends(structure, member):
 def sensor_positions(structure, sensors):
     """Where each sensor of a layout is, as a table for ``layout.csv`` and JSON.
 
-    Returns a :class:`pandas.DataFrame` with one row per sensor: ``sensor`` (label), ``kind``,
-    ``node`` (node id; the first end of a member or extensometer), ``node_b`` (its second end),
-    ``direction`` (point sensors) or ``component`` (plate strains), ``x``, ``y``, ``z`` (m; the
-    middle of a member or extensometer) and ``source`` (what the output is: ``dof``, ``member``,
-    ``extensometer``, ``operator row k`` or ``plate node``).  A strain row of an operator of one's
-    own has no place: its node and coordinates are empty.
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per sensor: ``sensor`` (label), ``kind``, ``node`` (node id; the first end of a
+        member or extensometer), ``node_b`` (its second end), ``direction`` (point sensors) or
+        ``component`` (plate strains), ``x``, ``y``, ``z`` (m; the middle of a member or
+        extensometer) and ``source`` (``dof``, ``member``, ``extensometer``, ``operator row k`` or
+        ``plate node``).  A strain row of an operator of one's own has no place: its node and
+        coordinates are empty.
     """
     import pandas as pd
 

@@ -27,13 +27,31 @@ MICROSTRAIN = 1e-6
 
 @dataclass
 class Simulation:
-    """Simulated response.
+    """Simulated response of a structure to known loads.
 
     Attributes
     ----------
-    time : (N,) s;  loads : (N, n_p) N;  states : (N, 2n) ``[u; u']``;
-    clean : (N, m) noise-free sensor readings;  measurements : (N, m) with noise;
-    noise_std : (m,) noise standard deviation per channel;  strains : (N, n_strain).
+    structure : Structure
+        The true structure.
+    sensors : tuple of Sensor
+        The layout, m channels.
+    force_locations : list of (int, str)
+    dt : float
+        Time step (s).
+    time : ndarray (N,)
+        s.
+    loads : ndarray (N, n_p)
+        The applied forces (N).
+    states : ndarray (N, 2n)
+        ``[u; u']``.
+    clean : ndarray (N, m)
+        Noise-free sensor readings (SI).
+    measurements : ndarray (N, m)
+        The readings with noise (SI).
+    noise_std : ndarray (m,)
+        Noise standard deviation per channel.
+    strains : ndarray (N, n_strain)
+        The true strain at every output (m/m).
     """
 
     structure: object
@@ -58,7 +76,18 @@ class Simulation:
         return out if extra is None else out + self.loads @ extra.T
 
     def response(self, sensors):
-        """Noise-free readings of any other sensors, shape (N, k)."""
+        """Noise-free readings of any other sensors.
+
+        Parameters
+        ----------
+        sensors : sequence of sensor specs
+            k sensors on the structure.
+
+        Returns
+        -------
+        ndarray (N, k)
+            SI.
+        """
         G, D = observation(self.structure, sensors, self.force_locations)
         return self.states @ G.T + self.loads @ D.T
 
@@ -66,9 +95,21 @@ class Simulation:
 def noise_levels(clean, sensors, relative=None, absolute=None):
     """Noise standard deviation per channel.
 
-    ``relative``: fraction of each channel's RMS (0.02 = 2 %).  ``absolute``: dict of standard
-    deviations per sensor kind in SI units, e.g. ``{"strain": 1 * MICROSTRAIN, "acc": 1 * MG}``.
-    Both may be given (variances add).
+    Parameters
+    ----------
+    clean : ndarray (N, m)
+        Noise-free readings (SI).
+    sensors : sequence of Sensor
+        The layout.
+    relative : float, optional
+        Fraction of each channel's RMS (0.02 = 2 %).
+    absolute : dict, optional
+        Standard deviations per sensor kind in SI units, e.g.
+        ``{"strain": 1 * MICROSTRAIN, "acc": 1 * MG}``.  Both may be given (variances add).
+
+    Returns
+    -------
+    ndarray (m,)
     """
     layout = as_layout(sensors)
     std2 = np.zeros(len(layout))
@@ -94,18 +135,33 @@ def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: Array
     structure : Structure
         The *true* structure (give the filter a different one to model error, e.g.
         ``structure.scaled(1.05)``).
-    sensors : sensor layout;  forces : force locations
+    sensors : sequence of sensor specs
+        The layout, m channels.
+    forces : sequence of force specs
+        Where the loads act (``"8:y"``), n_p locations.
     loads : ndarray (N, n_p)
         Force histories (N) held constant over each step (zero-order hold).
     dt : float
         Step (s).
-    relative_noise, absolute_noise : see :func:`noise_levels`
-    seed : int or Generator
+    relative_noise, absolute_noise
+        See :func:`noise_levels`.
+    seed : int or numpy.random.Generator, optional
         For the measurement noise.
+    x0 : array_like (2n,), optional
+        Initial state ``[u; u']`` (default at rest).
 
     Returns
     -------
     Simulation
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from core_akf.models import s17_truss
+    >>> sim = simulate(s17_truss(), ["strain:13", "acc:8:y"], ["8:y"], np.ones((50, 1)), 1e-3,
+    ...                relative_noise=0.02, seed=0)
+    >>> sim.measurements.shape, sim.strains.shape
+    ((50, 2), (50, 34))
     """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)

@@ -37,8 +37,20 @@ def _check_dt(dt):
 
 
 def modal_damping(structure, rtol=1e-10):
-    """Modal damping coefficients ``c_j = phi_j^T C phi_j`` (1/s) when ``Phi^T C Phi`` is
-    diagonal (classical damping: modal or Rayleigh), else ``None``."""
+    """Modal damping coefficients when the damping is classical.
+
+    Parameters
+    ----------
+    structure : Structure
+    rtol : float
+        Largest off-diagonal entry of ``Phi^T C Phi``, relative to its diagonal, for classical
+        damping (modal or Rayleigh).
+
+    Returns
+    -------
+    ndarray (n,) or None
+        ``c_j = phi_j^T C phi_j`` (1/s), or None for non-classical damping.
+    """
     phi = structure.eigen[1]
     Cm = phi.T @ structure.C @ phi
     c = np.diag(Cm).copy()
@@ -48,13 +60,33 @@ def modal_damping(structure, rtol=1e-10):
 
 
 def force_selection(structure, forces):
-    """``S_p`` (n x n_p): unit loads at the force locations, in generalised coordinates."""
+    """``S_p``: unit loads at the force locations, in generalised coordinates.
+
+    Parameters
+    ----------
+    structure : Structure
+    forces : sequence of force specs
+        n_p locations.
+
+    Returns
+    -------
+    ndarray (n, n_p)
+    """
     locs = parse_force_locations(structure, forces)
     return structure.dof_rows(locs).T
 
 
 def state_matrix(structure):
-    """Continuous-time ``A_c`` (2n x 2n) for state ``x = [u; u']``: ``[[0, I], [-M^-1 K, -M^-1 C]]``."""
+    """Continuous-time ``A_c = [[0, I], [-M^-1 K, -M^-1 C]]`` for the state ``x = [u; u']``.
+
+    Parameters
+    ----------
+    structure : Structure
+
+    Returns
+    -------
+    ndarray (2n, 2n)
+    """
     n = structure.n
     cf = _minv(structure)
     A_c = np.zeros((2 * n, 2 * n))
@@ -65,7 +97,20 @@ def state_matrix(structure):
 
 
 def continuous(structure, forces):
-    """Continuous-time ``A_c`` (2n x 2n) and ``B_c = [0; M^-1 S_p]`` (2n x n_p)."""
+    """The continuous-time structural model ``x' = A_c x + B_c f``.
+
+    Parameters
+    ----------
+    structure : Structure
+    forces : sequence of force specs
+        n_p locations.
+
+    Returns
+    -------
+    A_c : ndarray (2n, 2n)
+    B_c : ndarray (2n, n_p)
+        ``[0; M^-1 S_p]``.
+    """
     Sp = force_selection(structure, forces)
     MiSp = scipy.linalg.cho_solve(_minv(structure), Sp)
     return state_matrix(structure), np.vstack([np.zeros_like(MiSp), MiSp])
@@ -75,7 +120,18 @@ def zoh(A_c, B_c, dt):
     """Zero-order-hold discretisation from one block exponential.
 
     ``expm([[A_c, B_c], [0, 0]] dt) = [[A, B], [0, I]]``: no inverse of ``A_c`` needed.
-    Returns ``A`` (n_x x n_x) and ``B`` (n_x x n_u).
+
+    Parameters
+    ----------
+    A_c : ndarray (n_x, n_x)
+    B_c : ndarray (n_x, n_u)
+    dt : float
+        Time step (s).
+
+    Returns
+    -------
+    A : ndarray (n_x, n_x)
+    B : ndarray (n_x, n_u)
     """
     dt = _check_dt(dt)
     nx, nu = B_c.shape
@@ -87,7 +143,20 @@ def zoh(A_c, B_c, dt):
 
 
 def van_loan(A_c, Q_c, dt):
-    """Discrete process-noise covariance ``Q = int_0^dt e^{A t} Q_c e^{A^T t} dt`` (Van Loan)."""
+    """Discrete process-noise covariance ``Q = int_0^dt e^{A t} Q_c e^{A^T t} dt`` (Van Loan).
+
+    Parameters
+    ----------
+    A_c : ndarray (n, n)
+    Q_c : ndarray (n, n)
+        Continuous-time noise intensity.
+    dt : float
+        Time step (s).
+
+    Returns
+    -------
+    ndarray (n, n)
+    """
     n = A_c.shape[0]
     blk = np.zeros((2 * n, 2 * n))
     blk[:n, :n] = -A_c
@@ -100,9 +169,23 @@ def van_loan(A_c, Q_c, dt):
 
 
 def observation(structure, sensors, forces):
-    """``G`` (n_m x 2n) and ``D`` (n_m x n_p) of ``y = G x + D f`` (S17 eq. 27-30, IMP eq. 26-30).
+    """``G`` and ``D`` of ``y = G x + D f`` (S17 eq. 27-30, IMP eq. 26-30).
 
-    ``G = [S_s + S_d - S_a M^-1 K, S_v - S_a M^-1 C]``, ``D = S_a M^-1 S_p``.
+    ``G = [S_s + S_d - S_a M^-1 K, S_v - S_a M^-1 C]``, ``D = S_a M^-1 S_p`` (plus the static
+    correction of a reduced structure on strain and displacement rows).
+
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+        m sensors.
+    forces : sequence of force specs
+        n_p locations.
+
+    Returns
+    -------
+    G : ndarray (m, 2n)
+    D : ndarray (m, n_p)
     """
     S = selection_matrices(structure, sensors)
     Sp = force_selection(structure, forces)
@@ -122,9 +205,24 @@ def _residual(structure, forces):
 
 
 def static_feedthrough(structure, sensors, forces):
-    """Feed-through (m x n_p) of the modes a reduced structure leaves out: the quasi-static strain
-    and displacement of its :class:`~core_akf.residual.StaticCorrection` at the sensors (zero
-    rows for accelerometers and velocity sensors; all zero without a correction)."""
+    """Feed-through of the modes a reduced structure leaves out, at the sensors.
+
+    The quasi-static strain and displacement of its :class:`~core_akf.residual.StaticCorrection`
+    (zero rows for accelerometers and velocity sensors; all zero without a correction).
+
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+        m sensors.
+    forces : sequence of force specs
+        n_p locations.
+
+    Returns
+    -------
+    ndarray (m, n_p)
+        Sensor units per N.
+    """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
     out = np.zeros((len(layout), len(locs)))
@@ -141,8 +239,19 @@ def static_feedthrough(structure, sensors, forces):
 
 
 def strain_feedthrough(structure, forces):
-    """Feed-through (n_strain x n_p) of the forces on every strain output: the static correction
-    of a reduced structure (:func:`static_feedthrough` for all strains), ``None`` without one."""
+    """Feed-through of the forces on every strain output: the static correction of a reduced structure.
+
+    Parameters
+    ----------
+    structure : Structure
+    forces : sequence of force specs
+        n_p locations.
+
+    Returns
+    -------
+    ndarray (n_strain, n_p) or None
+        (m/m per N; :func:`static_feedthrough` for all strains), None without a correction.
+    """
     if structure.static is None or structure.n_strain == 0:
         return None
     return np.asarray(structure.strain_matrix @ _residual(structure, forces))
@@ -151,7 +260,19 @@ def strain_feedthrough(structure, forces):
 def augment(A, B, G, D):
     """Augmented matrices for the random-walk force model (Lourens et al. 2012; S17 eq. 14-26).
 
-    ``A_a = [[A, B], [0, I]]`` and ``G_a = [G, D]``.
+    Parameters
+    ----------
+    A : ndarray (n_x, n_x)
+    B : ndarray (n_x, n_p)
+    G : ndarray (m, n_x)
+    D : ndarray (m, n_p)
+
+    Returns
+    -------
+    A_a : ndarray (n_x + n_p, n_x + n_p)
+        ``[[A, B], [0, I]]``.
+    G_a : ndarray (m, n_x + n_p)
+        ``[G, D]``.
     """
     nx, nu = B.shape
     A_a = np.zeros((nx + nu, nx + nu))
@@ -167,13 +288,21 @@ def _modal_scale(omega):
 
 
 def modal_state_transform(structure):
-    """Energy-normalised modal state coordinates: ``x = T z`` with
-    ``T = blockdiag(Phi diag(1/omega), Phi)`` (mass-normalised ``Phi``), and ``T^-1``.
+    """Energy-normalised modal state coordinates ``x = T z``.
 
-    In ``z = [omega q; q']`` every mode's displacement and velocity have the same size, so
-    the transition matrix is close to orthogonal.  The filter and the Riccati solver work
-    in these coordinates: in raw ``[u; u']`` the stiff high modes make the Riccati
-    iteration lose accuracy (residual 1e-4 instead of 1e-9 on the TH plate).
+    ``T = blockdiag(Phi diag(1/omega), Phi)`` (mass-normalised ``Phi``).  In ``z = [omega q; q']``
+    every mode's displacement and velocity have the same size, so the transition matrix is close
+    to orthogonal.  The filter and the Riccati solver work in these coordinates: in raw
+    ``[u; u']`` the stiff high modes make the Riccati iteration lose accuracy (residual 1e-4
+    instead of 1e-9 on the TH plate).
+
+    Parameters
+    ----------
+    structure : Structure
+
+    Returns
+    -------
+    T, T_inv : ndarray (2n, 2n)
     """
     omega, phi = structure.eigen
     w = _modal_scale(omega)
@@ -184,14 +313,27 @@ def modal_state_transform(structure):
 
 
 def modal_zoh(structure, forces, dt, rtol=1e-10):
-    """ZOH discretisation directly in the modal state coordinates of
-    :func:`modal_state_transform`, mode by mode, for a classically damped structure.
+    """ZOH discretisation directly in the modal coordinates of :func:`modal_state_transform`.
 
-    Each mode is a 2-state system ``d/dt [w q; q'] = [[0, w], [-omega^2 / w, -c]] [w q; q']
-    + [0; phi^T S_p] f`` (``w = omega``, or 1 for a rigid mode; ``c = phi^T C phi``), so the
-    transition ``A_z`` consists of four diagonal blocks exactly and costs n small matrix
-    exponentials instead of one of size 2n.  Returns ``(A_z, B_z)``, or ``None`` when
-    ``Phi^T C Phi`` is not diagonal (non-classical damping).
+    Mode by mode, for a classically damped structure: each mode is a 2-state system
+    ``d/dt [w q; q'] = [[0, w], [-omega^2 / w, -c]] [w q; q'] + [0; phi^T S_p] f`` (``w =
+    omega``, or 1 for a rigid mode; ``c = phi^T C phi``), so the transition ``A_z`` consists of
+    four diagonal blocks exactly and costs n small matrix exponentials instead of one of size 2n.
+
+    Parameters
+    ----------
+    structure : Structure
+    forces : sequence of force specs
+        n_p locations.
+    dt : float
+        Time step (s).
+    rtol : float
+        Tolerance of the classical-damping test (:func:`modal_damping`).
+
+    Returns
+    -------
+    tuple or None
+        ``(A_z (2n, 2n), B_z (2n, n_p))``, or None for non-classical damping.
     """
     c = modal_damping(structure, rtol)
     if c is None:
@@ -223,10 +365,16 @@ def modal_zoh(structure, forces, dt, rtol=1e-10):
 class DetectabilityReport:
     """Result of the PBH test on the continuous augmented pair ``(A_ac, H_ac)``.
 
-    ``failures`` lists, for each critical eigenvalue ``s`` (Re s >= 0, including the
-    force states' ``s = 0``) where ``[[sI - A_ac], [H_ac]]`` loses column rank, the
-    eigenvalue, the relative smallest singular value and the part of the state that
-    cannot be seen.
+    Attributes
+    ----------
+    detectable : bool
+    checked : list of complex
+        The critical eigenvalues tested (Re s >= 0, including the force states' ``s = 0``).
+    failures : list of dict
+        For each eigenvalue where ``[[sI - A_ac], [H_ac]]`` loses column rank: the eigenvalue,
+        the relative smallest singular value and the part of the state that cannot be seen.
+    sensors : tuple of str
+        The layout's labels.
     """
 
     detectable: bool
@@ -274,10 +422,24 @@ def _critical_eigenvalues(structure, tol):
 
 
 def static_gain(structure, sensors, forces):
-    """:class:`~core_akf.rank.StaticGain` (m x n_p, with its rounding bound) from forces to the
-    strain and displacement sensors, ``(S_s + S_d) K^-1 S_p``; velocity and acceleration rows are
-    exactly zero in a static state.  Entries at rounding level (a zero-force member, a node at
-    rest) are exactly zero; see :mod:`core_akf.rank`."""
+    """The static gain from forces to the strain and displacement sensors, ``(S_s + S_d) K^-1 S_p``.
+
+    Velocity and acceleration rows are exactly zero in a static state.  Entries at rounding level
+    (a zero-force member, a node at rest) are exactly zero; see :mod:`core_akf.rank`.
+
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+        m sensors.
+    forces : sequence of force specs
+        n_p locations.
+
+    Returns
+    -------
+    StaticGain
+        (m x n_p, with its rounding bound).
+    """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
     S = selection_matrices(structure, layout)
@@ -286,8 +448,19 @@ def static_gain(structure, sensors, forces):
 
 
 def static_test_suffices(structure):
-    """True if the PBH test reduces to the static gain: the structure is supported and damped, so
-    the force states' ``s = 0`` is the only critical eigenvalue."""
+    """Whether the PBH test reduces to the static gain.
+
+    True when the structure is supported and damped, so the force states' ``s = 0`` is the only
+    critical eigenvalue.
+
+    Parameters
+    ----------
+    structure : Structure
+
+    Returns
+    -------
+    bool
+    """
     return len(_critical_eigenvalues(structure, rank.CRITICAL_RTOL)) == 1 and is_supported(structure)
 
 
@@ -301,13 +474,29 @@ def detectability(structure: Structure, sensors: Layout, forces: Forces) -> Dete
 
     The pair ``(A_ac, H_ac)`` with ``A_ac = [[A_c, B_c], [0, 0]]`` and ``H_ac = [G, D]`` is
     detectable iff ``[[sI - A_ac], [H_ac]]`` has full column rank at every eigenvalue with
-    Re s >= 0.  For a supported, damped structure only ``s = 0`` (the force states) is
-    critical and the test reduces to the rank of the static gain from forces to sensors.
+    Re s >= 0.  For a supported, damped structure only ``s = 0`` (the force states) is critical
+    and the test reduces to the rank of the static gain from forces to sensors.  Every rank
+    decision is taken in :mod:`core_akf.rank` against a rounding-error bound, so the verdict does
+    not depend on the BLAS kernel.
 
-    Every rank decision is taken in :mod:`core_akf.rank` against a rounding-error bound, so the
-    verdict does not depend on the BLAS kernel.
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+    forces : sequence of force specs
 
-    Returns a :class:`DetectabilityReport`; its ``str`` names the failing eigenvalues.
+    Returns
+    -------
+    DetectabilityReport
+        Its ``str`` names the failing eigenvalues.
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss
+    >>> detectability(s17_truss(), ["acc:4:y", "acc:8:y"], ["8:y"]).detectable
+    False
+    >>> detectability(s17_truss(), ["strain:13", "acc:8:y"], ["8:y"]).detectable
+    True
     """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
@@ -348,11 +537,16 @@ class StateSpace:
 
     Attributes
     ----------
-    A, B : ndarray (2n x 2n), (2n x n_p)
-        ZOH-discretised structural model for step ``dt`` (s).
-    G, D : ndarray (n_m x 2n), (n_m x n_p)
+    structure : Structure
+    sensors : tuple of Sensor
+    forces : list of (int, str)
+    dt : float
+        Time step (s).
+    A, B : ndarray (2n, 2n), (2n, n_p)
+        ZOH-discretised structural model.
+    G, D : ndarray (m, 2n), (m, n_p)
         Observation ``y_k = G x_k + D f_k``.
-    A_a, G_a : ndarray (n_a x n_a), (n_m x n_a)
+    A_a, G_a : ndarray (n_a, n_a), (m, n_a)
         Augmented transition and observation, ``n_a = 2n + n_p``.
     """
 
@@ -381,15 +575,20 @@ class StateSpace:
 
 
 class SubsetDetectability:
-    """PBH detectability of many subsets of one list of candidate sensors, for one set of forces:
-    what the optimisers ask thousands of times (placement layouts, role splits).
+    """PBH detectability of many subsets of one list of candidate sensors, for one set of forces.
 
-    For a supported, damped structure (:func:`static_test_suffices`) the static gain of every
-    candidate is computed once and a subset is detectable if its rows see every force
-    combination (:meth:`core_akf.rank.StaticGain.sees_every_force`); otherwise each subset gets
-    the full :func:`detectability` test.  Both are the same decision as :func:`detectability`.
+    What the optimisers ask thousands of times (placement layouts, role splits).  For a supported,
+    damped structure (:func:`static_test_suffices`) the static gain of every candidate is computed
+    once and a subset is detectable if its rows see every force combination
+    (:meth:`core_akf.rank.StaticGain.sees_every_force`); otherwise each subset gets the full
+    :func:`detectability` test.  Both are the same decision as :func:`detectability`.
 
-    ``detectable(indices) -> bool`` (0-based indices into ``sensors``).
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+        The candidates.
+    forces : sequence of force specs
     """
 
     def __init__(self, structure, sensors, forces):
@@ -398,13 +597,37 @@ class SubsetDetectability:
         self.static = static_gain(structure, self.sensors, self.forces) if static_test_suffices(structure) else None
 
     def detectable(self, indices):
+        """Whether a subset of the candidates is detectable.
+
+        Parameters
+        ----------
+        indices : sequence of int
+            0-based indices into the candidates.
+
+        Returns
+        -------
+        bool
+        """
         if self.static is not None:
             return self.static.rows(indices).sees_every_force
         return detectability(self.structure, [self.sensors[i] for i in indices], self.forces).detectable
 
 
 def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float):
-    """Build the discrete augmented :class:`StateSpace` (validates every id once)."""
+    """Build the discrete augmented :class:`StateSpace` (validates every id once).
+
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+    forces : sequence of force specs
+    dt : float
+        Time step (s).
+
+    Returns
+    -------
+    StateSpace
+    """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
     A_c, B_c = continuous(structure, locs)
@@ -415,7 +638,25 @@ def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float
 
 
 def check_detectable(structure, sensors, forces, allow_undetectable=False):
-    """Raise :class:`UndetectableError` for an undetectable set unless allowed; return the report."""
+    """The PBH report of a layout, refusing an undetectable one unless allowed.
+
+    Parameters
+    ----------
+    structure : Structure
+    sensors : sequence of sensor specs
+    forces : sequence of force specs
+    allow_undetectable : bool
+        Return the report of an undetectable set instead of raising.
+
+    Returns
+    -------
+    DetectabilityReport
+
+    Raises
+    ------
+    UndetectableError
+        For an undetectable set, unless ``allow_undetectable``.
+    """
     report = detectability(structure, sensors, forces)
     if not report.detectable and not allow_undetectable:
         raise UndetectableError(report)

@@ -11,21 +11,56 @@ from .riccati import steady_gain
 
 
 def steady_states(A, G, Q, R, Y, x=None):
-    """Filtered states of a batch of steady-state AKFs: ``(X (B, N, n), L (B, n, m), P (B, n, n))``.
+    """Filtered states of a batch of steady-state AKFs.
 
     One batched Riccati solve (:func:`core_akf.riccati.steady_gain`), then the constant-gain
-    recursion ``X_k = (I - L G) A X_{k-1} + L y_k`` (:func:`core_akf.recursion.lti_response`)
-    from the prior mean ``x`` (B, n) (zero by default).  Shapes: A, Q (B, n, n); G (B, m, n);
-    R (B, m, m); Y (B, N, m).
+    recursion ``X_k = (I - L G) A X_{k-1} + L y_k`` (:func:`core_akf.recursion.lti_response`).
+
+    Parameters
+    ----------
+    A : ndarray (B, n, n)
+    G : ndarray (B, m, n)
+    Q : ndarray (B, n, n)
+    R : ndarray (B, m, m)
+    Y : ndarray (B, N, m)
+        Measurements.
+    x : ndarray (B, n), optional
+        Prior mean of the first step (default zero).
+
+    Returns
+    -------
+    X : ndarray (B, N, n)
+        Filtered states.
+    L : ndarray (B, n, m)
+        The gain.
+    P : ndarray (B, n, n)
+        The prior covariance.
     """
     P, L, F, first = steady_filter(A, G, Q, R, Y, x)
     return lti_response(F, L, Y, first), L, P
 
 
 def steady_filter(A, G, Q, R, Y, x=None):
-    """Gain and fixed-gain recursion of a batch of steady-state AKFs: ``(P, L, F, X_0)`` with
-    ``X_k = F X_{k-1} + L y_k`` and the first filtered state ``X_0`` (from the prior mean ``x``
-    (B, n), zero by default).  ``P`` (B, n, n) is the prior covariance, ``L`` (B, n, m) the gain."""
+    """Gain and fixed-gain recursion of a batch of steady-state AKFs.
+
+    The recursion is ``X_k = F X_{k-1} + L y_k`` from the first filtered state ``X_0``.
+
+    Parameters
+    ----------
+    A, G, Q, R, Y, x
+        As :func:`steady_states`.
+
+    Returns
+    -------
+    P : ndarray (B, n, n)
+        The prior covariance.
+    L : ndarray (B, n, m)
+        The gain.
+    F : ndarray (B, n, n)
+        ``(I - L G) A``.
+    X_0 : ndarray (B, n)
+        The first filtered state.
+    """
     P, L = steady_gain(A, G, Q, R)
     n = A.shape[-1]
     I_LG = np.eye(n) - L @ G
@@ -40,8 +75,14 @@ def steady_outputs(A, G, Q, R, Y, H):
 
     Parameters
     ----------
-    A : (B, n, n) or (n, n);  G : (B, m, n);  Q : (B, n, n) or (n, n);  R : (B, m, m)
-    Y : (B, N, m) measurements;  H : (B, k, n) or (k, n) output rows
+    A : ndarray (B, n, n) or (n, n)
+    G : ndarray (B, m, n)
+    Q : ndarray (B, n, n) or (n, n)
+    R : ndarray (B, m, m)
+    Y : ndarray (B, N, m)
+        Measurements.
+    H : ndarray (B, k, n) or (k, n)
+        Output rows.
 
     Returns
     -------

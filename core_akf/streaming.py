@@ -39,17 +39,33 @@ class CheckpointError(AKFInputError):
 class Estimator:
     """The AKF over a record delivered in chunks.
 
-    Parameters are those of :func:`core_akf.filter.estimate` without the measurements, plus
+    Each :meth:`update` returns the :class:`~core_akf.filter.Estimate` of its chunk; the memory
+    held between chunks is the filter's matrices and one state, whatever the record's length.
 
+    Parameters
+    ----------
+    structure : Structure
+        The filter's model.
+    sensors : sequence of sensor specs
+        The layout, m channels.
+    forces : sequence of force specs
+        The unknown force locations.
+    dt : float
+        Time step (s).
+    model_error_cov, force_increment_cov, noise_cov
+        Q, S and R as in :func:`core_akf.filter.estimate`.
+    steady : bool or None
+        The steady-state filter (None: where the set is detectable).
+    allow_undetectable : bool
+        Run even if the PBH test fails.
+    x0, P0 : optional
+        Prior mean and covariance of the augmented state, as in :func:`core_akf.filter.estimate`.
     t0 : float
         Time of the record's first step (s); the chunks' :attr:`~core_akf.filter.Estimate.time`
         continues from it.
     switch_tol : float
         The time-varying filter continues with its (then constant) gain once its covariance
         changes by less than this, relatively (as :func:`core_akf.filter.filter_states`).
-
-    Each :meth:`update` returns the :class:`~core_akf.filter.Estimate` of its chunk; the memory
-    held between chunks is the filter's matrices and one state, whatever the record's length.
     """
 
     def __init__(self, structure, sensors, forces, dt, *, model_error_cov, force_increment_cov, noise_cov,
@@ -99,8 +115,18 @@ class Estimator:
         return self.setup.A_a @ self._z
 
     def update(self, chunk):
-        """Filter the next ``chunk`` (k, m) of measurements (SI, columns in sensor order) and
-        return its :class:`~core_akf.filter.Estimate` (``time`` continues the record)."""
+        """Filter the next chunk of the record.
+
+        Parameters
+        ----------
+        chunk : array_like (k, m)
+            Measurements (SI, columns in sensor order).
+
+        Returns
+        -------
+        Estimate
+            The chunk's estimate (its ``time`` continues the record).
+        """
         Y = np.asarray(chunk, dtype=float)
         if Y.ndim != 2 or Y.shape[1] != self.n_channels:
             raise AKFInputError(f"a chunk must have shape (steps, {self.n_channels}) for the sensors "
@@ -158,8 +184,23 @@ class Estimator:
                 "started": np.array(self._z is not None), "fingerprint": np.array(self._fingerprint)}
 
     def restore(self, state):
-        """Continue from a :meth:`state` saved by this filter (the same job); raises
-        :class:`CheckpointError` for a state of another filter."""
+        """Continue from a :meth:`state` saved by this filter (the same job).
+
+        Parameters
+        ----------
+        state : mapping of str to ndarray
+            What :meth:`state` returned (as loaded from a checkpoint).
+
+        Returns
+        -------
+        Estimator
+            ``self``.
+
+        Raises
+        ------
+        CheckpointError
+            For a state of another filter, or not a filter state at all.
+        """
         try:
             fingerprint = str(np.asarray(state["fingerprint"]))
             n_steps = int(state["n_steps"])

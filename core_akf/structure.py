@@ -103,6 +103,23 @@ class Structure:
         every strain and displacement output as a feed-through of the forces (a large model
         reduced by :func:`core_akf.models.from_matrices` has one).  ``strain_matrix`` may then be
         a ``scipy.sparse`` matrix.
+    C : ndarray, shape (n, n), optional
+        A damping matrix (N s/m) instead of ``damping``.
+    name : str
+        The model's name.
+    meta : dict
+        What the model generator keeps beside the matrices (the unconstrained ``K_full`` and
+        ``M_full``, member areas, the projection of a reduced model).
+
+    Examples
+    --------
+    A two-storey shear frame with 2 % modal damping:
+
+    >>> import numpy as np
+    >>> s = Structure(M=np.eye(2), K=np.array([[2.0, -1.0], [-1.0, 1.0]]), damping=0.02,
+    ...               nodes=np.array([[0.0, 1.0], [0.0, 2.0]]), dof_names=("x",), free_dofs=np.arange(2))
+    >>> [round(float(f), 4) for f in s.frequencies()]
+    [0.0984, 0.2575]
     """
 
     M: np.ndarray
@@ -183,7 +200,18 @@ class Structure:
         return np.sqrt(np.clip(w2, 0.0, None)), phi
 
     def frequencies(self, k=None):
-        """First ``k`` undamped natural frequencies in Hz (all if ``k`` is None)."""
+        """The lowest undamped natural frequencies.
+
+        Parameters
+        ----------
+        k : int, optional
+            How many (all if None).
+
+        Returns
+        -------
+        ndarray (k,)
+            Hz, ascending.
+        """
         omega = self.eigen[0]
         if k is not None:
             if not 1 <= int(k) <= omega.size:
@@ -192,14 +220,37 @@ class Structure:
         return omega / (2.0 * np.pi)
 
     def modes(self, k=None):
-        """First ``k`` mass-normalised mode shapes, shape (n_phys, k), in physical free DOFs."""
+        """The lowest mass-normalised mode shapes, in physical free DOFs.
+
+        Parameters
+        ----------
+        k : int, optional
+            How many (all if None).
+
+        Returns
+        -------
+        ndarray (n_phys, k)
+        """
         phi = self.eigen[1][:, :k]
         return phi if self.basis is None else self.basis @ phi
 
     def memo(self, key, compute):
-        """A result of an analysis that depends only on this structure's matrices (which never
-        change after construction: a changed model is a new :class:`Structure`), computed once by
-        ``compute()`` and kept under ``key`` (a factorisation, the critical eigenvalues, ...)."""
+        """A result of an analysis of this structure, computed once.
+
+        The structure's matrices never change after construction (a changed model is a new
+        :class:`Structure`), so a result that depends only on them is kept.
+
+        Parameters
+        ----------
+        key : hashable
+            What the result is (a factorisation, the critical eigenvalues, ...).
+        compute : callable
+            ``compute()`` gives the result the first time.
+
+        Returns
+        -------
+        object
+        """
         if key not in self._memo:
             self._memo[key] = compute()
         return self._memo[key]
@@ -220,7 +271,22 @@ class Structure:
         return node_int - 1
 
     def node_rows(self, nodes):
-        """Rows of :attr:`nodes` (0-based) of user node ids (an error names an unknown one)."""
+        """Rows of :attr:`nodes` (0-based) of user node ids.
+
+        Parameters
+        ----------
+        nodes : sequence of int
+            User node ids.
+
+        Returns
+        -------
+        ndarray of int
+
+        Raises
+        ------
+        AKFInputError
+            Naming an unknown node.
+        """
         return np.array([self._node_index(n) for n in np.atleast_1d(nodes)], dtype=int)
 
     @property
@@ -229,7 +295,20 @@ class Structure:
         return np.arange(1, self.n_nodes + 1) if self.node_ids is None else self.node_ids
 
     def dof_index(self, node, direction):
-        """0-based index of the free physical DOF (``node`` 1-based, ``direction`` a DOF name)."""
+        """Index of a free physical DOF.
+
+        Parameters
+        ----------
+        node : int
+            User node id (1-based).
+        direction : str
+            A DOF name (:attr:`dof_names`).
+
+        Returns
+        -------
+        int
+            0-based index among the physical free DOFs.
+        """
         i = self._node_index(node)
         if direction not in self.dof_names:
             raise AKFInputError(
@@ -242,8 +321,17 @@ class Structure:
         return int(idx)
 
     def dof_rows(self, locations):
-        """Selection rows, shape (len(locations), n), mapping generalised coordinates to the
-        physical DOFs ``[(node, direction), ...]``."""
+        """Selection rows mapping generalised coordinates to physical DOFs.
+
+        Parameters
+        ----------
+        locations : sequence of (int, str)
+            ``(node, direction)`` pairs.
+
+        Returns
+        -------
+        ndarray (len(locations), n)
+        """
         idx = [self.dof_index(node, d) for node, d in locations]
         if self.basis is None:
             rows = np.zeros((len(idx), self.n))
@@ -252,8 +340,19 @@ class Structure:
         return self.basis[idx].copy()
 
     def strain_index(self, key):
-        """Row of the strain output for ``key``: a member number (truss) or ``(node, component)``
-        with component in ``("ex", "ey", "gxy")`` (plate)."""
+        """Row of a strain output.
+
+        Parameters
+        ----------
+        key : int or (int, str)
+            A member number (truss, extensometer, strain row) or ``(node, component)`` with component
+            in ``("ex", "ey", "gxy")`` (plate), 1-based.
+
+        Returns
+        -------
+        int
+            0-based row of :attr:`strain_matrix`.
+        """
         if self.strain_matrix is None:
             raise AKFInputError("this structure has no strain operator")
         if self.strain_kind == "member":
@@ -273,7 +372,17 @@ class Structure:
         return STRAIN_COMPONENTS.index(comp) * self.n_nodes + self._node_index(node)
 
     def strain_rows(self, keys):
-        """Strain rows in generalised coordinates, shape (len(keys), n)."""
+        """Strain rows in generalised coordinates.
+
+        Parameters
+        ----------
+        keys : sequence
+            Keys as :meth:`strain_index` takes them.
+
+        Returns
+        -------
+        ndarray (len(keys), n)
+        """
         idx = [self.strain_index(k) for k in keys]
         if self.basis is not None and scipy.sparse.issparse(self.strain_matrix) and "strain_operator" not in self.__dict__:
             return np.asarray(self.strain_matrix[idx] @ self.basis)     # a large model: only the rows asked for
@@ -296,8 +405,22 @@ class Structure:
         return [f"strain:{i + 1}:{c}" for c in STRAIN_COMPONENTS for i in range(self.n_nodes)]
 
     def strain_label_index(self, labels):
-        """Rows of the strain outputs named ``labels`` (as :attr:`strain_labels`); an unknown
-        label is an :class:`AKFInputError` naming the closest known one."""
+        """Rows of the strain outputs named by their labels.
+
+        Parameters
+        ----------
+        labels : sequence of str
+            Labels as :attr:`strain_labels` ("strain:13", "strain:70:ex").
+
+        Returns
+        -------
+        list of int
+
+        Raises
+        ------
+        AKFInputError
+            For an unknown label, naming the closest known one.
+        """
         import difflib
 
         known = {lab: i for i, lab in enumerate(self.strain_labels)}
@@ -323,8 +446,17 @@ class Structure:
     def scaled(self, stiffness_factor=1.0, mass_factor=1.0):
         """A copy with K (and M) multiplied by a factor; damping is rebuilt from the spec.
 
-        ``stiffness_factor=1.05`` is the papers' "5 % stiffer" model error (equivalent to a
-        5 % larger Young's modulus).
+        ``stiffness_factor=1.05`` is the papers' "5 % stiffer" model error (equivalent to a 5 %
+        larger Young's modulus).
+
+        Parameters
+        ----------
+        stiffness_factor : float
+        mass_factor : float
+
+        Returns
+        -------
+        Structure
         """
         for name, v in (("stiffness_factor", stiffness_factor), ("mass_factor", mass_factor)):
             if not np.isfinite(v) or v <= 0:
@@ -345,14 +477,24 @@ class Structure:
         return self._replace(**changes)
 
     def reduce(self, n_modes, static_correction=False):
-        """Modal reduction to the first ``n_modes`` modes, same sensor/strain interface.
+        """Modal reduction to the lowest modes, with the same sensor and strain interface.
 
-        The reduced model has ``M = I``, ``K = diag(omega^2)`` and ``C = Phi^T C Phi`` (diagonal
-        for modal damping).  A structure that is itself reduced with a static correction
-        (:attr:`static`) keeps it, the modes dropped now joining the residual.  With
-        ``static_correction`` a full structure's reduction gets one too
-        (:class:`~core_akf.residual.StaticCorrection` from a Cholesky factor of K): every strain
-        and displacement output then has the full model's static response.
+        The reduced model has ``M = I``, ``K = diag(omega^2)`` and ``C = Phi^T C Phi`` (diagonal for
+        modal damping).  A structure that is itself reduced with a static correction (:attr:`static`)
+        keeps it, the modes dropped now joining the residual.
+
+        Parameters
+        ----------
+        n_modes : int
+            Modes kept.
+        static_correction : bool
+            Give a full structure's reduction a static correction
+            (:class:`~core_akf.residual.StaticCorrection` from a Cholesky factor of K): every strain
+            and displacement output then has the full model's static response.
+
+        Returns
+        -------
+        Structure
         """
         from .models.sparse import check_n_modes
 
@@ -391,8 +533,18 @@ class Structure:
         return np.eye(self.n) if P is None else P
 
     def total_mass(self, direction):
-        """Total translational mass (kg) in ``direction`` of the full, unconstrained model
-        (from ``meta['M_full']`` when the model generator stored it)."""
+        """Total translational mass of the full, unconstrained model.
+
+        Parameters
+        ----------
+        direction : str
+            A DOF name ("x", "y", "z").
+
+        Returns
+        -------
+        float
+            kg (from ``meta['M_full']``, when the model generator stored it).
+        """
         M_full = self.meta.get("M_full")
         if M_full is None:
             raise AKFInputError("total_mass needs the unconstrained mass matrix (meta['M_full'])")
