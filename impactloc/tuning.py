@@ -101,9 +101,9 @@ class TuningGA(Algorithm):
     def initial(self, rng, pyrng):
         return [self.x0.tolist()] + [rng.uniform(self.lo, self.hi).tolist() for _ in range(self.size - 1)]
 
-    def next_generation(self, pop, gen, rng, pyrng, evaluate):
-        elite = best(pop, 1)[0].copy()
-        offspring = [i.copy() for i in tournament(pop, len(pop) - 1, 3, pyrng)]
+    def next_generation(self, population, generation, rng, pyrng, evaluate):
+        elite = best(population, 1)[0].copy()
+        offspring = [i.copy() for i in tournament(population, len(population) - 1, 3, pyrng)]
         for a, b in zip(offspring[::2], offspring[1::2]):
             if pyrng.random() < self.cx:
                 blend(a, b, 0.3, pyrng)
@@ -116,9 +116,9 @@ class TuningGA(Algorithm):
             ind[:] = np.clip(ind, self.lo, self.hi).tolist()
         return [elite] + offspring
 
-    def record(self, pop):
-        row = super().record(pop)
-        row["infeasible_in_population"] = int(sum(not math.isfinite(i.fitness.values[0]) for i in pop))
+    def record(self, population):
+        row = super().record(population)
+        row["infeasible_in_population"] = int(sum(not math.isfinite(i.fitness.values[0]) for i in population))
         return row
 
 

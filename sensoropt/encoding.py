@@ -32,14 +32,36 @@ TRANSLATIONS = ("x", "y", "z", "w")
 
 
 def sensor_type(kind):
-    """``"acc"`` for an accelerometer kind (``acc``, ``acc:z``), else ``"strain"``."""
+    """The budget type of a sensor kind.
+
+    Parameters
+    ----------
+    kind : str
+        A candidate kind ("strain", "ex", "acc", "acc:z").
+
+    Returns
+    -------
+    str
+        "acc" for an accelerometer kind, else "strain".
+    """
     return "acc" if kind == "acc" or str(kind).startswith("acc:") else "strain"
 
 
 def candidate_sensors(structure, kinds):
-    """Every sensor of ``kinds`` on ``structure`` as sensor strings: ``"strain"`` every strain output
-    (``"ex"``, ``"ey"``, ``"gxy"`` one component of a plate's), ``"acc"`` an accelerometer on every
-    free translational DOF (``"acc:z"`` only direction z; ``w`` on a plate)."""
+    """Every sensor of some kinds on a structure, as sensor strings.
+
+    Parameters
+    ----------
+    structure : Structure
+    kinds : sequence of str
+        ``"strain"`` every strain output (``"ex"``, ``"ey"``, ``"gxy"`` one component of a
+        plate's), ``"acc"`` an accelerometer on every free translational DOF (``"acc:z"`` only
+        direction z; ``w`` on a plate).
+
+    Returns
+    -------
+    list of str
+    """
     out = []
     for kind in kinds:
         if kind in STRAIN_KINDS and structure.strain_kind != "node":
@@ -77,21 +99,27 @@ def _kind_of(sensor):
 
 
 class CandidateSet:
-    """Admissible sensors of any kind at any place of a structure and the GA operators on layouts.
-
-    Parameters
-    ----------
-    structure : Structure -- any model (truss, plate, one's own from matrices, 2-D or 3-D)
-    kinds : kinds that may be placed (:func:`candidate_sensors`), default strain gauges on every
-        strain output and accelerometers on every free translational DOF
-    n_sensors : int -- total number of sensors, or
-    budget : dict -- sensors per type, e.g. ``{"strain": 4, "acc": 2}`` (fixed counts)
-    candidates : sequence of sensor strings, optional -- the candidate set itself (instead of
-        ``kinds``); each must exist on the structure and measure something
-    neighbours : int -- candidates of the same kind a *move* mutation may step to (nearest first)
+    """Admissible sensors of any kind at any place of a structure, and the GA operators on layouts.
 
     Layouts are sorted tuples of candidate indices.  Outputs that are identically zero (a strain
     gauge on a member that cannot strain) are not candidates.
+
+    Parameters
+    ----------
+    structure : Structure
+        Any model (truss, plate, one's own from matrices, 2-D or 3-D).
+    kinds : sequence of str
+        Kinds that may be placed (:func:`candidate_sensors`); default strain gauges on every
+        strain output and accelerometers on every free translational DOF.
+    n_sensors : int, optional
+        Total number of sensors (or ``budget``).
+    budget : dict, optional
+        Sensors per type, e.g. ``{"strain": 4, "acc": 2}`` (fixed counts).
+    candidates : sequence of str, optional
+        The candidate set itself (instead of ``kinds``); each must exist on the structure and
+        measure something.
+    neighbours : int
+        Candidates of the same kind a *move* mutation may step to (nearest first).
     """
 
     def __init__(self, structure, kinds=("strain", "acc"), n_sensors=None, budget=None, candidates=None, neighbours=8):
@@ -193,17 +221,50 @@ class CandidateSet:
 
     # ------------------------------------------------------------------ conversions
     def sensors(self, layout):
-        """Sensor strings (``"strain:13"``, ``"acc:8:y"``, ``"strain:58:ex"``) of a layout."""
+        """Sensor strings of a layout.
+
+        Parameters
+        ----------
+        layout : sequence of int
+            Candidate indices.
+
+        Returns
+        -------
+        list of str
+            ``"strain:13"``, ``"acc:8:y"``, ``"strain:58:ex"``.
+        """
         return [self.labels[i] for i in layout]
 
     def records(self, layout):
-        """``[{"sensor": "acc:8:y", "kind": "acc:y", "node": 8}, ...]`` (node None for a strain
-        output that is not at one node)."""
+        """A layout as records for tables and JSON.
+
+        Parameters
+        ----------
+        layout : sequence of int
+            Candidate indices.
+
+        Returns
+        -------
+        list of dict
+            ``{"sensor": "acc:8:y", "kind": "acc:y", "node": 8}`` per sensor (node None for a strain
+            output that is not at one node).
+        """
         return [{"sensor": self.labels[i], "kind": str(self.kind[i]),
                  "node": int(self.node[i]) if self.node[i] >= 0 else None} for i in layout]
 
     def from_sensors(self, sensors):
-        """Layout (sorted candidate indices) from sensor strings."""
+        """A layout from sensor strings.
+
+        Parameters
+        ----------
+        sensors : sequence of str
+            Candidates, e.g. ``["strain:13", "acc:8:y"]``.
+
+        Returns
+        -------
+        tuple of int
+            Sorted candidate indices.
+        """
         from core_akf.sensors import as_layout
 
         out = []
@@ -219,10 +280,33 @@ class CandidateSet:
 
     # ------------------------------------------------------------------ validity
     def counts(self, layout):
+        """Sensors per type in a layout.
+
+        Parameters
+        ----------
+        layout : sequence of int
+            Candidate indices.
+
+        Returns
+        -------
+        dict
+            ``{"strain": n, "acc": m}``.
+        """
         t = self.type[list(layout)]
         return {k: int(np.sum(t == k)) for k in ("strain", "acc")}
 
     def is_valid(self, layout):
+        """Whether a layout is admissible: distinct sensors, the right number, the budget kept.
+
+        Parameters
+        ----------
+        layout : sequence of int
+            Candidate indices.
+
+        Returns
+        -------
+        bool
+        """
         if len(set(layout)) != len(layout) or len(layout) != self.n_sensors:
             return False
         if self.budget:
@@ -234,14 +318,38 @@ class CandidateSet:
         return np.arange(len(self.candidates)) if t is None else np.flatnonzero(self.type == t)
 
     def random_layout(self, rng):
+        """A random admissible layout.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+
+        Returns
+        -------
+        tuple of int
+            Sorted candidate indices.
+        """
         if self.budget:
             parts = [rng.choice(self._pool(t), size=n, replace=False) for t, n in self.budget.items()]
             return tuple(sorted(int(i) for p in parts for i in p))
         return tuple(sorted(int(i) for i in rng.choice(len(self.candidates), size=self.n_sensors, replace=False)))
 
     def repair(self, genes, rng):
-        """A valid canonical layout from any gene list: duplicates and surplus of a type are
-        dropped, missing sensors filled with random unused admissible positions of the type."""
+        """A valid canonical layout from any gene list.
+
+        Duplicates and surplus of a type are dropped, missing sensors filled with random unused
+        admissible positions of the type.
+
+        Parameters
+        ----------
+        genes : sequence of int
+            Candidate indices, possibly invalid.
+        rng : numpy.random.Generator
+
+        Returns
+        -------
+        tuple of int
+        """
         seen, keep = set(), []
         for g in genes:
             g = int(g)
@@ -265,8 +373,22 @@ class CandidateSet:
 
     # ------------------------------------------------------------------ operators
     def crossover_set(self, a, b, rng):
-        """Set-based crossover: each child draws its sensors (per type when budgeted) from the
-        union of the parents' sensors, so shared sensors tend to stay and children are unique."""
+        """Set-based crossover of two layouts.
+
+        Each child draws its sensors (per type when budgeted) from the union of the parents' sensors,
+        so shared sensors tend to stay and children are unique.
+
+        Parameters
+        ----------
+        a, b : sequence of int
+            The parents.
+        rng : numpy.random.Generator
+
+        Returns
+        -------
+        tuple
+            Two children (layouts).
+        """
         def child():
             if self.budget:
                 genes = []
@@ -289,9 +411,24 @@ class CandidateSet:
         return int(rng.choice(best))
 
     def crossover_intermediate(self, a, b, rng, alpha=0.5):
-        """Intermediate crossover on the positions of paired sensors, ``c = p1 + u (p2 - p1)`` with
-        ``u ~ U(-alpha, 1 + alpha)`` per coordinate, then the nearest unused candidate of the kind
-        of either parent (of the first under a budget)."""
+        """Intermediate crossover on the positions of paired sensors.
+
+        ``c = p1 + u (p2 - p1)`` with ``u ~ U(-alpha, 1 + alpha)`` per coordinate, then the nearest
+        unused candidate of the kind of either parent (of the first under a budget).
+
+        Parameters
+        ----------
+        a, b : sequence of int
+            The parents.
+        rng : numpy.random.Generator
+        alpha : float
+            Extent beyond the parents.
+
+        Returns
+        -------
+        tuple
+            Two children (layouts).
+        """
         def child():
             genes, used = [], set()
             for g1, g2 in zip(a, b):
@@ -318,9 +455,26 @@ class CandidateSet:
         return int(rng.choice(near)) if near else None
 
     def mutate(self, layout, rng, indpb=None, p_move=0.5, p_jump=0.3):
-        """Per-sensor mutation (each sensor with probability ``indpb``, default 1/n): a *move*
-        to a neighbouring candidate of the same kind, a *jump* anywhere, or a *kind flip* (another
-        kind at the same place)."""
+        """Per-sensor mutation.
+
+        Each sensor changes with probability ``indpb``: a *move* to a neighbouring candidate of the
+        same kind, a *jump* anywhere, or a *kind flip* (another kind at the same place).
+
+        Parameters
+        ----------
+        layout : sequence of int
+        rng : numpy.random.Generator
+        indpb : float, optional
+            Probability per sensor (default 1/n).
+        p_move : float
+            Probability that a change is a move.
+        p_jump : float
+            Probability that a change is a jump (the rest are kind flips).
+
+        Returns
+        -------
+        tuple of int
+        """
         genes = list(layout)
         indpb = 1.0 / len(genes) if indpb is None else indpb
         hit = rng.random(len(genes)) < indpb
@@ -343,8 +497,22 @@ class CandidateSet:
         return self.repair(genes, rng)
 
     def mutate_adaptive(self, layout, rng, scale):
-        """Gaussian steps of ``scale`` candidate spacings on the positions, a random kind change
-        with probability ``scale / span``, repaired to the nearest unused candidate."""
+        """Gaussian steps on the positions, shrinking over the generations.
+
+        Steps of ``scale`` candidate spacings on the positions, a random kind change with
+        probability ``scale / span``, repaired to the nearest unused candidate.
+
+        Parameters
+        ----------
+        layout : sequence of int
+        rng : numpy.random.Generator
+        scale : float
+            Standard deviation of a step (candidate spacings).
+
+        Returns
+        -------
+        tuple of int
+        """
         genes, used = [], set()
         for g in layout:
             point = self.position[g] + rng.normal(0, scale * self.spacing, size=self.position.shape[1])
@@ -359,8 +527,19 @@ class CandidateSet:
         return self.repair(genes, rng)
 
     def distance(self, a, b):
-        """Distance between two layouts: the minimum-cost matching of their sensors, cost = distance
-        in candidate spacings + 1 for a different kind; 0 for the same layout."""
+        """Distance between two layouts.
+
+        The minimum-cost matching of their sensors, cost = distance in candidate spacings + 1 for a
+        different kind; 0 for the same layout.
+
+        Parameters
+        ----------
+        a, b : sequence of int
+
+        Returns
+        -------
+        float
+        """
         a, b = list(a), list(b)
         C = np.linalg.norm(self.position[a][:, None] - self.position[b][None, :], axis=2) / self.spacing
         C = C + (self.kind[a][:, None] != self.kind[b][None, :])
@@ -368,9 +547,19 @@ class CandidateSet:
         return float(C[r, c].sum())
 
     def diversity(self, layouts):
-        """Mean distance of each layout to its nearest *other* individual (TH's diversity); above
-        :data:`DIVERSITY_SAMPLE` layouts, of that many spread evenly over the population (the
-        pairs grow as n^2: a population of a million would need 7 TiB and days)."""
+        """Mean distance of each layout to its nearest *other* individual (TH's diversity).
+
+        Above :data:`DIVERSITY_SAMPLE` layouts, of that many spread evenly over the population (the
+        pairs grow as n^2: a population of a million would need 7 TiB and days).
+
+        Parameters
+        ----------
+        layouts : sequence of layouts
+
+        Returns
+        -------
+        float
+        """
         n = len(layouts)
         if n < 2:
             return 0.0
@@ -389,14 +578,18 @@ DIVERSITY_SAMPLE = 500
 
 
 class PlateGrid(CandidateSet):
-    """Admissible sensor candidates of a plate and the GA operators on layouts.
+    """Admissible sensor candidates of a plate on its grid, and the GA operators on layouts.
 
     Parameters
     ----------
-    structure : Structure -- a plate from :func:`core_akf.models.plate`
-    kinds : allowed kinds, subset of ``("ex", "ey", "gxy", "acc")``
-    n_sensors : int -- total number of sensors (any allowed kind), or
-    budget : dict -- sensors per type, e.g. ``{"strain": 3, "acc": 1}`` (fixed counts)
+    structure : Structure
+        A plate from :func:`core_akf.models.plate`.
+    kinds : sequence of str
+        Allowed kinds, a subset of ``("ex", "ey", "gxy", "acc")``.
+    n_sensors : int, optional
+        Total number of sensors (any allowed kind), or ``budget``.
+    budget : dict, optional
+        Sensors per type, e.g. ``{"strain": 3, "acc": 1}`` (fixed counts).
     """
 
     def __init__(self, structure, kinds=STRAIN_KINDS, n_sensors=None, budget=None):
@@ -445,15 +638,45 @@ class PlateGrid(CandidateSet):
 
     # ------------------------------------------------------------------ conversions
     def triples(self, layout):
+        """A layout as the thesis' genes.
+
+        Parameters
+        ----------
+        layout : sequence of int
+
+        Returns
+        -------
+        list of (int, int, str)
+            ``(ix, iy, kind)`` per sensor.
+        """
         return [(int(self.ix[i]), int(self.iy[i]), str(self.kind[i])) for i in layout]
 
     def records(self, layout):
-        """``[{"sensor": "strain:58:ex", "kind": "ex"|"ey"|"gxy"|"acc", "node": id}, ...]`` (1-based
-        node ids)."""
+        """A layout as records for tables and JSON.
+
+        Parameters
+        ----------
+        layout : sequence of int
+
+        Returns
+        -------
+        list of dict
+            ``{"sensor": "strain:58:ex", "kind": "ex"|"ey"|"gxy"|"acc", "node": id}`` (1-based node ids).
+        """
         return [{"sensor": self.labels[i], "kind": str(self.kind[i]), "node": int(self.node[i])} for i in layout]
 
     def from_sensors(self, sensors):
-        """Layout (sorted candidate indices) from sensor strings or ``(node, kind)`` pairs."""
+        """A layout from sensor strings or ``(node, kind)`` pairs.
+
+        Parameters
+        ----------
+        sensors : sequence of str or (int, str)
+
+        Returns
+        -------
+        tuple of int
+            Sorted candidate indices.
+        """
         out = []
         for s in sensors:
             if isinstance(s, str):
@@ -482,9 +705,24 @@ class PlateGrid(CandidateSet):
         return int(rng.choice(best))
 
     def crossover_intermediate(self, a, b, rng, alpha=0.5):
-        """The thesis' baseline: intermediate crossover on the (ix, iy) genes of paired sensors,
-        ``c = p1 + u (p2 - p1)`` with ``u ~ U(-alpha, 1 + alpha)``, rounded to the grid, kinds
-        taken from either parent, then repaired to the nearest admissible unused position."""
+        """The thesis' baseline: intermediate crossover on the (ix, iy) genes of paired sensors.
+
+        ``c = p1 + u (p2 - p1)`` with ``u ~ U(-alpha, 1 + alpha)``, rounded to the grid, kinds taken
+        from either parent, then repaired to the nearest admissible unused position.
+
+        Parameters
+        ----------
+        a, b : sequence of int
+            The parents.
+        rng : numpy.random.Generator
+        alpha : float
+            Extent beyond the parents.
+
+        Returns
+        -------
+        tuple
+            Two children (layouts).
+        """
         def child():
             genes, used = [], set()
             for g1, g2 in zip(a, b):
@@ -515,9 +753,22 @@ class PlateGrid(CandidateSet):
         return None if ng in others else ng
 
     def mutate_adaptive(self, layout, rng, scale):
-        """The thesis' baseline: Gaussian steps of standard deviation ``scale`` (grid units,
-        shrinking over the generations) on the (ix, iy) genes, random kind changes with
-        probability ``scale / max(nx, ny)``, repaired to the nearest admissible unused point."""
+        """The thesis' baseline: Gaussian steps on the (ix, iy) genes.
+
+        Steps of standard deviation ``scale`` (grid units, shrinking over the generations), random
+        kind changes with probability ``scale / max(nx, ny)``, repaired to the nearest admissible
+        unused point.
+
+        Parameters
+        ----------
+        layout : sequence of int
+        rng : numpy.random.Generator
+        scale : float
+
+        Returns
+        -------
+        tuple of int
+        """
         genes, used = [], set()
         for g in layout:
             ix = int(np.clip(np.rint(self.ix[g] + rng.normal(0, scale)), 1, self.nx))
@@ -533,8 +784,19 @@ class PlateGrid(CandidateSet):
         return self.repair(genes, rng)
 
     def distance(self, a, b):
-        """Distance between two layouts: the minimum-cost matching of their sensors, cost = grid
-        distance + 1 for a different kind; 0 for the same layout."""
+        """Distance between two layouts.
+
+        The minimum-cost matching of their sensors, cost = grid distance + 1 for a different kind; 0
+        for the same layout.
+
+        Parameters
+        ----------
+        a, b : sequence of int
+
+        Returns
+        -------
+        float
+        """
         a, b = list(a), list(b)
         C = np.hypot(self.ix[a][:, None] - self.ix[b][None, :], self.iy[a][:, None] - self.iy[b][None, :])
         C = C + (self.kind[a][:, None] != self.kind[b][None, :])
@@ -547,10 +809,28 @@ Encoding = PlateGrid
 
 
 def make_encoding(structure, kinds=None, n_sensors=None, budget=None, candidates=None):
-    """The encoding of a placement problem: the thesis' plate grid (:class:`PlateGrid`) for a plate
-    whose nodes form a rectangular grid and plate kinds (``ex ey gxy acc``), else a
-    :class:`CandidateSet` of ``candidates`` or of ``kinds`` (default: strain gauges on every
-    strain output, plus nothing else)."""
+    """The encoding of a placement problem.
+
+    The thesis' plate grid (:class:`PlateGrid`) for a plate whose nodes form a rectangular grid
+    and plate kinds (``ex ey gxy acc``), else a :class:`CandidateSet` of ``candidates`` or of
+    ``kinds``.
+
+    Parameters
+    ----------
+    structure : Structure
+    kinds : sequence of str, optional
+        Kinds that may be placed (default: strain gauges on every strain output).
+    n_sensors : int, optional
+        Total number of sensors (or ``budget``).
+    budget : dict, optional
+        Sensors per type.
+    candidates : sequence of str, optional
+        The candidate set itself.
+
+    Returns
+    -------
+    CandidateSet or PlateGrid
+    """
     if candidates is None:
         if kinds is None:
             kinds = STRAIN_KINDS if structure.strain_kind == "node" else ("strain",)

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .encoding import PlateGrid
+    from .encoding import CandidateSet
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,12 +35,25 @@ class PlacementResult:
 
     Attributes
     ----------
-    best : tuple -- the canonical layout (candidate indices)
-    best_error : float -- its fitness
-    sensors : list of str -- its sensors;  layout : ``[{"node", "kind"}]`` (1-based node ids)
-    logbook : DataFrame per generation: best, mean, std, diversity, evaluations, cache_hits,
-        infeasible, seconds
-    hall_of_fame : list of (sensors, fitness), best first
+    best : tuple of int
+        The canonical layout (candidate indices).
+    best_error : float
+        Its fitness (µε for the strain-error objective).
+    sensors : list of str
+        Its sensors.
+    layout : list of dict
+        Its :meth:`~sensoropt.encoding.CandidateSet.records` (1-based node ids).
+    logbook : pandas.DataFrame
+        Per generation: best, mean, std, diversity, evaluations, cache_hits, infeasible, seconds.
+    hall_of_fame : list of (list of str, float)
+        ``(sensors, fitness)``, best first.
+    evaluations, cache_hits, infeasible : int
+        Counters.
+    stopped : str
+        Why the run ended ("generations", "stall").
+    seed : int
+    settings : dict
+        The GA settings of the run.
     """
 
     best: tuple
@@ -58,9 +71,28 @@ class PlacementResult:
 
 
 class PlacementGA(Algorithm):
-    """The thesis' elitist generational GA on canonical layouts: ``elite`` best layouts kept,
-    tournament selection, set-based (or intermediate) crossover and per-sensor (or adaptive)
-    mutation."""
+    """The thesis' elitist generational GA on canonical layouts.
+
+    ``elite`` best layouts kept, tournament selection, set-based (or intermediate) crossover and
+    per-sensor (or adaptive) mutation.
+
+    Parameters
+    ----------
+    encoding : CandidateSet or PlateGrid
+    population : int
+    generations : int
+        Generations after the initial one (scales the adaptive mutation).
+    elite : int
+        Layouts kept unchanged per generation.
+    crossover, mutation : float
+        Probabilities.
+    tournament : int
+        Tournament size.
+    operators : str
+        "set" or "thesis" (see :func:`place`).
+    initial : list of tuple, optional
+        Layouts seeded into the first population.
+    """
 
     def __init__(self, encoding, *, population, generations, elite, crossover, mutation, tournament, operators,
                  initial=None):
@@ -74,27 +106,27 @@ class PlacementGA(Algorithm):
             layouts.append(self.encoding.random_layout(rng))
         return layouts[:self.size]
 
-    def next_generation(self, pop, gen, rng, pyrng, evaluate):
+    def next_generation(self, population, generation, rng, pyrng, evaluate):
         enc = self.encoding
-        elites = [i.copy() for i in best(pop, self.elite)]
-        kids = [tuple(p) for p in tournament(pop, len(pop) - self.elite, self.tsize, pyrng)]
+        elites = [i.copy() for i in best(population, self.elite)]
+        kids = [tuple(p) for p in tournament(population, len(population) - self.elite, self.tsize, pyrng)]
         for j in range(0, len(kids) - 1, 2):
             if rng.random() < self.cx:
                 op = enc.crossover_set if self.operators == "set" else enc.crossover_intermediate
                 kids[j], kids[j + 1] = op(kids[j], kids[j + 1], rng)
-        scale = max(0.5, 0.5 * enc.span * (1 - gen / max(self.generations, 1)))
+        scale = max(0.5, 0.5 * enc.span * (1 - generation / max(self.generations, 1)))
         for j in range(len(kids)):
             if rng.random() < self.mut:
                 kids[j] = enc.mutate(kids[j], rng) if self.operators == "set" else enc.mutate_adaptive(kids[j], rng, scale)
         return elites + [Individual(k) for k in kids]
 
-    def record(self, pop):
-        f = np.array([i.fitness.values[0] for i in pop])
+    def record(self, population):
+        f = np.array([i.fitness.values[0] for i in population])
         return {"best": float(f.min()), "mean": float(f.mean()), "std": float(f.std()),
-                "diversity": self.encoding.diversity([tuple(i) for i in pop])}
+                "diversity": self.encoding.diversity([tuple(i) for i in population])}
 
 
-def place(objective, encoding: PlateGrid, *, population: int = 50, generations: int = 100, elite: int = 2,
+def place(objective, encoding: CandidateSet, *, population: int = 50, generations: int = 100, elite: int = 2,
           crossover: float = 0.8, mutation: float = 0.16, tournament: int = 4, stall_generations: int = 50,
           stall_tol: float = 1e-6, operators: str = "set", seed: int = 0, n_jobs: int = 1,
           checkpoint: str | None = None, checkpoint_every: int = 5, resume: bool = False, progress: bool = False,
@@ -104,24 +136,41 @@ def place(objective, encoding: PlateGrid, *, population: int = 50, generations: 
 
     Parameters
     ----------
-    objective : an objective with ``evaluate(list of layouts) -> list of floats`` (see
-        :mod:`sensoropt.objective`; wrap a plain function with ``FunctionObjective``)
-    encoding : :class:`~sensoropt.encoding.PlateGrid` -- candidates, sensor count / budget
-    population, generations, elite, crossover, mutation, tournament : GA settings
-    stall_generations, stall_tol : stop when the mean fitness changed by less than
-        ``stall_tol`` (relative) over that many generations
-    operators : "set" (set-based crossover, per-sensor move/jump/kind-flip mutation) or
-        "thesis" (intermediate crossover, adaptive Gaussian mutation)
-    seed : int -- the whole run, whatever ``n_jobs``
-    n_jobs : joblib workers for the fitness (backend from ``joblib.parallel_config``)
-    checkpoint : path -- a JSON checkpoint saved every ``checkpoint_every`` generations;
-        ``resume=True`` continues from it (a killed run loses at most ``checkpoint_every``
-        generations)
-    initial : optional layouts (sensor lists) seeded into the first population
+    objective : object
+        An objective with ``evaluate(list of layouts) -> list of floats`` (see
+        :mod:`sensoropt.objective`; wrap a plain function with ``FunctionObjective``).
+    encoding : CandidateSet or PlateGrid
+        The candidates and the sensor count or budget.
+    population, generations, elite, crossover, mutation, tournament : int or float
+        GA settings (TH: 50, 100, 2, 0.8, 0.16, 4).
+    stall_generations, stall_tol : int, float
+        Stop when the mean fitness changed by less than ``stall_tol`` (relative) over
+        ``stall_generations`` generations.
+    operators : str
+        "set" (set-based crossover, per-sensor move/jump/kind-flip mutation) or "thesis"
+        (intermediate crossover, adaptive Gaussian mutation).
+    seed : int
+        Seeds the whole run, whatever ``n_jobs``.
+    n_jobs : int
+        joblib workers for the fitness (backend from ``joblib.parallel_config``).
+    checkpoint : str, optional
+        A JSON checkpoint saved every ``checkpoint_every`` generations.
+    checkpoint_every : int
+        Generations between checkpoints (a killed run loses at most this many).
+    resume : bool
+        Continue from ``checkpoint``.
+    progress : bool
+        A progress bar over the generations.
+    hall_of_fame : int
+        How many of the best layouts the result lists.
+    penalty : float
+        The fitness of an infeasible layout (undetectable, a failing filter, NaN).
+    initial : list of list of str, optional
+        Layouts (sensor lists) seeded into the first population.
 
     Returns
     -------
-    :class:`PlacementResult`
+    PlacementResult
     """
     if population < 2 or generations < 0 or not 0 <= elite < population:
         raise AKFInputError("need population >= 2, generations >= 0 and 0 <= elite < population")
@@ -155,10 +204,27 @@ load_checkpoint = evolution_load_checkpoint
 
 
 def independent_runs(objective, encoding, runs=4, seed=0, **ga):
-    """``runs`` GA runs with seeds ``seed, seed + 1, ...``; returns ``(results, agreement)``
-    where ``agreement`` is a DataFrame with one row per run (best error, sensors) and columns
-    ``shared_with_best`` (share of the run's sensors that are in the overall best layout) and
-    ``mean_distance`` (layout distance to the other runs' best, grid units)."""
+    """Several GA runs with seeds ``seed, seed + 1, ...``, and how much they agree.
+
+    Parameters
+    ----------
+    objective : object
+        An objective with ``evaluate(list of layouts) -> list of floats``.
+    encoding : CandidateSet or PlateGrid
+    runs : int
+    seed : int
+        The first run's seed.
+    **ga
+        Settings of :func:`place`.
+
+    Returns
+    -------
+    results : list of PlacementResult
+    agreement : pandas.DataFrame
+        One row per run (best error, sensors) with ``shared_with_best`` (share of the run's
+        sensors that are in the overall best layout) and ``mean_distance`` (layout distance to
+        the other runs' best, in candidate spacings).
+    """
     import pandas as pd
 
     results = [place(objective, encoding, seed=seed + r, **ga) for r in range(runs)]

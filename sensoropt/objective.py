@@ -20,9 +20,23 @@ from core_akf.statespace import SubsetDetectability
 
 
 class FunctionObjective:
-    """Wrap a user function ``f(sensors) -> float`` (or a tuple of floats) as an objective.
-    ``sensors`` is a list of sensor strings; the function must be picklable for n_jobs > 1
-    (a module-level function, not a lambda)."""
+    """A user function of a layout's sensors as an objective.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(sensors) -> float`` (or a tuple of floats, one per objective; lower is better), with
+        ``sensors`` a list of sensor strings.  It must be picklable for ``n_jobs > 1`` (a
+        module-level function, not a lambda).
+    n_objectives : int
+        Values ``fn`` returns.
+
+    Examples
+    --------
+    >>> count_gauges = FunctionObjective(lambda sensors: float(sum(s.startswith("strain") for s in sensors)))
+    >>> count_gauges.evaluate([["strain:5", "acc:4:y"], ["strain:5", "strain:9"]])
+    [1.0, 2.0]
+    """
 
     def __init__(self, fn, n_objectives=1):
         if not callable(fn):
@@ -31,36 +45,65 @@ class FunctionObjective:
         self.n_objectives = int(n_objectives)
 
     def evaluate(self, layouts):
+        """The objective of each layout.
+
+        Parameters
+        ----------
+        layouts : sequence of sequence of str
+            Layouts as sensor lists.
+
+        Returns
+        -------
+        list
+            ``fn`` of each layout.
+        """
         return [self.fn(list(l)) for l in layouts]
 
 
 class StrainErrorObjective:
-    """TH fitness: the average RMS strain error over *all* strain components of the plate
-    (µε) of a steady-state AKF fed by the layout, on a short window of simulated response with
-    model error and noise.
+    """TH fitness: the average RMS strain error of a steady-state AKF fed by the layout.
 
-    The true (full) structure is simulated once for the window with every admissible sensor
-    channel (each channel with its own fixed noise draw, ``relative_noise`` of its RMS), so the
-    fitness of a layout is deterministic.  The filter uses the structure scaled by
-    ``stiffness_factor`` (model error), reduced to ``n_modes`` modes with a static correction
-    (:class:`core_akf.reduced.ModalFilterModel`), the true noise variances, and runs the layouts
-    of a batch in one call (one batched Riccati solve).
+    Over *all* strain outputs (or ``targets``), in µε, on a short window of simulated response
+    with model error and noise.  The true (full) structure is simulated once for the window with
+    every admissible sensor channel (each channel with its own fixed noise draw,
+    ``relative_noise`` of its RMS), so the fitness of a layout is deterministic.  The filter uses
+    the structure scaled by ``stiffness_factor`` (model error), reduced to ``n_modes`` modes with
+    a static correction (:class:`core_akf.reduced.ModalFilterModel`), the true noise variances,
+    and runs the layouts of a batch in one call (one batched Riccati solve).
 
     Parameters
     ----------
-    structure : Structure -- the true plate;  forces : force locations;  loads : (N, n_p) N
-    dt : float (s);  window : float (s) -- the record used, from the start of ``loads``
-    encoding : :class:`~sensoropt.encoding.CandidateSet` (or the plate grid
-        :class:`~sensoropt.encoding.PlateGrid`) -- the candidates to prepare
-    targets : strain output labels (``"strain:13"``, ``"strain:58:ex"``) whose error is averaged;
-        default every strain output
-    n_modes : filter modes with static correction (None: the full model).  ``"auto"``:
+    structure : Structure
+        The true structure.
+    forces : sequence of force specs
+        Where the loads act.
+    loads : ndarray (N, n_p)
+        Force histories (N).
+    dt : float
+        Time step (s).
+    encoding : CandidateSet or PlateGrid
+        The candidates to prepare.
+    window : float
+        The record used (s), from the start of ``loads``.
+    stiffness_factor : float
+        The filter model's stiffness relative to the truth (model error).
+    relative_noise : float
+        Sensor noise as a fraction of each channel's RMS.
+    model_error_cov, force_increment_cov : float
+        Q and S levels of the filter.
+    n_modes : int, "auto" or None
+        Filter modes with static correction (None: the full model).  ``"auto"``:
         :func:`core_akf.defaults.auto_modes` (thesis plate at 2 kHz: 80 modes when only strain
-        gauges are placed, 101 when accelerometers may be: they see higher modes).
-        Measured on the thesis plate (0.1 s window): the case-2 gauges 3.077 (80 modes) against
-        3.080 µε (full); the case-3 layout with its accelerometer 4.448 (100 modes) and 4.869 (80)
-        against 4.506 µε (full); 41 random 3-gauge layouts rank as with the full model (Spearman
-        0.997 at 80 modes, 0.93 at 40 modes, where some layouts are 2.6x off)
+        gauges are placed, 101 when accelerometers may be: they see higher modes).  Measured on
+        the thesis plate (0.1 s window): the case-2 gauges 3.077 (80 modes) against 3.080 µε
+        (full); the case-3 layout with its accelerometer 4.448 (100 modes) and 4.869 (80) against
+        4.506 µε (full); 41 random 3-gauge layouts rank as with the full model (Spearman 0.997 at
+        80 modes, 0.93 at 40 modes, where some layouts are 2.6x off).
+    seed : int
+        The noise draw.
+    targets : sequence of str, optional
+        Strain output labels (``"strain:13"``, ``"strain:58:ex"``) whose error is averaged;
+        default every strain output.
     """
 
     n_objectives = 1
@@ -95,11 +138,32 @@ class StrainErrorObjective:
         self.n_forces = len(self.model.forces)
 
     def detectable(self, idx):
-        """PBH test of a layout (candidate indices), :class:`core_akf.statespace.SubsetDetectability`."""
+        """PBH test of a layout (:class:`core_akf.statespace.SubsetDetectability`).
+
+        Parameters
+        ----------
+        idx : sequence of int
+            Candidate indices.
+
+        Returns
+        -------
+        bool
+        """
         return self._detectability.detectable(idx)
 
     def evaluate(self, layouts):
-        """Average strain error (µε) per layout; ``inf`` for an undetectable or failing one."""
+        """Average strain error per layout.
+
+        Parameters
+        ----------
+        layouts : sequence of sequence of str
+            Layouts as sensor lists.
+
+        Returns
+        -------
+        list of float
+            µε; ``inf`` for an undetectable or failing layout.
+        """
         idx = [self.encoding.from_sensors(l) for l in layouts]
         out = [math.inf] * len(idx)
         by_size = {}

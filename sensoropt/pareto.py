@@ -18,8 +18,17 @@ from .ga import BATCH, PENALTY
 
 @dataclass
 class ParetoResult:
-    """front : DataFrame, one row per non-dominated layout (n_sensors, cost, error, sensors), by
-    size;  logbook : DataFrame per generation;  evaluations, cache_hits"""
+    """Outcome of :func:`pareto`.
+
+    Attributes
+    ----------
+    front : pandas.DataFrame
+        One row per non-dominated layout (n_sensors, cost, error, sensors), by size.
+    logbook : pandas.DataFrame
+        One row per generation.
+    evaluations, cache_hits : int
+        Counters.
+    """
 
     front: object
     logbook: object
@@ -28,9 +37,22 @@ class ParetoResult:
 
 
 class ParetoGA(Algorithm):
-    """NSGA-II on layouts of ``sizes[0]..sizes[1]`` sensors: DCD tournament, a crossover that
-    draws each child's sensors from the union of its parents', per-sensor mutation and adding or
-    removing one sensor, survival by ``selNSGA2``."""
+    """NSGA-II on layouts of ``lo..hi`` sensors.
+
+    DCD tournament, a crossover that draws each child's sensors from the union of its parents',
+    per-sensor mutation and adding or removing one sensor, survival by ``selNSGA2``.
+
+    Parameters
+    ----------
+    encodings : dict
+        Sensor count -> :class:`~sensoropt.encoding.PlateGrid` of that count.
+    lo, hi : int
+        The smallest and largest layout.
+    population : int
+        A multiple of 4.
+    crossover, mutation : float
+        Probabilities.
+    """
 
     individual = individual_class(2)
 
@@ -42,10 +64,10 @@ class ParetoGA(Algorithm):
     def initial(self, rng, pyrng):
         return [self.encs[self.lo + j % (self.hi - self.lo + 1)].random_layout(rng) for j in range(self.size)]
 
-    def after_initial(self, pop):
+    def after_initial(self, population):
         from deap import tools
 
-        return tools.selNSGA2(pop, len(pop))
+        return tools.selNSGA2(population, len(population))
 
     def _vary_size(self, layout, rng):
         """Add or remove one sensor (keeps the size within the bounds)."""
@@ -57,10 +79,10 @@ class ParetoGA(Algorithm):
             layout.pop(int(rng.integers(len(layout))))
         return tuple(sorted(layout))
 
-    def next_generation(self, pop, gen, rng, pyrng, evaluate):
+    def next_generation(self, population, generation, rng, pyrng, evaluate):
         from deap import tools
 
-        kids = [tuple(p) for p in tournament_dcd(pop, len(pop), pyrng)]
+        kids = [tuple(p) for p in tournament_dcd(population, len(population), pyrng)]
         for j in range(0, len(kids) - 1, 2):
             if rng.random() < self.cx:
                 a, b = kids[j], kids[j + 1]
@@ -73,13 +95,13 @@ class ParetoGA(Algorithm):
             if rng.random() < self.mut:
                 kids[j] = self._vary_size(kids[j], rng)
         offspring = evaluate([self.individual(k) for k in kids])
-        return tools.selNSGA2(pop + offspring, self.size)
+        return tools.selNSGA2(population + offspring, self.size)
 
-    def record(self, pop):
+    def record(self, population):
         from deap import tools
 
-        front = tools.sortNondominated(pop, len(pop), first_front_only=True)[0]
-        errs = np.array([i.fitness.values[0] for i in pop])
+        front = tools.sortNondominated(population, len(population), first_front_only=True)[0]
+        errs = np.array([i.fitness.values[0] for i in population])
         return {"front_size": len({tuple(i) for i in front}), "best_error": float(errs.min()),
                 "mean_error": float(errs.mean())}
 
@@ -112,18 +134,35 @@ def pareto(objective, structure, *, kinds: tuple[str, ...] = ("ex", "ey", "gxy")
 
     Parameters
     ----------
-    objective : a single-objective layout objective (e.g. :class:`StrainErrorObjective` built with
-        an encoding of the same kinds; it is evaluated on layouts of every size in ``sizes``)
-    structure : the plate (for the candidates)
-    sizes : (min, max) number of sensors
-    cost : dict kind -> cost per sensor (e.g. ``{"ex": 1, "ey": 1, "gxy": 1, "acc": 3}``);
-        default one per sensor, i.e. the second objective is the sensor count
-    population : rounded up to a multiple of 4 (the NSGA-II tournament takes fours)
-    seed : int -- the whole run, whatever ``n_jobs``
+    objective : object
+        A single-objective layout objective (e.g. :class:`StrainErrorObjective` built with an
+        encoding of the same kinds); it is evaluated on layouts of every size in ``sizes``.
+    structure : Structure
+        The plate (for the candidates).
+    kinds : tuple of str
+        Kinds that may be placed.
+    sizes : (int, int)
+        The smallest and largest number of sensors.
+    cost : dict, optional
+        Kind -> cost per sensor (e.g. ``{"ex": 1, "ey": 1, "gxy": 1, "acc": 3}``); default one
+        per sensor, i.e. the second objective is the sensor count.
+    population : int
+        Rounded up to a multiple of 4 (the NSGA-II tournament takes fours).
+    generations : int
+    crossover, mutation : float
+        Probabilities.
+    seed : int
+        Seeds the whole run, whatever ``n_jobs``.
+    n_jobs : int
+        joblib workers for the fitness.
+    progress : bool
+        A progress bar.
+    penalty : float
+        The error of an infeasible layout.
 
     Returns
     -------
-    :class:`ParetoResult`
+    ParetoResult
     """
     import pandas as pd
 

@@ -11,7 +11,20 @@ _MARKERS = {"ex": ("s", "tab:blue"), "ey": ("D", "tab:green"), "gxy": ("^", "tab
 
 
 def plot_convergence(logbook, path=None, title="placement GA"):
-    """Best and mean fitness and the diversity per generation."""
+    """Best and mean fitness and the diversity per generation.
+
+    Parameters
+    ----------
+    logbook : pandas.DataFrame
+        A GA logbook (:attr:`~sensoropt.ga.PlacementResult.logbook`).
+    path : str, optional
+        Write the figure here.
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig, ax = subplots(figsize=(7, 3.6))
     ax.plot(logbook["generation"], logbook["best"], "k-", label="best")
     ax.plot(logbook["generation"], logbook["mean"], "b--", lw=0.8, label="mean")
@@ -28,9 +41,27 @@ def plot_convergence(logbook, path=None, title="placement GA"):
 
 
 def plot_layout(encoding, layout, path=None, title="", forces=()):
-    """The mesh (nodes as dots, clamped nodes grey), the sensors with kind markers and node ids,
-    and the force locations (red crosses); on any other structure than the plate grid the layout
-    drawn on the structure (3-D for 3-D coordinates, :func:`core_akf.figures.plot_structure`)."""
+    """A sensor layout on its structure.
+
+    On the plate grid: the mesh (nodes as dots, clamped nodes grey), the sensors with kind
+    markers and node ids, and the force locations (red crosses); on any other structure the
+    layout drawn on the structure (3-D for 3-D coordinates, :func:`core_akf.figures.plot_structure`).
+
+    Parameters
+    ----------
+    encoding : CandidateSet or PlateGrid
+    layout : sequence of int
+        Candidate indices.
+    path : str, optional
+        Write the figure here.
+    title : str
+    forces : sequence of force specs
+        Force locations to mark.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     from .encoding import PlateGrid
 
     if not isinstance(encoding, PlateGrid):
@@ -68,6 +99,20 @@ def plot_layout(encoding, layout, path=None, title="", forces=()):
 
 
 def plot_pareto(front, path=None, title="error vs number of sensors"):
+    """The Pareto front: error against cost (or the number of sensors), log scale.
+
+    Parameters
+    ----------
+    front : pandas.DataFrame
+        :attr:`~sensoropt.pareto.ParetoResult.front`.
+    path : str, optional
+        Write the figure here.
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig, ax = subplots(figsize=(6, 3.6))
     x = front["cost"] if "cost" in front else front["n_sensors"]
     ax.plot(x, front["error"], "o-")

@@ -17,13 +17,50 @@ from .objective import StrainErrorObjective
 
 @dataclass
 class PlacementProblem:
-    """A structure, its force locations and load histories (full record), what to place, and the
-    filter settings.  ``objective()`` builds the GA fitness on the first ``window`` seconds;
-    ``full_record_error(sensors)`` checks a layout on the whole record.
+    """A placement problem: a structure, its loads, what to place and the filter settings.
 
-    ``kinds`` (default: a plate's strain components, or strain gauges on every strain output) or
-    ``candidates`` (sensor strings) make the candidate set (:func:`~sensoropt.encoding.make_encoding`);
-    ``targets`` (strain output labels, default all) are the outputs whose error is averaged."""
+    :meth:`objective` builds the GA fitness on the first ``window`` seconds;
+    :meth:`full_record_error` checks a layout on the whole record.
+
+    Parameters
+    ----------
+    name : str
+    structure : Structure
+        The true structure.
+    forces : list of str
+        Force locations ("121:w").
+    loads : ndarray (N, n_p)
+        Force histories of the full record (N).
+    dt : float
+        Time step (s).
+    kinds : tuple of str, optional
+        Kinds that may be placed (default: a plate's strain components, or strain gauges on
+        every strain output); see :func:`~sensoropt.encoding.make_encoding`.
+    n_sensors : int, optional
+        Total number of sensors (or ``budget``).
+    budget : dict, optional
+        Sensors per type, e.g. ``{"strain": 2, "acc": 1}``.
+    window : float
+        Simulated response per fitness evaluation (s).
+    stiffness_factor : float
+        The filter model's stiffness relative to the truth (model error).
+    relative_noise : float
+        Sensor noise as a fraction of each channel's RMS.
+    model_error_cov, force_increment_cov : float
+        Q and S levels of the filter.
+    n_modes : int, "auto" or None
+        Filter modes with static correction.
+    seed : int
+        The noise draw.
+    reference_layouts : dict
+        Name -> sensor list, layouts to compare the GA's with.
+    candidates : list of str, optional
+        The candidate set itself (instead of ``kinds``).
+    targets : list of str, optional
+        Strain output labels whose error is averaged (default all).
+    notes : list of str
+        Notes for the user (a default S far from the loads' increments).
+    """
 
     name: str
     structure: object
@@ -47,6 +84,12 @@ class PlacementProblem:
     notes: list = field(default_factory=list)
 
     def encoding(self):
+        """The candidate set of the problem (:func:`~sensoropt.encoding.make_encoding`).
+
+        Returns
+        -------
+        CandidateSet or PlateGrid
+        """
         return make_encoding(self.structure, kinds=self.kinds, n_sensors=self.n_sensors, budget=self.budget,
                              candidates=self.candidates)
 
@@ -55,6 +98,17 @@ class PlacementProblem:
         return None if self.targets is None else self.structure.strain_label_index(self.targets)
 
     def objective(self, encoding=None):
+        """The GA fitness: :class:`~sensoropt.objective.StrainErrorObjective` on the first ``window`` seconds.
+
+        Parameters
+        ----------
+        encoding : CandidateSet or PlateGrid, optional
+            The candidates (default :meth:`encoding`).
+
+        Returns
+        -------
+        StrainErrorObjective
+        """
         return StrainErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding or self.encoding(),
                                     window=self.window, stiffness_factor=self.stiffness_factor,
                                     relative_noise=self.relative_noise, model_error_cov=self.model_error_cov,
@@ -62,9 +116,22 @@ class PlacementProblem:
                                     seed=self.seed, targets=self.targets)
 
     def full_record_error(self, sensors, seed=None):
-        """Average strain error (µε) over the whole record: simulation of the true plate with
-        this layout and ``relative_noise``, steady-state AKF on the model with model error
-        (``n_modes`` modes, static correction)."""
+        """Average strain error over the whole record of a layout.
+
+        Simulation of the true structure with this layout and ``relative_noise``, steady-state AKF
+        on the model with model error (``n_modes`` modes, static correction).
+
+        Parameters
+        ----------
+        sensors : sequence of str
+        seed : int, optional
+            The noise draw (default the problem's).
+
+        Returns
+        -------
+        float
+            µε.
+        """
         sim = simulate(self.structure, sensors, self.forces, self.loads, self.dt, relative_noise=self.relative_noise,
                        seed=self.seed if seed is None else seed)
         n_modes = self.n_modes

@@ -35,9 +35,10 @@ def _callables():
                 continue
             if inspect.isfunction(obj):
                 seen.add(id(obj))
-                yield f"{module.__name__}.{name}", obj, inspect.getdoc(obj)
+                yield f"{module.__name__}.{obj.__qualname__}", obj, inspect.getdoc(obj)
             elif inspect.isclass(obj):
                 seen.add(id(obj))
+                name = obj.__qualname__          # an alias (a class's old name) is checked under its own
                 if obj.__doc__ is None or (issubclass(obj, BaseException) and "__init__" not in vars(obj)):
                     yield f"{module.__name__}.{name}", None, obj.__doc__      # an exception: a docstring is enough
                 else:
