@@ -36,9 +36,16 @@ LOCATE_UNITS = {"confidence": "share of role splits (0-1)", "margin": "runner-up
 class LocateResult:
     """Outcome of :func:`locate`.
 
-    scan : ScanResult;  tuning : TuningResult or None
-    reconstruction : with the tuned covariances;  initial : with the assumed ones
-    seconds : wall time per stage
+    Attributes
+    ----------
+    scan : ScanResult
+    tuning : TuningResult or None
+    reconstruction : Reconstruction
+        With the tuned covariances.
+    initial : Reconstruction
+        With the assumed covariances.
+    seconds : dict
+        Wall time per stage (s).
     """
 
     scan: object
@@ -80,20 +87,45 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
 
     Parameters
     ----------
-    structure : Structure -- the FE model (the filter's model)
-    sensors : installed sensor layout;  measurements : (N, m), columns in layout order;  dt : s
-    n_ad, ad_kinds, max_splits : role splits (see :func:`impactloc.role_splits`)
-    direction : force direction at the candidates ("y" on the truss, "w" on a plate)
-    candidates : 1-based node ids (default: every free node in ``direction``)
-    covariances : assumed :class:`Covariances` (default :func:`default_covariances`)
-    tune : run the covariance GA (options in the dict ``tuning``, see :func:`tune_covariances`)
-    n_modes : filter model reduction for the scan and the tuning (see :class:`ImpactModel`)
-    n_jobs : joblib workers (backend from ``joblib.parallel_config``)
-    seed : role-split sample and GA seed
+    structure : Structure
+        The FE model (the filter's model).
+    sensors : sequence of sensor specs
+        The installed layout, m sensors.
+    measurements : array_like (N, m)
+        The record (SI), columns in layout order.
+    dt : float
+        Time step (s).
+    n_ad : int
+        AD (held-back) sensors per role split.
+    direction : str
+        Force direction at the candidates ("y" on the truss, "w" on a plate).
+    ad_kinds : tuple of str
+        Sensor kinds that may be AD (see :func:`impactloc.role_splits`).
+    candidates : list of int, optional
+        Candidate node ids, 1-based (default: every free node in ``direction``).
+    covariances : Covariances, optional
+        The assumed levels (default :func:`default_covariances`).
+    tune : bool
+        Run the covariance GA.
+    max_splits : int, optional
+        Cap on the role splits (a seeded sample).
+    n_modes : int, "auto" or None
+        Filter model reduction for the scan and the tuning (see :class:`ImpactModel`).
+    skip : float
+        Seconds at the start left out of the AD errors (filter start-up).
+    n_jobs : int
+        joblib workers (backend from ``joblib.parallel_config``).
+    seed : int
+        Role-split sample and GA seed.
+    progress : bool
+        Progress bars.
+    tuning : dict, optional
+        Options of :func:`tune_covariances` (population, generations, n_splits, decades,
+        crossover, mutation).
 
     Returns
     -------
-    :class:`LocateResult`
+    LocateResult
     """
     layout = as_layout(sensors)
     Y = np.asarray(measurements, dtype=float)
@@ -125,13 +157,30 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
 
 
 def plot_locate(result, out, true_force=None, true_strains=None, split=0):
-    """PNG figures like IMP Figs. 4-8 in folder ``out``; returns {name: path}.
+    """PNG figures like IMP Figs. 4-8 in a folder.
 
     * ``error_vs_location.png`` -- AD error vs assumed location for one split (Fig. 4) and the
       distribution over all splits (Fig. 5);
     * ``force.png`` -- reconstructed force with assumed and tuned covariances (Fig. 6/7);
     * ``strain_errors.png`` -- RMS strain error per member/component before and after tuning
       (Fig. 8; needs ``true_strains``).
+
+    Parameters
+    ----------
+    result : LocateResult
+    out : str
+        The folder.
+    true_force : ndarray (N,), optional
+        The true force history (N), drawn beside the reconstructions.
+    true_strains : ndarray (N, n_strain), optional
+        The true strains (m/m), for the strain-error figure.
+    split : int
+        The role split of the first panel.
+
+    Returns
+    -------
+    dict
+        Figure name -> path.
     """
     from core_akf.figures import save_figure, subplots
 

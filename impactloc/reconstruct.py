@@ -11,9 +11,19 @@ from core_akf.filter import estimate
 
 @dataclass
 class ForceSummary:
-    """Impact characteristics of a force history (SI): ``peak`` (N, signed), ``time_of_peak`` (s),
-    ``duration`` (s, the contiguous span around the peak where ``|f|`` exceeds ``level`` x ``|peak|``),
-    ``impulse`` (N s, the integral over that span)."""
+    """Impact characteristics of a force history (SI).
+
+    Attributes
+    ----------
+    peak : float
+        N, signed.
+    time_of_peak : float
+        s.
+    duration : float
+        s: the contiguous span around the peak where ``|f|`` exceeds ``level`` x ``|peak|``.
+    impulse : float
+        N s: the integral over that span.
+    """
 
     peak: float
     time_of_peak: float
@@ -21,12 +31,33 @@ class ForceSummary:
     impulse: float
 
     def as_dict(self):
+        """The summary as a dict for JSON.
+
+        Returns
+        -------
+        dict
+            ``peak_force``, ``time_of_peak``, ``duration``, ``impulse``.
+        """
         return {"peak_force": self.peak, "time_of_peak": self.time_of_peak, "duration": self.duration,
                 "impulse": self.impulse}
 
 
 def force_summary(force, dt, level=0.1):
-    """:class:`ForceSummary` of a force history (N,) sampled every ``dt`` s."""
+    """The impact characteristics of a force history.
+
+    Parameters
+    ----------
+    force : ndarray (N,)
+        N.
+    dt : float
+        Time step (s).
+    level : float
+        The duration is where ``|f|`` exceeds this share of ``|peak|``.
+
+    Returns
+    -------
+    ForceSummary
+    """
     f = np.asarray(force, float)
     if f.ndim != 1 or f.size == 0:
         raise AKFInputError("force must be a non-empty 1-D history")
@@ -46,8 +77,13 @@ def force_summary(force, dt, level=0.1):
 class Reconstruction:
     """The AKF with all installed sensors at the identified location.
 
-    estimate : :class:`core_akf.filter.Estimate` (force, states, strains at every member/node)
-    force : ndarray (N,) -- N;  summary : :class:`ForceSummary`
+    Attributes
+    ----------
+    estimate : Estimate
+        Force, states and strains at every member or node (:class:`core_akf.filter.Estimate`).
+    force : ndarray (N,)
+        The force history (N).
+    summary : ForceSummary
     """
 
     estimate: object
@@ -61,12 +97,32 @@ FULL_MODEL_LIMIT = 500
 
 
 def reconstruct(structure, sensors, measurements, dt, location, covariances, n_modes=None):
-    """Reconstruct the force history at ``location`` and the response everywhere with the
-    steady-state AKF fed by every installed sensor and the given :class:`Covariances`.
+    """Reconstruct the force history at a location and the response everywhere.
 
-    ``n_modes`` (an int, ``"auto"`` or None): the filter modes of the scan; a structure of more
-    than :data:`FULL_MODEL_LIMIT` DOFs is then reduced to them with a static correction, a smaller
-    one is used whole (the papers' cases)."""
+    The steady-state AKF fed by every installed sensor with the given covariances.
+
+    Parameters
+    ----------
+    structure : Structure
+        The filter's model.
+    sensors : sequence of sensor specs
+        The installed layout.
+    measurements : array_like (N, m)
+        The record (SI).
+    dt : float
+        Time step (s).
+    location : (int, str)
+        The force location ``(node, direction)``.
+    covariances : Covariances
+    n_modes : int, "auto" or None
+        The filter modes of the scan; a structure of more than :data:`FULL_MODEL_LIMIT` DOFs is
+        then reduced to them with a static correction, a smaller one is used whole (the papers'
+        cases).
+
+    Returns
+    -------
+    Reconstruction
+    """
     if n_modes is not None and structure.n > FULL_MODEL_LIMIT and not structure.is_reduced:
         from core_akf.defaults import auto_modes
 

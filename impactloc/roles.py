@@ -16,12 +16,31 @@ _KINDS = ("strain", "acc", "vel", "disp")
 
 @dataclass(frozen=True)
 class RoleSplit:
-    """Indices (0-based, into the installed layout) of the SE and AD sensors of one split."""
+    """The SE and AD sensors of one role split.
+
+    Attributes
+    ----------
+    se : tuple of int
+        Indices (0-based, into the installed layout) of the sensors the filter is fed.
+    ad : tuple of int
+        Indices of the held-back sensors the estimate is checked against.
+    """
 
     se: tuple
     ad: tuple
 
     def labels(self, layout):
+        """The split's sensors by label.
+
+        Parameters
+        ----------
+        layout : sequence of Sensor
+            The installed layout.
+
+        Returns
+        -------
+        se, ad : list of str
+        """
         return [layout[i].label for i in self.se], [layout[i].label for i in self.ad]
 
 

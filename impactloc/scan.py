@@ -52,6 +52,13 @@ class Covariances:
                 raise AKFInputError(f"noise variance for {kind!r} must be finite and > 0, got {v!r}")
 
     def as_dict(self):
+        """The levels as a flat dict for tables and JSON.
+
+        Returns
+        -------
+        dict
+            ``model_error``, ``force_increment`` and ``noise_KIND`` per sensor kind.
+        """
         return {"model_error": self.model_error, "force_increment": self.force_increment,
                 **{f"noise_{k}": v for k, v in self.noise.items()}}
 
@@ -59,8 +66,28 @@ class Covariances:
 def default_covariances(sensors, measurements, model_error=default("model_error_cov"),
                         force_increment=default("impact_force_increment_cov"),
                         relative_noise=default("impact_relative_noise")):
-    """Assumed levels before tuning: ``Q`` and ``S`` as given, ``R`` per sensor kind from the
-    data, ``(relative_noise x median RMS of that kind's channels)^2``."""
+    """Assumed levels before tuning.
+
+    ``Q`` and ``S`` as given, ``R`` per sensor kind from the data,
+    ``(relative_noise x median RMS of that kind's channels)^2``.
+
+    Parameters
+    ----------
+    sensors : sequence of sensor specs
+        The installed layout.
+    measurements : array_like (N, m)
+        The record (SI).
+    model_error : float
+        ``Q`` level (m^2 and (m/s)^2 per step).
+    force_increment : float
+        ``S`` (N^2 per step).
+    relative_noise : float
+        Assumed noise as a share of the channels' RMS.
+
+    Returns
+    -------
+    Covariances
+    """
     layout = as_layout(sensors)
     Y = np.asarray(measurements, float)
     noise = {}
@@ -72,8 +99,20 @@ def default_covariances(sensors, measurements, model_error=default("model_error_
 
 
 def candidate_locations(structure, direction, nodes=None):
-    """Candidate impact locations ``(node, direction)``: every free node in ``direction`` (or
-    the given node ids, each checked)."""
+    """Candidate impact locations.
+
+    Parameters
+    ----------
+    structure : Structure
+    direction : str
+        The force direction ("y", "w").
+    nodes : sequence of int, optional
+        Node ids (1-based), each checked (default every free node in ``direction``).
+
+    Returns
+    -------
+    list of (int, str)
+    """
     if nodes is None:
         nodes = [int(n) for n in structure.user_node_ids if _free(structure, int(n), direction)]
         if not nodes:
@@ -90,15 +129,26 @@ def _free(structure, node, direction):
 
 
 class ImpactModel:
-    """The filter model prepared once for a scan: one :class:`core_akf.reduced.ModalFilterModel`
-    per candidate location (cached), all sharing the structure's modes.  Picklable.
+    """The filter model prepared once for a scan.
 
-    ``n_modes``: None keeps the full model; ``"auto"`` keeps the modes below 10x the sampling
-    rate with a static correction for the rest.  On the IMP plate that drops the 60
-    shear/rotation modes above 28 kHz and keeps the 30 bending modes (n_a 181 -> 61, the scan 5x
-    faster; the true location fits as well as with the full model, the wrong ones score
-    differently but stay far worse).  A cut at the sampling rate itself is too deep: a 4 ms
-    impact excites modes up to a few kHz and the identification fails.
+    One :class:`core_akf.reduced.ModalFilterModel` per candidate location (cached), all sharing
+    the structure's modes.  Picklable.
+
+    Parameters
+    ----------
+    structure : Structure
+        The filter's model.
+    sensors : sequence of sensor specs
+        The installed layout.
+    dt : float
+        Time step (s).
+    n_modes : int, "auto" or None
+        None keeps the full model; ``"auto"`` keeps the modes below 10x the sampling rate with a
+        static correction for the rest.  On the IMP plate that drops the 60 shear/rotation modes
+        above 28 kHz and keeps the 30 bending modes (n_a 181 -> 61, the scan 5x faster; the true
+        location fits as well as with the full model, the wrong ones score differently but stay
+        far worse).  A cut at the sampling rate itself is too deep: a 4 ms impact excites modes up
+        to a few kHz and the identification fails.
     """
 
     def __init__(self, structure, sensors, dt, n_modes=None):
@@ -116,27 +166,90 @@ class ImpactModel:
         self._detectability = {}
 
     def filter_model(self, loc):
+        """The filter model of a force location, built once.
+
+        Parameters
+        ----------
+        loc : (int, str)
+            The force location.
+
+        Returns
+        -------
+        fm : ModalFilterModel
+        G_a : ndarray (m, n_a)
+            The observation rows of all installed sensors.
+        """
         if loc not in self._systems:
             fm = ModalFilterModel(self.full, [loc], self.dt, self.n_modes)
             self._systems[loc] = (fm, fm.observation(self.layout))
         return self._systems[loc]
 
     def system(self, loc):
-        """``(A_a, G_a)`` for a force at ``loc``: augmented modal transition and the observation
-        rows of *all* installed sensors (m x n_a)."""
+        """The augmented system for a force at a location.
+
+        Parameters
+        ----------
+        loc : (int, str)
+            The force location.
+
+        Returns
+        -------
+        A_a : ndarray (n_a, n_a)
+            Augmented modal transition.
+        G_a : ndarray (m, n_a)
+            Observation rows of *all* installed sensors.
+        """
         fm, G_a = self.filter_model(loc)
         return fm.A_a, G_a
 
     def detectable(self, loc, se):
-        """PBH detectability of a force at ``loc`` from the SE sensors ``se`` (indices)."""
+        """PBH detectability of a force at a location from some of the sensors.
+
+        Parameters
+        ----------
+        loc : (int, str)
+            The force location.
+        se : sequence of int
+            Indices of the SE sensors (0-based, into the installed layout).
+
+        Returns
+        -------
+        bool
+        """
         if loc not in self._detectability:
             self._detectability[loc] = SubsetDetectability(self.full, self.layout, [loc])
         return self._detectability[loc].detectable(se)
 
     def Q_a(self, cov, loc):
+        """The augmented process covariance of a force location.
+
+        Parameters
+        ----------
+        cov : Covariances
+        loc : (int, str)
+
+        Returns
+        -------
+        ndarray (n_a, n_a)
+        """
         return self.filter_model(loc)[0].Q_a(cov.model_error, cov.force_increment)
 
     def noise(self, cov):
+        """The measurement-noise variance of every installed sensor.
+
+        Parameters
+        ----------
+        cov : Covariances
+
+        Returns
+        -------
+        ndarray (m,)
+
+        Raises
+        ------
+        AKFInputError
+            For a sensor kind without a noise variance.
+        """
         missing = sorted(set(self.kinds) - set(cov.noise))
         if missing:
             raise AKFInputError(f"covariances have no noise variance for sensor kind(s) {missing}")
@@ -144,8 +257,24 @@ class ImpactModel:
 
 
 def rms_errors(pred, Y_ad, skip=0):
-    """RMS error per filter and AD channel over samples ``skip..N-1``, absolute and relative
-    to the RMS of the measured channel: two arrays (B, a)."""
+    """RMS error per filter and AD channel over samples ``skip..N-1``.
+
+    Parameters
+    ----------
+    pred : ndarray (B, N, a)
+        Predicted AD channels.
+    Y_ad : ndarray (B, N, a)
+        Measured AD channels.
+    skip : int
+        Samples left out at the start.
+
+    Returns
+    -------
+    abs_err : ndarray (B, a)
+        In the channels' units.
+    rel_err : ndarray (B, a)
+        Relative to the RMS of the measured channel.
+    """
     err = rms_error(pred[:, skip:], Y_ad[:, skip:], axis=1)
     return err, err / np.maximum(rms(Y_ad[:, skip:], axis=1), np.finfo(float).tiny)
 
@@ -153,7 +282,22 @@ def rms_errors(pred, Y_ad, skip=0):
 def location_errors(model, loc, splits, Y, covs, skip=0):
     """AD errors of every (covariance set, split) at one location.
 
-    Returns ``(abs_err, rel_err)``, each (n_covs, n_splits, n_ad), NaN for undetectable splits.
+    Parameters
+    ----------
+    model : ImpactModel
+    loc : (int, str)
+        The force location.
+    splits : list of RoleSplit
+    Y : ndarray (N, m)
+        The record (SI).
+    covs : list of Covariances
+    skip : int
+        Samples left out at the start.
+
+    Returns
+    -------
+    abs_err, rel_err : ndarray (n_covs, n_splits, n_ad)
+        NaN for undetectable splits.
     """
     covs = list(covs)
     A_a, G_all = model.system(loc)
@@ -194,19 +338,30 @@ class ScanResult:
 
     Attributes
     ----------
-    frame : DataFrame, one row per (location, split): ``node``, ``direction``, ``split``,
-        ``ad_sensors``, ``error`` (mean relative RMS error at the AD sensors), ``detectable`` and
-        the mean absolute error per AD sensor kind (``error_strain`` in m/m, ``error_acc`` in m/s^2).
-    summary : DataFrame, one row per location, best first: ``mean``, ``std``, ``n_splits``,
-        ``votes`` (share of splits whose own best location it is), ``rank``.
-    identified : (node, direction) of the lowest mean (spread as tie-breaker)
-    confidence : float -- share of the splits that pick the identified location on their own,
-        scaled down when even the best location explains the AD data poorly (mean relative AD
-        error above 0.5, down to 0 at 1: no better than predicting zero), and 0 with a single
-        candidate (nothing to compare)
-    margin : float -- (runner-up mean - best mean) / pooled std of the two: separation in
-        units of the spread; small (< ~1) means two locations are hard to tell apart
-    warnings : list of str -- why the confidence is low, in plain language
+    frame : pandas.DataFrame
+        One row per (location, split): ``node``, ``direction``, ``split``, ``ad_sensors``,
+        ``error`` (mean relative RMS error at the AD sensors), ``detectable`` and the mean
+        absolute error per AD sensor kind (``error_strain`` in m/m, ``error_acc`` in m/s^2).
+    summary : pandas.DataFrame
+        One row per location, best first: ``mean``, ``std``, ``n_splits``, ``votes`` (share of
+        splits whose own best location it is), ``rank``.
+    identified : (int, str)
+        The location of the lowest mean (spread as tie-breaker).
+    confidence : float
+        Share of the splits that pick the identified location on their own, scaled down when even
+        the best location explains the AD data poorly (mean relative AD error above 0.5, down to
+        0 at 1: no better than predicting zero), and 0 with a single candidate (nothing to compare).
+    margin : float
+        (runner-up mean - best mean) / pooled std of the two: separation in units of the spread;
+        small (< ~1) means two locations are hard to tell apart.
+    errors : ndarray (n_locations, n_splits)
+        Relative AD errors.
+    locations : list of (int, str)
+    splits : list of RoleSplit
+    covariances : Covariances
+        The levels of the scan.
+    warnings : list of str
+        Why the confidence is low, in plain language.
     """
 
     frame: object
@@ -232,6 +387,23 @@ def _chunks(items, n):
 
 
 def check_measurements(layout, Y):
+    """A record checked for a layout.
+
+    Parameters
+    ----------
+    layout : sequence of Sensor
+        The installed layout, m sensors.
+    Y : array_like (N, m)
+
+    Returns
+    -------
+    ndarray (N, m)
+
+    Raises
+    ------
+    AKFInputError
+        For values that are not finite, another number of columns, or fewer than 10 samples.
+    """
     Y = as_finite_array(Y, "measurements", ndim=2)
     if Y.shape[1] != len(layout):
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} installed sensors")
@@ -246,22 +418,35 @@ def scan(structure, sensors, measurements, dt, splits, *, candidates, covariance
 
     Parameters
     ----------
-    structure : Structure -- the filter's model
-    sensors : the installed sensor layout;  measurements : ndarray (N, m), columns in layout order
-    dt : float (s);  splits : list of :class:`RoleSplit`
-    candidates : list of ``(node, direction)`` (see :func:`candidate_locations`)
-    covariances : :class:`Covariances` -- the assumed levels
-    skip : float -- seconds at the start left out of the AD errors (filter start-up)
-    n_modes : "auto", int or None -- filter model reduction with static correction (see
-        :class:`ImpactModel`); None for the full model
-    n_jobs : int -- joblib workers over locations; the backend is the caller's
-        (``joblib.parallel_config``), so a dask or ray cluster works
-    progress : bool -- tqdm bar over locations (shown once the scan runs longer than 1 s)
-    model : a prepared :class:`ImpactModel` to reuse (its cached per-location matrices)
+    structure : Structure
+        The filter's model.
+    sensors : sequence of sensor specs
+        The installed layout, m sensors.
+    measurements : array_like (N, m)
+        The record (SI), columns in layout order.
+    dt : float
+        Time step (s).
+    splits : list of RoleSplit
+    candidates : list of (int, str)
+        Candidate locations ``(node, direction)`` (see :func:`candidate_locations`).
+    covariances : Covariances
+        The assumed levels.
+    skip : float
+        Seconds at the start left out of the AD errors (filter start-up).
+    n_modes : int, "auto" or None
+        Filter model reduction with static correction (see :class:`ImpactModel`); None for the
+        full model.
+    n_jobs : int
+        joblib workers over locations; the backend is the caller's (``joblib.parallel_config``),
+        so a dask or ray cluster works.
+    progress : bool
+        A tqdm bar over locations (shown once the scan runs longer than 1 s).
+    model : ImpactModel, optional
+        A prepared model to reuse (its cached per-location matrices).
 
     Returns
     -------
-    :class:`ScanResult`
+    ScanResult
     """
     from joblib import Parallel, delayed, effective_n_jobs
 

@@ -91,8 +91,23 @@ class _TuningFitness:
 
 
 class TuningGA(Algorithm):
-    """An elitist real-coded GA on the log10 levels: the starting levels plus uniform draws in the
-    box, tournament of 3, blend crossover (alpha 0.3), Gaussian mutation, clipped to the box."""
+    """An elitist real-coded GA on the log10 levels.
+
+    The starting levels plus uniform draws in the box, tournament of 3, blend crossover (alpha
+    0.3), Gaussian mutation, clipped to the box.
+
+    Parameters
+    ----------
+    x0 : ndarray (g,)
+        The starting log10 levels.
+    lo, hi : ndarray (g,)
+        The box.
+    population : int
+    crossover, mutation : float
+        Probabilities.
+    decades : float
+        Half-width of the box (sets the mutation's step).
+    """
 
     def __init__(self, x0, lo, hi, population, crossover, mutation, decades):
         self.x0, self.lo, self.hi, self.size = x0, lo, hi, population
@@ -129,16 +144,44 @@ def tune_covariances(structure, sensors, measurements, dt, location, splits, *, 
 
     Parameters
     ----------
-    location : (node, direction) -- the identified impact location
-    splits : role splits; ``n_splits`` of them (a seeded sample; all if fewer) make the fitness
-    start : :class:`Covariances` -- the assumed levels; the search spans +-``decades`` around them
-    population, generations, crossover, mutation : GA settings (elitism keeps the best one)
-    seed : int -- the whole run repeats exactly for one seed, whatever ``n_jobs``
-    n_jobs : joblib workers over the population (backend from ``joblib.parallel_config``)
+    structure : Structure
+        The filter's model.
+    sensors : sequence of sensor specs
+        The installed layout.
+    measurements : array_like (N, m)
+        The record (SI).
+    dt : float
+        Time step (s).
+    location : (int, str)
+        The identified impact location ``(node, direction)``.
+    splits : list of RoleSplit
+        Role splits; ``n_splits`` of them (a seeded sample; all if fewer) make the fitness.
+    start : Covariances
+        The assumed levels; the search spans +-``decades`` around them.
+    decades : float
+        Half-width of the search box (decades of each level).
+    population, generations : int
+        GA settings (elitism keeps the best one).
+    n_splits : int
+        Role splits in the fitness.
+    crossover, mutation : float
+        Probabilities.
+    seed : int
+        The whole run repeats exactly for one seed, whatever ``n_jobs``.
+    skip : float
+        Seconds at the start left out of the AD errors.
+    n_modes : int, "auto" or None
+        Filter model reduction (see :class:`ImpactModel`).
+    n_jobs : int
+        joblib workers over the population (backend from ``joblib.parallel_config``).
+    progress : bool
+        A progress bar.
+    model : ImpactModel, optional
+        A prepared model to reuse (its cached per-location matrices).
 
     Returns
     -------
-    :class:`TuningResult`
+    TuningResult
     """
     if population < 2 or generations < 0:
         raise AKFInputError("population must be >= 2 and generations >= 0")
