@@ -58,16 +58,24 @@ def _system_matrix(ops, m, c, k, n):
 def from_opensees(damping=None, strains="elements", name="OpenSees model", n_modes=None):
     """The OpenSeesPy model in memory as a :class:`~core_akf.structure.Structure`.
 
+    Node ids are OpenSees' node tags; directions follow ``ndm``/``ndf`` (:data:`DOF_NAMES`).
+
     Parameters
     ----------
-    damping : modal ratio(s) or ``("rayleigh", alpha, beta)``; None: OpenSees' own Rayleigh damping
-        (``rayleigh`` command) if the model has one, else none
-    strains : ``"elements"`` (every two-node element an extensometer, in element-tag order) or None
+    damping : float, sequence, tuple or None
+        Modal ratio(s) or ``("rayleigh", alpha, beta)``; None: OpenSees' own Rayleigh damping
+        (``rayleigh`` command) if the model has one, else none.
+    strains : str or None
+        ``"elements"``: every two-node element an extensometer, in element-tag order.
     name : str
-    n_modes : int, optional -- keep only the lowest modes, with a static correction
-        (:func:`~core_akf.models.from_matrices`)
+        The model's name.
+    n_modes : int, optional
+        Keep only the lowest modes, with a static correction
+        (:func:`~core_akf.models.from_matrices`).
 
-    Node ids are OpenSees' node tags; directions follow ``ndm``/``ndf`` (:data:`DOF_NAMES`).
+    Returns
+    -------
+    Structure
     """
     from .matrices import from_matrices
 
