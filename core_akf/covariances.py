@@ -15,6 +15,7 @@ import scipy.linalg
 from .checks import as_finite_array, check_covariance
 from .exceptions import AKFInputError
 from .sensors import as_layout
+from .types import FloatArray, Layout, NoiseCovariance
 
 
 def diag_levels(level, size, name, definite=False):
@@ -57,7 +58,7 @@ def diag_levels(level, size, name, definite=False):
     return check_covariance(out, name, definite=definite)
 
 
-def noise_covariance(sensors, noise_cov):
+def noise_covariance(sensors: Layout, noise_cov: NoiseCovariance) -> FloatArray:
     """Measurement-noise covariance ``R`` of a sensor layout.
 
     Parameters

@@ -21,9 +21,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg
 
-from .types import ArrayLike, Covariance, Forces, Layout, NoiseCovariance
+from .types import ArrayLike, BatchMeasurements, Covariance, FloatArray, Forces, Layout, Matrix, Measurements, NoiseCovariance
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from .structure import Structure
 from .checks import as_finite_array, check_covariance
 from .covariances import augmented_covariance, diag_levels, noise_covariance, state_covariance  # noqa: F401
@@ -336,7 +338,7 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_to
     return FilterResult(states=out, innovations=innov, gain=L, P_prior=P)
 
 
-def run(A_a: ArrayLike, G_a: ArrayLike, Q_a: ArrayLike, R: ArrayLike, Y: ArrayLike, x0: ArrayLike | None = None,
+def run(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements | BatchMeasurements, x0: ArrayLike | None = None,
         P0: ArrayLike | None = None, steady: bool = False) -> np.ndarray:
     """Filtered (posterior) augmented states of the AKF.
 
@@ -452,7 +454,7 @@ class Estimate:
         extra = strain_feedthrough(self.structure, self.force_locations)
         return out if extra is None else out + self.forces @ extra.T
 
-    def response(self, sensors):
+    def response(self, sensors: Layout) -> FloatArray:
         """Estimated response at any sensors (e.g. held-back validation sensors).
 
         Parameters
@@ -468,7 +470,7 @@ class Estimate:
         G, D = observation(self.structure, sensors, self.force_locations)
         return self.states @ G.T + self.forces @ D.T
 
-    def to_frame(self, wide=False):
+    def to_frame(self, wide: bool = False) -> pd.DataFrame:
         """The estimated forces and strains as a :class:`pandas.DataFrame`.
 
         Parameters
@@ -504,7 +506,7 @@ class Estimate:
             "value": values.T.reshape(-1)})
 
 
-def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forces, measurements: ArrayLike,
+def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forces, measurements: BatchMeasurements,
                    dt: float, *, model_error_cov: Covariance, force_increment_cov: Covariance,
                    noise_cov: NoiseCovariance, steady: bool | None = None, allow_undetectable: bool = False,
                    x0: ArrayLike | None = None, P0: ArrayLike | None = None) -> list[Estimate]:
@@ -674,7 +676,7 @@ class FilterSetup:
                          (self.A_a, self.G_a[b], gain[b]), t0=t0) for b, l in enumerate(self.layouts)]
 
 
-def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements: ArrayLike, dt: float, *,
+def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
              model_error_cov: Covariance, force_increment_cov: Covariance, noise_cov: NoiseCovariance,
              steady: bool | None = None, allow_undetectable: bool = False, x0: ArrayLike | None = None,
              P0: ArrayLike | None = None) -> Estimate:

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from .exceptions import AKFInputError
+from .types import Seed, Signal, Time
 
 
-def time_grid(n_steps, dt):
+def time_grid(n_steps: int, dt: float) -> Time:
     """The time of each step, ``t_k = k dt`` for ``k = 0..n_steps-1``.
 
     Parameters
@@ -33,7 +34,7 @@ def _rng(seed):
     return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
 
 
-def half_sine_pulse(t, start, duration, peak):
+def half_sine_pulse(t: Time, start: float, duration: float, peak: float) -> Signal:
     """An impact: one half sine.
 
     Parameters
@@ -59,7 +60,7 @@ def half_sine_pulse(t, start, duration, peak):
     return np.where((tau >= 0) & (tau <= 1), peak * np.sin(np.pi * np.clip(tau, 0, 1)), 0.0)
 
 
-def ramp(t, start, end, peak):
+def ramp(t: Time, start: float, end: float, peak: float) -> Signal:
     """Zero until ``start``, linear to ``peak`` at ``end``, then held.
 
     Parameters
@@ -82,7 +83,7 @@ def ramp(t, start, end, peak):
     return peak * np.clip((t - start) / (end - start), 0.0, 1.0)
 
 
-def half_sine(t, start, end, peak):
+def half_sine(t: Time, start: float, end: float, peak: float) -> Signal:
     """A slow half sine: zero, rising to ``peak`` mid-way between ``start`` and ``end``, back to zero.
 
     Parameters
@@ -104,7 +105,7 @@ def half_sine(t, start, end, peak):
     return half_sine_pulse(t, start, end - start, peak)
 
 
-def sine(t, frequency, amplitude, phase=0.0):
+def sine(t: Time, frequency: float, amplitude: float, phase: float = 0.0) -> Signal:
     """``amplitude sin(2 pi frequency t + phase)``.
 
     Parameters
@@ -126,7 +127,7 @@ def sine(t, frequency, amplitude, phase=0.0):
     return amplitude * np.sin(2 * np.pi * frequency * np.asarray(t, float) + phase)
 
 
-def white_noise(n_steps, std, seed=None):
+def white_noise(n_steps: int, std: float, seed: Seed = None) -> Signal:
     """Gaussian white noise.
 
     Parameters
@@ -145,7 +146,8 @@ def white_noise(n_steps, std, seed=None):
     return _rng(seed).normal(0.0, std, int(n_steps))
 
 
-def band_limited_white_noise(n_steps, dt, rms, f_low=0.0, f_high=None, seed=None):
+def band_limited_white_noise(n_steps: int, dt: float, rms: float, f_low: float = 0.0, f_high: float | None = None,
+                             seed: Seed = None) -> Signal:
     """Gaussian noise with a flat spectrum in a band, scaled to an RMS value.
 
     Built in the frequency domain (zero outside the band), so the band edges are sharp.

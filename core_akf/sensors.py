@@ -70,7 +70,7 @@ class Sensor:
                 raise AKFInputError(f"a {kind} sensor needs node= and direction=: {self!r}")
 
     @classmethod
-    def parse(cls, spec):
+    def parse(cls, spec: str | dict | Sensor) -> Sensor:
         """A sensor from its spec.
 
         Parameters

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .types import ArrayLike, Forces, Layout
+from .types import ArrayLike, FloatArray, ForceHistories, Forces, Layout
 
 if TYPE_CHECKING:
     from .structure import Structure
@@ -75,7 +75,7 @@ class Simulation:
         extra = strain_feedthrough(self.structure, self.force_locations)
         return out if extra is None else out + self.loads @ extra.T
 
-    def response(self, sensors):
+    def response(self, sensors: Layout) -> FloatArray:
         """Noise-free readings of any other sensors.
 
         Parameters
@@ -125,7 +125,7 @@ def noise_levels(clean, sensors, relative=None, absolute=None):
     return np.sqrt(std2)
 
 
-def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: ArrayLike, dt: float, *,
+def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: ForceHistories, dt: float, *,
              relative_noise: float | None = None, absolute_noise: dict[str, float] | None = None,
              seed: int | None = None, x0: ArrayLike | None = None) -> Simulation:
     """Simulate the structure under known loads and read the sensors.

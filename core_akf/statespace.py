@@ -613,7 +613,7 @@ class SubsetDetectability:
         return detectability(self.structure, [self.sensors[i] for i in indices], self.forces).detectable
 
 
-def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float):
+def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float) -> StateSpace:
     """Build the discrete augmented :class:`StateSpace` (validates every id once).
 
     Parameters

@@ -19,6 +19,8 @@ save and reload what is carried over, so a run stopped after any chunk continues
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,6 +31,11 @@ from .recursion import lti_response
 from .riccati import RiccatiError, steady_gain
 from .sensors import as_layout, parse_force_locations
 from .statespace import check_detectable
+from .types import ArrayLike, Covariance, Forces, Layout, Measurements, NoiseCovariance
+
+if TYPE_CHECKING:
+    from .filter import Estimate
+    from .structure import Structure
 
 
 class CheckpointError(AKFInputError):
@@ -68,8 +75,10 @@ class Estimator:
         changes by less than this, relatively (as :func:`core_akf.filter.filter_states`).
     """
 
-    def __init__(self, structure, sensors, forces, dt, *, model_error_cov, force_increment_cov, noise_cov,
-                 steady=None, allow_undetectable=False, x0=None, P0=None, t0=0.0, switch_tol=1e-14):
+    def __init__(self, structure: Structure, sensors: Layout, forces: Forces, dt: float, *, model_error_cov: Covariance,
+                 force_increment_cov: Covariance, noise_cov: NoiseCovariance, steady: bool | None = None,
+                 allow_undetectable: bool = False, x0: ArrayLike | None = None, P0: Covariance | None = None,
+                 t0: float = 0.0, switch_tol: float = 1e-14):
         if not np.isfinite(dt) or dt <= 0:
             raise AKFInputError(f"dt must be a positive time step in seconds, got {dt!r}")
         self.layout = as_layout(sensors)
@@ -114,7 +123,7 @@ class Estimator:
             return np.zeros(self.setup.A_a.shape[0]) if self.setup.z0 is None else self.setup.z0
         return self.setup.A_a @ self._z
 
-    def update(self, chunk):
+    def update(self, chunk: Measurements) -> Estimate:
         """Filter the next chunk of the record.
 
         Parameters
@@ -175,7 +184,7 @@ class Estimator:
         h.update(repr((self.dt, self.t0, self.steady, [x.label for x in self.layout], self.locs)).encode())
         return h.hexdigest()
 
-    def state(self):
+    def state(self) -> dict[str, np.ndarray]:
         """What the filter carries to the next chunk, as a dict of arrays (``numpy.savez`` it):
         the steps done, the last filtered state, the covariance and gain, and a fingerprint."""
         n = self.setup.A_a.shape[0]
@@ -183,7 +192,7 @@ class Estimator:
                 "P": self._P.copy(), "L": self._gain().copy(), "switched": np.array(self._switched),
                 "started": np.array(self._z is not None), "fingerprint": np.array(self._fingerprint)}
 
-    def restore(self, state):
+    def restore(self, state: Mapping[str, np.ndarray]) -> Estimator:
         """Continue from a :meth:`state` saved by this filter (the same job).
 
         Parameters

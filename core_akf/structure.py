@@ -11,15 +11,19 @@ of structure it holds.
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 import scipy.linalg
 import scipy.sparse
+from numpy.typing import NDArray
 
 from .checks import as_finite_array, check_positive_definite, check_square_symmetric
 from .exceptions import AKFInputError, ModelError
+from .types import FloatArray, ForceLocation
 
 STRAIN_COMPONENTS = ("ex", "ey", "gxy")
 
@@ -199,7 +203,7 @@ class Structure:
             raise ModelError(f"K is not positive semi-definite (eigenvalue {w2[0]:.3g})")
         return np.sqrt(np.clip(w2, 0.0, None)), phi
 
-    def frequencies(self, k=None):
+    def frequencies(self, k: int | None = None) -> FloatArray:
         """The lowest undamped natural frequencies.
 
         Parameters
@@ -219,7 +223,7 @@ class Structure:
             omega = omega[: int(k)]
         return omega / (2.0 * np.pi)
 
-    def modes(self, k=None):
+    def modes(self, k: int | None = None) -> FloatArray:
         """The lowest mass-normalised mode shapes, in physical free DOFs.
 
         Parameters
@@ -234,7 +238,7 @@ class Structure:
         phi = self.eigen[1][:, :k]
         return phi if self.basis is None else self.basis @ phi
 
-    def memo(self, key, compute):
+    def memo(self, key: Hashable, compute: Callable[[], Any]) -> Any:
         """A result of an analysis of this structure, computed once.
 
         The structure's matrices never change after construction (a changed model is a new
@@ -270,7 +274,7 @@ class Structure:
             raise AKFInputError(f"unknown node/joint {node!r}: this structure has nodes 1..{self.n_nodes}")
         return node_int - 1
 
-    def node_rows(self, nodes):
+    def node_rows(self, nodes: Sequence[int]) -> NDArray[np.intp]:
         """Rows of :attr:`nodes` (0-based) of user node ids.
 
         Parameters
@@ -294,7 +298,7 @@ class Structure:
         """The user's node ids, row by row (``1..n_nodes`` unless the model has ids of its own)."""
         return np.arange(1, self.n_nodes + 1) if self.node_ids is None else self.node_ids
 
-    def dof_index(self, node, direction):
+    def dof_index(self, node: int, direction: str) -> int:
         """Index of a free physical DOF.
 
         Parameters
@@ -320,7 +324,7 @@ class Structure:
             raise AKFInputError(f"DOF {direction!r} of node {node} is constrained (a support): no response there")
         return int(idx)
 
-    def dof_rows(self, locations):
+    def dof_rows(self, locations: Sequence[ForceLocation]) -> FloatArray:
         """Selection rows mapping generalised coordinates to physical DOFs.
 
         Parameters
@@ -339,7 +343,7 @@ class Structure:
             return rows
         return self.basis[idx].copy()
 
-    def strain_index(self, key):
+    def strain_index(self, key: int | tuple[int, str]) -> int:
         """Row of a strain output.
 
         Parameters
@@ -371,7 +375,7 @@ class Structure:
             raise AKFInputError(f"unknown strain component {comp!r}; use one of {STRAIN_COMPONENTS}")
         return STRAIN_COMPONENTS.index(comp) * self.n_nodes + self._node_index(node)
 
-    def strain_rows(self, keys):
+    def strain_rows(self, keys: Sequence[int | tuple[int, str]]) -> FloatArray:
         """Strain rows in generalised coordinates.
 
         Parameters
@@ -404,7 +408,7 @@ class Structure:
             return [f"strain:{i + 1}" for i in range(self.n_strain)]
         return [f"strain:{i + 1}:{c}" for c in STRAIN_COMPONENTS for i in range(self.n_nodes)]
 
-    def strain_label_index(self, labels):
+    def strain_label_index(self, labels: Sequence[str]) -> list[int]:
         """Rows of the strain outputs named by their labels.
 
         Parameters
@@ -443,7 +447,7 @@ class Structure:
         fields.update(changes)
         return Structure(**fields)
 
-    def scaled(self, stiffness_factor=1.0, mass_factor=1.0):
+    def scaled(self, stiffness_factor: float = 1.0, mass_factor: float = 1.0) -> Structure:
         """A copy with K (and M) multiplied by a factor; damping is rebuilt from the spec.
 
         ``stiffness_factor=1.05`` is the papers' "5 % stiffer" model error (equivalent to a 5 %
@@ -476,7 +480,7 @@ class Structure:
             raise AKFInputError("cannot rescale a structure with an explicit C and no damping spec")
         return self._replace(**changes)
 
-    def reduce(self, n_modes, static_correction=False):
+    def reduce(self, n_modes: int, static_correction: bool = False) -> Structure:
         """Modal reduction to the lowest modes, with the same sensor and strain interface.
 
         The reduced model has ``M = I``, ``K = diag(omega^2)`` and ``C = Phi^T C Phi`` (diagonal for
@@ -532,7 +536,7 @@ class Structure:
         P = self.meta.get("projection")
         return np.eye(self.n) if P is None else P
 
-    def total_mass(self, direction):
+    def total_mass(self, direction: str) -> float:
         """Total translational mass of the full, unconstrained model.
 
         Parameters

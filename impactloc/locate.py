@@ -63,7 +63,7 @@ class LocateResult:
         """Why a result should be read with care (list of str): low confidence, tuning at a bound."""
         return list(self.scan.warnings) + (self.tuning.warnings if self.tuning is not None else [])
 
-    def to_dict(self):
+    def to_dict(self) -> dict:
         """JSON-ready summary: identified node, confidence, margin, force characteristics, ranking."""
         node, d = self.scan.identified
         out = {"identified": int(node), "direction": d, "confidence": self.scan.confidence,
@@ -156,7 +156,8 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
     return LocateResult(res, tuned, final, initial, seconds)
 
 
-def plot_locate(result, out, true_force=None, true_strains=None, split=0):
+def plot_locate(result: LocateResult, out: str, true_force: ArrayLike | None = None,
+                true_strains: ArrayLike | None = None, split: int = 0) -> dict[str, str]:
     """PNG figures like IMP Figs. 4-8 in a folder.
 
     * ``error_vs_location.png`` -- AD error vs assumed location for one split (Fig. 4) and the

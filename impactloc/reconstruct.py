@@ -2,11 +2,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from core_akf.exceptions import AKFInputError
 from core_akf.filter import estimate
+from core_akf.types import ForceLocation, Layout, Measurements, Signal
+
+if TYPE_CHECKING:
+    from core_akf.structure import Structure
+
+    from .scan import Covariances
 
 
 @dataclass
@@ -30,7 +37,7 @@ class ForceSummary:
     duration: float
     impulse: float
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, float]:
         """The summary as a dict for JSON.
 
         Returns
@@ -42,7 +49,7 @@ class ForceSummary:
                 "impulse": self.impulse}
 
 
-def force_summary(force, dt, level=0.1):
+def force_summary(force: Signal, dt: float, level: float = 0.1) -> ForceSummary:
     """The impact characteristics of a force history.
 
     Parameters
@@ -96,7 +103,8 @@ class Reconstruction:
 FULL_MODEL_LIMIT = 500
 
 
-def reconstruct(structure, sensors, measurements, dt, location, covariances, n_modes=None):
+def reconstruct(structure: Structure, sensors: Layout, measurements: Measurements, dt: float, location: ForceLocation,
+                covariances: Covariances, n_modes: int | str | None = None) -> Reconstruction:
     """Reconstruct the force history at a location and the response everywhere.
 
     The steady-state AKF fed by every installed sensor with the given covariances.

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from core_akf.exceptions import AKFInputError
-from core_akf.sensors import as_layout
+from core_akf.sensors import Sensor, as_layout
+from core_akf.types import Layout
 
 _KINDS = ("strain", "acc", "vel", "disp")
 
@@ -29,7 +31,7 @@ class RoleSplit:
     se: tuple
     ad: tuple
 
-    def labels(self, layout):
+    def labels(self, layout: Sequence[Sensor]) -> tuple[list[str], list[str]]:
         """The split's sensors by label.
 
         Parameters
@@ -44,7 +46,8 @@ class RoleSplit:
         return [layout[i].label for i in self.se], [layout[i].label for i in self.ad]
 
 
-def role_splits(sensors, n_ad, ad_kinds=("strain",), max_splits=None, seed=0):
+def role_splits(sensors: Layout, n_ad: int, ad_kinds: Sequence[str] = ("strain",), max_splits: int | None = None,
+                seed: int = 0) -> list[RoleSplit]:
     """All splits of the installed sensors into SE and AD roles.
 
     The AD sensors are ``n_ad`` of the sensors whose kind is in ``ad_kinds``; every other

@@ -6,7 +6,9 @@ AD error over the splits (the spread breaks ties).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,8 +19,12 @@ from core_akf.metrics import rms, rms_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.sensors import as_layout, parse_force_locations
 from core_akf.statespace import SubsetDetectability
+from core_akf.types import FloatArray, ForceLocation, Layout, Measurements
 
 from .roles import RoleSplit
+
+if TYPE_CHECKING:
+    from core_akf.structure import Structure
 
 #: budget of (filters x steps x states) per kernel call: bounds memory (~16 bytes each)
 _CALL_BUDGET = 6_000_000
@@ -51,7 +57,7 @@ class Covariances:
             if not (np.isfinite(v) and v > 0):
                 raise AKFInputError(f"noise variance for {kind!r} must be finite and > 0, got {v!r}")
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, float]:
         """The levels as a flat dict for tables and JSON.
 
         Returns
@@ -63,9 +69,9 @@ class Covariances:
                 **{f"noise_{k}": v for k, v in self.noise.items()}}
 
 
-def default_covariances(sensors, measurements, model_error=default("model_error_cov"),
-                        force_increment=default("impact_force_increment_cov"),
-                        relative_noise=default("impact_relative_noise")):
+def default_covariances(sensors: Layout, measurements: Measurements, model_error: float = default("model_error_cov"),
+                        force_increment: float = default("impact_force_increment_cov"),
+                        relative_noise: float = default("impact_relative_noise")) -> Covariances:
     """Assumed levels before tuning.
 
     ``Q`` and ``S`` as given, ``R`` per sensor kind from the data,
@@ -98,7 +104,7 @@ def default_covariances(sensors, measurements, model_error=default("model_error_
     return Covariances(model_error, force_increment, noise)
 
 
-def candidate_locations(structure, direction, nodes=None):
+def candidate_locations(structure: Structure, direction: str, nodes: Sequence[int] | None = None) -> list[ForceLocation]:
     """Candidate impact locations.
 
     Parameters
@@ -151,7 +157,7 @@ class ImpactModel:
         to a few kHz and the identification fails.
     """
 
-    def __init__(self, structure, sensors, dt, n_modes=None):
+    def __init__(self, structure: Structure, sensors: Layout, dt: float, n_modes: int | str | None = None):
         self.full = structure
         self.layout = as_layout(sensors)
         self.dt = float(dt)
@@ -165,7 +171,7 @@ class ImpactModel:
         self._systems = {}
         self._detectability = {}
 
-    def filter_model(self, loc):
+    def filter_model(self, loc: ForceLocation) -> tuple[ModalFilterModel, FloatArray]:
         """The filter model of a force location, built once.
 
         Parameters
@@ -184,7 +190,7 @@ class ImpactModel:
             self._systems[loc] = (fm, fm.observation(self.layout))
         return self._systems[loc]
 
-    def system(self, loc):
+    def system(self, loc: ForceLocation) -> tuple[FloatArray, FloatArray]:
         """The augmented system for a force at a location.
 
         Parameters
@@ -202,7 +208,7 @@ class ImpactModel:
         fm, G_a = self.filter_model(loc)
         return fm.A_a, G_a
 
-    def detectable(self, loc, se):
+    def detectable(self, loc: ForceLocation, se: Sequence[int]) -> bool:
         """PBH detectability of a force at a location from some of the sensors.
 
         Parameters
@@ -220,7 +226,7 @@ class ImpactModel:
             self._detectability[loc] = SubsetDetectability(self.full, self.layout, [loc])
         return self._detectability[loc].detectable(se)
 
-    def Q_a(self, cov, loc):
+    def Q_a(self, cov: Covariances, loc: ForceLocation) -> FloatArray:
         """The augmented process covariance of a force location.
 
         Parameters
@@ -234,7 +240,7 @@ class ImpactModel:
         """
         return self.filter_model(loc)[0].Q_a(cov.model_error, cov.force_increment)
 
-    def noise(self, cov):
+    def noise(self, cov: Covariances) -> FloatArray:
         """The measurement-noise variance of every installed sensor.
 
         Parameters
@@ -375,7 +381,7 @@ class ScanResult:
     covariances: Covariances = None
     warnings: list = field(default_factory=list)
 
-    def ranking(self):
+    def ranking(self) -> list[dict]:
         """``[{"node", "direction", "mean", "std"}, ...]``, best first."""
         return [{"node": int(r.node), "direction": r.direction, "mean": float(r.mean), "std": float(r.std)}
                 for r in self.summary.itertuples()]
@@ -412,8 +418,10 @@ def check_measurements(layout, Y):
     return Y
 
 
-def scan(structure, sensors, measurements, dt, splits, *, candidates, covariances, skip=0.0,
-         n_modes="auto", n_jobs=1, progress=False, model=None):
+def scan(structure: Structure, sensors: Layout, measurements: Measurements, dt: float, splits: Sequence[RoleSplit], *,
+         candidates: Sequence[ForceLocation], covariances: Covariances, skip: float = 0.0,
+         n_modes: int | str | None = "auto", n_jobs: int = 1, progress: bool = False,
+         model: ImpactModel | None = None) -> ScanResult:
     """Scan candidate impact locations over all role splits.
 
     Parameters

@@ -9,14 +9,21 @@ relative to it: one gene fewer, no flat direction.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, best, blend, gaussian, tournament
 from core_akf.exceptions import AKFInputError
+from core_akf.types import ForceLocation, Layout, Measurements
 
+from .roles import RoleSplit
 from .scan import Covariances, ImpactModel, check_measurements, location_errors
+
+if TYPE_CHECKING:
+    from core_akf.structure import Structure
 
 #: covariance sets per fitness batch / joblib task (each = n_splits filters, ~0.1 s)
 _TASK = 4
@@ -137,9 +144,11 @@ class TuningGA(Algorithm):
         return row
 
 
-def tune_covariances(structure, sensors, measurements, dt, location, splits, *, start, decades=3.0,
-                     population=12, generations=8, n_splits=8, crossover=0.7, mutation=0.3, seed=0,
-                     skip=0.0, n_modes="auto", n_jobs=1, progress=False, model=None):
+def tune_covariances(structure: Structure, sensors: Layout, measurements: Measurements, dt: float,
+                     location: ForceLocation, splits: Sequence[RoleSplit], *, start: Covariances, decades: float = 3.0,
+                     population: int = 12, generations: int = 8, n_splits: int = 8, crossover: float = 0.7,
+                     mutation: float = 0.3, seed: int = 0, skip: float = 0.0, n_modes: int | str | None = "auto",
+                     n_jobs: int = 1, progress: bool = False, model: ImpactModel | None = None) -> TuningResult:
     """Tune the AKF covariance levels with a GA at a known force location.
 
     Parameters

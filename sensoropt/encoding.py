@@ -19,11 +19,18 @@ construction; :meth:`PlateGrid.repair` is the safety net.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from core_akf.exceptions import AKFInputError
 from core_akf.rank import zero_rows
+from core_akf.types import CandidateLayout
+
+if TYPE_CHECKING:
+    from core_akf.structure import Structure
 
 STRAIN_KINDS = ("ex", "ey", "gxy")
 KINDS = STRAIN_KINDS + ("acc",)
@@ -122,7 +129,8 @@ class CandidateSet:
         Candidates of the same kind a *move* mutation may step to (nearest first).
     """
 
-    def __init__(self, structure, kinds=("strain", "acc"), n_sensors=None, budget=None, candidates=None, neighbours=8):
+    def __init__(self, structure: Structure, kinds: Sequence[str] = ("strain", "acc"), n_sensors: int | None = None,
+                 budget: Mapping[str, int] | None = None, candidates: Sequence[str] | None = None, neighbours: int = 8):
         from scipy.spatial import cKDTree
 
         from core_akf.sensors import as_layout, selection_matrices
@@ -220,7 +228,7 @@ class CandidateSet:
 
 
     # ------------------------------------------------------------------ conversions
-    def sensors(self, layout):
+    def sensors(self, layout: Sequence[int]) -> list[str]:
         """Sensor strings of a layout.
 
         Parameters
@@ -235,7 +243,7 @@ class CandidateSet:
         """
         return [self.labels[i] for i in layout]
 
-    def records(self, layout):
+    def records(self, layout: Sequence[int]) -> list[dict]:
         """A layout as records for tables and JSON.
 
         Parameters
@@ -252,7 +260,7 @@ class CandidateSet:
         return [{"sensor": self.labels[i], "kind": str(self.kind[i]),
                  "node": int(self.node[i]) if self.node[i] >= 0 else None} for i in layout]
 
-    def from_sensors(self, sensors):
+    def from_sensors(self, sensors: Sequence[str]) -> CandidateLayout:
         """A layout from sensor strings.
 
         Parameters
@@ -279,7 +287,7 @@ class CandidateSet:
         return tuple(sorted(out))
 
     # ------------------------------------------------------------------ validity
-    def counts(self, layout):
+    def counts(self, layout: Sequence[int]) -> dict[str, int]:
         """Sensors per type in a layout.
 
         Parameters
@@ -295,7 +303,7 @@ class CandidateSet:
         t = self.type[list(layout)]
         return {k: int(np.sum(t == k)) for k in ("strain", "acc")}
 
-    def is_valid(self, layout):
+    def is_valid(self, layout: Sequence[int]) -> bool:
         """Whether a layout is admissible: distinct sensors, the right number, the budget kept.
 
         Parameters
@@ -317,7 +325,7 @@ class CandidateSet:
     def _pool(self, t=None):
         return np.arange(len(self.candidates)) if t is None else np.flatnonzero(self.type == t)
 
-    def random_layout(self, rng):
+    def random_layout(self, rng: np.random.Generator) -> CandidateLayout:
         """A random admissible layout.
 
         Parameters
@@ -334,7 +342,7 @@ class CandidateSet:
             return tuple(sorted(int(i) for p in parts for i in p))
         return tuple(sorted(int(i) for i in rng.choice(len(self.candidates), size=self.n_sensors, replace=False)))
 
-    def repair(self, genes, rng):
+    def repair(self, genes: Sequence[int], rng: np.random.Generator) -> CandidateLayout:
         """A valid canonical layout from any gene list.
 
         Duplicates and surplus of a type are dropped, missing sensors filled with random unused
@@ -372,7 +380,8 @@ class CandidateSet:
         return tuple(sorted(keep))
 
     # ------------------------------------------------------------------ operators
-    def crossover_set(self, a, b, rng):
+    def crossover_set(self, a: Sequence[int], b: Sequence[int],
+                      rng: np.random.Generator) -> tuple[CandidateLayout, CandidateLayout]:
         """Set-based crossover of two layouts.
 
         Each child draws its sensors (per type when budgeted) from the union of the parents' sensors,
@@ -410,7 +419,8 @@ class CandidateSet:
         best = pool[d <= d.min() * (1 + 1e-12)]
         return int(rng.choice(best))
 
-    def crossover_intermediate(self, a, b, rng, alpha=0.5):
+    def crossover_intermediate(self, a: Sequence[int], b: Sequence[int], rng: np.random.Generator,
+                               alpha: float = 0.5) -> tuple[CandidateLayout, CandidateLayout]:
         """Intermediate crossover on the positions of paired sensors.
 
         ``c = p1 + u (p2 - p1)`` with ``u ~ U(-alpha, 1 + alpha)`` per coordinate, then the nearest
@@ -454,7 +464,8 @@ class CandidateSet:
         near = [h for h in self.neighbours[g] if h not in others]
         return int(rng.choice(near)) if near else None
 
-    def mutate(self, layout, rng, indpb=None, p_move=0.5, p_jump=0.3):
+    def mutate(self, layout: Sequence[int], rng: np.random.Generator, indpb: float | None = None, p_move: float = 0.5,
+               p_jump: float = 0.3) -> CandidateLayout:
         """Per-sensor mutation.
 
         Each sensor changes with probability ``indpb``: a *move* to a neighbouring candidate of the
@@ -496,7 +507,7 @@ class CandidateSet:
                 genes[j] = ng
         return self.repair(genes, rng)
 
-    def mutate_adaptive(self, layout, rng, scale):
+    def mutate_adaptive(self, layout: Sequence[int], rng: np.random.Generator, scale: float) -> CandidateLayout:
         """Gaussian steps on the positions, shrinking over the generations.
 
         Steps of ``scale`` candidate spacings on the positions, a random kind change with
@@ -526,7 +537,7 @@ class CandidateSet:
                 used.add(ng)
         return self.repair(genes, rng)
 
-    def distance(self, a, b):
+    def distance(self, a: Sequence[int], b: Sequence[int]) -> float:
         """Distance between two layouts.
 
         The minimum-cost matching of their sensors, cost = distance in candidate spacings + 1 for a
@@ -546,7 +557,7 @@ class CandidateSet:
         r, c = linear_sum_assignment(C)
         return float(C[r, c].sum())
 
-    def diversity(self, layouts):
+    def diversity(self, layouts: Sequence[Sequence[int]]) -> float:
         """Mean distance of each layout to its nearest *other* individual (TH's diversity).
 
         Above :data:`DIVERSITY_SAMPLE` layouts, of that many spread evenly over the population (the
@@ -592,7 +603,8 @@ class PlateGrid(CandidateSet):
         Sensors per type, e.g. ``{"strain": 3, "acc": 1}`` (fixed counts).
     """
 
-    def __init__(self, structure, kinds=STRAIN_KINDS, n_sensors=None, budget=None):
+    def __init__(self, structure: Structure, kinds: Sequence[str] = STRAIN_KINDS, n_sensors: int | None = None,
+                 budget: Mapping[str, int] | None = None):
         kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
         bad = [k for k in kinds if k not in KINDS]
         if bad or not kinds:
@@ -637,7 +649,7 @@ class PlateGrid(CandidateSet):
         self.n_sensors = sum(self.budget.values()) if self.budget else int(n_sensors)
 
     # ------------------------------------------------------------------ conversions
-    def triples(self, layout):
+    def triples(self, layout: Sequence[int]) -> list[tuple[int, int, str]]:
         """A layout as the thesis' genes.
 
         Parameters
@@ -651,7 +663,7 @@ class PlateGrid(CandidateSet):
         """
         return [(int(self.ix[i]), int(self.iy[i]), str(self.kind[i])) for i in layout]
 
-    def records(self, layout):
+    def records(self, layout: Sequence[int]) -> list[dict]:
         """A layout as records for tables and JSON.
 
         Parameters
@@ -665,7 +677,7 @@ class PlateGrid(CandidateSet):
         """
         return [{"sensor": self.labels[i], "kind": str(self.kind[i]), "node": int(self.node[i])} for i in layout]
 
-    def from_sensors(self, sensors):
+    def from_sensors(self, sensors: Sequence[str | tuple[int, str]]) -> CandidateLayout:
         """A layout from sensor strings or ``(node, kind)`` pairs.
 
         Parameters
@@ -704,7 +716,8 @@ class PlateGrid(CandidateSet):
         best = pool[d == d.min()]
         return int(rng.choice(best))
 
-    def crossover_intermediate(self, a, b, rng, alpha=0.5):
+    def crossover_intermediate(self, a: Sequence[int], b: Sequence[int], rng: np.random.Generator,
+                               alpha: float = 0.5) -> tuple[CandidateLayout, CandidateLayout]:
         """The thesis' baseline: intermediate crossover on the (ix, iy) genes of paired sensors.
 
         ``c = p1 + u (p2 - p1)`` with ``u ~ U(-alpha, 1 + alpha)``, rounded to the grid, kinds taken
@@ -752,7 +765,7 @@ class PlateGrid(CandidateSet):
         ng = self.index.get((int(self.ix[g]), int(self.iy[g]), str(rng.choice(kinds))))
         return None if ng in others else ng
 
-    def mutate_adaptive(self, layout, rng, scale):
+    def mutate_adaptive(self, layout: Sequence[int], rng: np.random.Generator, scale: float) -> CandidateLayout:
         """The thesis' baseline: Gaussian steps on the (ix, iy) genes.
 
         Steps of standard deviation ``scale`` (grid units, shrinking over the generations), random
@@ -783,7 +796,7 @@ class PlateGrid(CandidateSet):
                 used.add(ng)
         return self.repair(genes, rng)
 
-    def distance(self, a, b):
+    def distance(self, a: Sequence[int], b: Sequence[int]) -> float:
         """Distance between two layouts.
 
         The minimum-cost matching of their sensors, cost = grid distance + 1 for a different kind; 0
@@ -808,7 +821,8 @@ class PlateGrid(CandidateSet):
 Encoding = PlateGrid
 
 
-def make_encoding(structure, kinds=None, n_sensors=None, budget=None, candidates=None):
+def make_encoding(structure: Structure, kinds: Sequence[str] | None = None, n_sensors: int | None = None,
+                  budget: Mapping[str, int] | None = None, candidates: Sequence[str] | None = None) -> CandidateSet:
     """The encoding of a placement problem.
 
     The thesis' plate grid (:class:`PlateGrid`) for a plate whose nodes form a rectangular grid

@@ -6,11 +6,8 @@ on 1 or many workers, and a resumed run continues exactly).
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from .encoding import CandidateSet
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -19,6 +16,12 @@ from core_akf.defaults import default
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, Individual, best, tournament
 from core_akf.evolution import load_checkpoint as evolution_load_checkpoint
 from core_akf.exceptions import AKFInputError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .encoding import CandidateSet
+    from .objective import Objective
 
 #: layouts per fitness batch (fixed: the batch composition must not depend on n_jobs)
 BATCH = 10
@@ -126,7 +129,7 @@ class PlacementGA(Algorithm):
                 "diversity": self.encoding.diversity([tuple(i) for i in population])}
 
 
-def place(objective, encoding: CandidateSet, *, population: int = 50, generations: int = 100, elite: int = 2,
+def place(objective: Objective, encoding: CandidateSet, *, population: int = 50, generations: int = 100, elite: int = 2,
           crossover: float = 0.8, mutation: float = 0.16, tournament: int = 4, stall_generations: int = 50,
           stall_tol: float = 1e-6, operators: str = "set", seed: int = 0, n_jobs: int = 1,
           checkpoint: str | None = None, checkpoint_every: int = 5, resume: bool = False, progress: bool = False,
@@ -203,7 +206,8 @@ def place(objective, encoding: CandidateSet, *, population: int = 50, generation
 load_checkpoint = evolution_load_checkpoint
 
 
-def independent_runs(objective, encoding, runs=4, seed=0, **ga):
+def independent_runs(objective: Objective, encoding: CandidateSet, runs: int = 4, seed: int = 0,
+                     **ga: Any) -> tuple[list[PlacementResult], pd.DataFrame]:
     """Several GA runs with seeds ``seed, seed + 1, ...``, and how much they agree.
 
     Parameters

@@ -8,6 +8,8 @@ only sees :meth:`evaluate`; any callable ``layout -> float`` becomes an objectiv
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -17,6 +19,40 @@ from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.riccati import RiccatiError
 from core_akf.simulate import simulate
 from core_akf.statespace import SubsetDetectability
+from core_akf.types import ForceHistories, Forces
+
+if TYPE_CHECKING:
+    from core_akf.structure import Structure
+
+    from .encoding import CandidateSet
+
+
+class Objective(Protocol):
+    """What the placement GAs minimise (:func:`~sensoropt.ga.place`, :func:`~sensoropt.pareto.pareto`):
+    :class:`StrainErrorObjective`, :class:`FunctionObjective`, or any object of this shape.
+
+    Attributes
+    ----------
+    n_objectives : int
+        Values per layout (1 for the GA of :func:`~sensoropt.ga.place`).
+    """
+
+    n_objectives: int
+
+    def evaluate(self, layouts: Sequence[Sequence[str]]) -> list:
+        """The objective of each layout (lower is better).
+
+        Parameters
+        ----------
+        layouts : sequence of sequence of str
+            Layouts as sensor lists.
+
+        Returns
+        -------
+        list
+            One float (or tuple of ``n_objectives`` floats) per layout; ``inf`` or NaN for an
+            infeasible one.
+        """
 
 
 class FunctionObjective:
@@ -38,13 +74,13 @@ class FunctionObjective:
     [1.0, 2.0]
     """
 
-    def __init__(self, fn, n_objectives=1):
+    def __init__(self, fn: Callable[[list[str]], float | tuple[float, ...]], n_objectives: int = 1):
         if not callable(fn):
             raise AKFInputError("the objective must be callable: layout (list of sensor strings) -> float")
         self.fn = fn
         self.n_objectives = int(n_objectives)
 
-    def evaluate(self, layouts):
+    def evaluate(self, layouts: Sequence[Sequence[str]]) -> list:
         """The objective of each layout.
 
         Parameters
@@ -108,10 +144,11 @@ class StrainErrorObjective:
 
     n_objectives = 1
 
-    def __init__(self, structure, forces, loads, dt, encoding, *, window=default("window"),
-                 stiffness_factor=default("placement_stiffness_factor"), relative_noise=default("relative_noise"),
-                 model_error_cov=default("model_error_cov"), force_increment_cov=default("force_increment_cov"),
-                 n_modes="auto", seed=0, targets=None):
+    def __init__(self, structure: Structure, forces: Forces, loads: ForceHistories, dt: float, encoding: CandidateSet, *,
+                 window: float = default("window"), stiffness_factor: float = default("placement_stiffness_factor"),
+                 relative_noise: float = default("relative_noise"), model_error_cov: float = default("model_error_cov"),
+                 force_increment_cov: float = default("force_increment_cov"), n_modes: int | str | None = "auto",
+                 seed: int = 0, targets: Sequence[str] | None = None):
         loads = np.asarray(loads, float)
         if loads.ndim != 2:
             raise AKFInputError("loads must be (N, n_forces)")
@@ -137,7 +174,7 @@ class StrainErrorObjective:
         self._detectability = SubsetDetectability(structure, self.labels, self.model.forces)
         self.n_forces = len(self.model.forces)
 
-    def detectable(self, idx):
+    def detectable(self, idx: Sequence[int]) -> bool:
         """PBH test of a layout (:class:`core_akf.statespace.SubsetDetectability`).
 
         Parameters
@@ -151,7 +188,7 @@ class StrainErrorObjective:
         """
         return self._detectability.detectable(idx)
 
-    def evaluate(self, layouts):
+    def evaluate(self, layouts: Sequence[Sequence[str]]) -> list[float]:
         """Average strain error per layout.
 
         Parameters

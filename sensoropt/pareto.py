@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,6 +15,11 @@ from core_akf.exceptions import AKFInputError
 
 from .encoding import PlateGrid
 from .ga import BATCH, PENALTY
+
+if TYPE_CHECKING:
+    from core_akf.structure import Structure
+
+    from .objective import Objective
 
 
 @dataclass
@@ -126,10 +132,10 @@ class _ErrorAndCost:
         return out
 
 
-def pareto(objective, structure, *, kinds: tuple[str, ...] = ("ex", "ey", "gxy"), sizes: tuple[int, int] = (1, 8),
-           cost: dict[str, float] | None = None, population: int = 60, generations: int = 40, crossover: float = 0.8,
-           mutation: float = 0.3, seed: int = 0, n_jobs: int = 1, progress: bool = False,
-           penalty: float = PENALTY) -> ParetoResult:
+def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...] = ("ex", "ey", "gxy"),
+           sizes: tuple[int, int] = (1, 8), cost: dict[str, float] | None = None, population: int = 60,
+           generations: int = 40, crossover: float = 0.8, mutation: float = 0.3, seed: int = 0, n_jobs: int = 1,
+           progress: bool = False, penalty: float = PENALTY) -> ParetoResult:
     """Pareto front of average strain error vs number of sensors (or cost).
 
     Parameters

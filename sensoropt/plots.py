@@ -3,14 +3,24 @@ returns the :class:`~matplotlib.figure.Figure` (shown inline in a notebook) and 
 ``path`` when one is given."""
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from core_akf.figures import save_figure, subplots
+from core_akf.types import Forces
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    from .encoding import CandidateSet
 
 _MARKERS = {"ex": ("s", "tab:blue"), "ey": ("D", "tab:green"), "gxy": ("^", "tab:purple"), "acc": ("o", "tab:red")}
 
 
-def plot_convergence(logbook, path=None, title="placement GA"):
+def plot_convergence(logbook: pd.DataFrame, path: str | None = None, title: str = "placement GA") -> Figure:
     """Best and mean fitness and the diversity per generation.
 
     Parameters
@@ -40,7 +50,8 @@ def plot_convergence(logbook, path=None, title="placement GA"):
     return _finish(fig, path)
 
 
-def plot_layout(encoding, layout, path=None, title="", forces=()):
+def plot_layout(encoding: CandidateSet, layout: Sequence[int], path: str | None = None, title: str = "",
+                forces: Forces = ()) -> Figure:
     """A sensor layout on its structure.
 
     On the plate grid: the mesh (nodes as dots, clamped nodes grey), the sensors with kind
@@ -98,7 +109,7 @@ def plot_layout(encoding, layout, path=None, title="", forces=()):
     return _finish(fig, path)
 
 
-def plot_pareto(front, path=None, title="error vs number of sensors"):
+def plot_pareto(front: pd.DataFrame, path: str | None = None, title: str = "error vs number of sensors") -> Figure:
     """The Pareto front: error against cost (or the number of sensors), log scale.
 
     Parameters

@@ -2,6 +2,7 @@
 (The built-in thesis problems are job files of the application layer: ``akf.examples``.)"""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -11,7 +12,7 @@ from core_akf.metrics import average_strain_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.simulate import simulate
 
-from .encoding import make_encoding
+from .encoding import CandidateSet, make_encoding
 from .objective import StrainErrorObjective
 
 
@@ -83,7 +84,7 @@ class PlacementProblem:
     #: what a user should know about the settings (shown with the result)
     notes: list = field(default_factory=list)
 
-    def encoding(self):
+    def encoding(self) -> CandidateSet:
         """The candidate set of the problem (:func:`~sensoropt.encoding.make_encoding`).
 
         Returns
@@ -93,11 +94,11 @@ class PlacementProblem:
         return make_encoding(self.structure, kinds=self.kinds, n_sensors=self.n_sensors, budget=self.budget,
                              candidates=self.candidates)
 
-    def target_rows(self):
+    def target_rows(self) -> list[int] | None:
         """Rows of the target strain outputs (None: all)."""
         return None if self.targets is None else self.structure.strain_label_index(self.targets)
 
-    def objective(self, encoding=None):
+    def objective(self, encoding: CandidateSet | None = None) -> StrainErrorObjective:
         """The GA fitness: :class:`~sensoropt.objective.StrainErrorObjective` on the first ``window`` seconds.
 
         Parameters
@@ -115,7 +116,7 @@ class PlacementProblem:
                                     force_increment_cov=self.force_increment_cov, n_modes=self.n_modes,
                                     seed=self.seed, targets=self.targets)
 
-    def full_record_error(self, sensors, seed=None):
+    def full_record_error(self, sensors: Sequence[str], seed: int | None = None) -> float:
         """Average strain error over the whole record of a layout.
 
         Simulation of the true structure with this layout and ``relative_noise``, steady-state AKF

@@ -25,6 +25,7 @@ from __future__ import annotations
 import importlib
 import os
 from abc import ABC, abstractmethod
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,7 +86,7 @@ class Reader(ABC):
     module: str | None = None
     extra: str | None = None
 
-    def __init__(self, path, time_column="time", group=None):
+    def __init__(self, path: str | os.PathLike, time_column: str = "time", group: str | None = None):
         self.path = os.fspath(path)
         self.time_column = time_column
         self.group = group
@@ -110,7 +111,7 @@ class Reader(ABC):
         """The time grid, checked: increasing, uniform within :data:`TIME_GRID_RTOL` of a step."""
 
     @abstractmethod
-    def chunks(self, channels, size):
+    def chunks(self, channels: Sequence[str], size: int) -> Iterator[np.ndarray]:
         """The file's samples in time order, chunk by chunk, covering the whole file.
 
         Parameters
@@ -597,7 +598,7 @@ class Hdf5Reader(_SlicedReader):
 _READERS: dict = {}
 
 
-def register_reader(cls):
+def register_reader(cls: type[Reader]) -> type[Reader]:
     """Register a :class:`Reader` subclass for its ``format`` name and ``extensions`` (a class
     decorator; a later registration of the same name or extension wins)."""
     if not (isinstance(cls, type) and issubclass(cls, Reader)) or not cls.format:
@@ -628,7 +629,7 @@ def _load_entry_points():
             warnings.warn(f"reader plugin {ep.name!r} ({ep.value}) could not be loaded: {exc}")
 
 
-def formats():
+def formats() -> dict[str, type[Reader]]:
     """Registered format names -> their extensions."""
     _load_entry_points()
     return {name: cls.extensions for name, cls in _READERS.items()}
@@ -662,7 +663,8 @@ def reader_class(path, format=None):
                         + "; or name the format (format = \"csv\")")
 
 
-def open_file(path, format=None, time_column="time", group=None):
+def open_file(path: str | os.PathLike, format: str | None = None, time_column: str = "time",
+              group: str | None = None) -> Reader:
     """A :class:`Reader` for one file.
 
     Parameters

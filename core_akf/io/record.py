@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import glob
 import os
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..exceptions import AKFInputError
 from ..sensors import as_layout
+from ..types import FloatArray, Layout, Time
 from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
 from .units import conversion, is_bridge_unit, is_unset
 
@@ -32,7 +34,7 @@ MAX_PLAUSIBLE_STRAIN = 0.01
 _CONSTANT_MIN_STEPS = 16
 
 
-def record_files(spec):
+def record_files(spec: str | os.PathLike | Sequence[str | os.PathLike]) -> list[str]:
     """The files of a record.
 
     Parameters
@@ -128,8 +130,11 @@ class Record:
         TDMS or HDF5 group holding the channels.
     """
 
-    def __init__(self, files, sensors, *, channels=None, units=None, gauge_factor=None, bridge=None, invert=(),
-                 remove_offset=False, format=None, time_column="time", group=None):
+    def __init__(self, files: str | os.PathLike | Sequence[str | os.PathLike], sensors: Layout, *,
+                 channels: Mapping[str, str] | None = None, units: Mapping[str, str] | None = None,
+                 gauge_factor: float | Mapping[str, float] | None = None, bridge: str | Mapping[str, str] | None = None,
+                 invert: Sequence[str] = (), remove_offset: bool | float = False, format: str | None = None,
+                 time_column: str = "time", group: str | None = None):
         self.layout = as_layout(sensors)
         self.labels = [s.label for s in self.layout]
         paths = record_files(files)
@@ -246,7 +251,7 @@ class Record:
     def n_steps(self):
         return sum(t.n_steps for t in self.timings)
 
-    def check_dt(self, dt):
+    def check_dt(self, dt: float) -> None:
         """Check the record's time step.
 
         Parameters
@@ -312,7 +317,7 @@ class Record:
             self.offsets = total / count
         return self.offsets
 
-    def chunks(self, size=65536, start=0):
+    def chunks(self, size: int = 65536, start: int = 0) -> Iterator[tuple[int, FloatArray]]:
         """The record in chunks, in SI.
 
         Each chunk is checked: strain plausible in m/m, no channel constant over the chunk.
@@ -362,7 +367,7 @@ class Record:
         name, label = self.sources[0][j].name, self.labels[j]
         return repr(name) if name == label else f"{name!r} ({label})"
 
-    def read(self, size=65536):
+    def read(self, size: int = 65536) -> tuple[Time, FloatArray]:
         """The whole record in memory.
 
         Parameters
@@ -381,7 +386,7 @@ class Record:
         Y = np.vstack(parts)
         return self.start + self.dt * np.arange(Y.shape[0]), Y
 
-    def describe(self):
+    def describe(self) -> list[str]:
         """One line per sensor: ``sensor <- channel [unit, sign]`` (for logs and summaries)."""
         return [f"{s.sensor} <- {s.name} [{s.unit}{', inverted' if s.sign < 0 else ''}"
                 f"{f', bridge {s.convert.bridge} GF {s.convert.gauge_factor:g}' if s.convert.bridge else ''}]"

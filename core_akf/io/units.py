@@ -84,7 +84,8 @@ _SIMPLE = {("strain", u): 1.0 for u in ("m/m", "strain")} | {("acc", "m/s^2"): 1
                                                                  ("vel", "m/s"): 1.0, ("disp", "m"): 1.0}
 
 
-def conversion(unit, kind, channel, gauge_factor=None, bridge=None):
+def conversion(unit: str, kind: str, channel: str, gauge_factor: float | None = None,
+               bridge: str | None = None) -> Conversion:
     """The :class:`Conversion` of a channel to the SI unit of its sensor kind.
 
     Parameters

@@ -18,9 +18,15 @@ Node numbering (1-based): station ``s = 0..n_panels`` at ``x = s * panel`` has n
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..exceptions import ModelError
+from ..types import Damping
+
+if TYPE_CHECKING:
+    from ..structure import Structure
 
 #: the default bridge: 42 m span, 84 panels of 0.5 m, 2.0 m wide, 1.5 m deep
 FOOTBRIDGE = dict(n_panels=84, panel=0.5, width=2.0, height=1.5, E=210e9, rho=7850.0,
@@ -89,7 +95,7 @@ def footbridge_geometry(n_panels, panel, width, height):
     return nodes, np.array(members, dtype=int), np.array(groups)
 
 
-def footbridge_matrices(**overrides):
+def footbridge_matrices(**overrides: float) -> dict:
     """The bridge as an FE program would export it.
 
     Parameters
@@ -144,7 +150,7 @@ def footbridge_matrices(**overrides):
                 members=members, groups=groups)
 
 
-def footbridge(damping=0.005, n_modes=None, **overrides):
+def footbridge(damping: Damping = 0.005, n_modes: int | None = None, **overrides: float) -> Structure:
     """The 3-D truss footbridge, read through :func:`~core_akf.models.from_matrices`.
 
     340 nodes, 1011 free DOFs, 1097 members as strain outputs ``strain:1..1097``.

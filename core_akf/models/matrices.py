@@ -20,12 +20,18 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..checks import first_repeat
 from ..exceptions import AKFInputError, ModelError
 from ..structure import Structure
+from ..types import ArrayLike, Damping
+
+if TYPE_CHECKING:
+    import scipy.sparse
 from .sparse import (
     DEFAULT_MODES,
     DENSE_LIMIT,
@@ -49,7 +55,7 @@ class ModelWarning(UserWarning):
     """A model that can be used but looks wrong (frequencies outside :data:`FREQUENCY_RANGE`)."""
 
 
-def load_matrix(path):
+def load_matrix(path: str | os.PathLike) -> np.ndarray | scipy.sparse.sparray:
     """A matrix from a file.
 
     Parameters
@@ -212,8 +218,11 @@ def _check_symmetric(A, name):
     return 0.5 * (A + A.T)
 
 
-def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, strain_rows=None,
-                  name="imported model", n_modes=None):
+def from_matrices(K: ArrayLike | scipy.sparse.sparray, M: ArrayLike | scipy.sparse.sparray,
+                  dofs: Sequence[tuple[int, str]], nodes: Mapping[int, Sequence[float]],
+                  fixed: Sequence | None = None, damping: Damping = None, C: ArrayLike | None = None,
+                  extensometers: Sequence[tuple[int, int]] | None = None, strain_rows: ArrayLike | None = None,
+                  name: str = "imported model", n_modes: int | None = None) -> Structure:
     """A :class:`~core_akf.structure.Structure` from stiffness and mass matrices.
 
     Checks, each a clear error: sizes, symmetry, finite entries, a DOF map that covers the matrix
@@ -365,8 +374,9 @@ def from_matrices(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensome
     return structure
 
 
-def from_files(K, M, dofs, nodes, fixed=None, damping=None, C=None, extensometers=None, strains=None, name=None,
-               n_modes=None):
+def from_files(K: str, M: str, dofs: str, nodes: str, fixed: Sequence | None = None, damping: Damping = None,
+               C: str | None = None, extensometers: str | Sequence[tuple[int, int]] | None = None,
+               strains: str | None = None, name: str | None = None, n_modes: int | None = None) -> Structure:
     """:func:`from_matrices` with the matrices and tables given as files.
 
     Parameters

@@ -16,10 +16,13 @@ Node numbering (TH, IMP): ``n = (iy - 1) (nx + 1) + ix`` with ``ix = 1..nx+1`` a
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..exceptions import ModelError
 from ..structure import Structure
+from ..types import Damping, FloatArray
 from .sparse import DEFAULT_MODES, DENSE_LIMIT, check_n_modes, modal_parts
 
 _GAUSS2 = np.array([-1.0, 1.0]) / np.sqrt(3.0)
@@ -124,8 +127,10 @@ def _as_edges(value, what):
     return edges
 
 
-def plate(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", damping=0.01,
-          simply_supported_edges=None, name=None, n_modes=None):
+def plate(nx: int, ny: int, lx: float, ly: float, thickness: float, E: float, nu: float, rho: float,
+          clamped_edge: str | Sequence[str] | None = "y0", damping: Damping = 0.01,
+          simply_supported_edges: str | Sequence[str] | None = None, name: str | None = None,
+          n_modes: int | None = None) -> Structure:
     """Rectangular Mindlin plate on an ``nx`` x ``ny`` element mesh.
 
     Parameters
@@ -239,7 +244,9 @@ def _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_suppor
     return K, M, S, nodes, free
 
 
-def plate_matrices(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge="y0", simply_supported_edges=None):
+def plate_matrices(nx: int, ny: int, lx: float, ly: float, thickness: float, E: float, nu: float, rho: float,
+                   clamped_edge: str | Sequence[str] | None = "y0",
+                   simply_supported_edges: str | Sequence[str] | None = None) -> dict:
     """The sparse matrices of :func:`plate` as an FE program would export them.
 
     For :func:`~core_akf.models.from_matrices`; node ids 1-based as in :func:`plate`.
@@ -282,7 +289,7 @@ def _sparse_assembly(rows, cols, Ke, Me, Bc, conn, edofs, count, n_full):
     return K.tocsr(), M.tocsr(), S.tocsr()
 
 
-def uniform_pressure_load(structure, q):
+def uniform_pressure_load(structure: Structure, q: float) -> FloatArray:
     """Consistent nodal forces of a uniform pressure on a plate.
 
     Parameters
@@ -314,7 +321,7 @@ def uniform_pressure_load(structure, q):
 TH_PLATE = dict(lx=0.4064, ly=0.3048, thickness=0.003175, E=200e9, nu=0.3, rho=7800.0)
 
 
-def th_plate(nx=10, ny=10, rho=TH_PLATE["rho"], damping=0.01):
+def th_plate(nx: int = 10, ny: int = 10, rho: float = TH_PLATE["rho"], damping: Damping = 0.01) -> Structure:
     """The thesis plate: clamped long edge (nodes 1-11), 1 % modal damping.
 
     Parameters
@@ -335,7 +342,7 @@ def th_plate(nx=10, ny=10, rho=TH_PLATE["rho"], damping=0.01):
                  clamped_edge="y0", damping=damping, name=f"TH plate {nx}x{ny}")
 
 
-def imp_plate(damping=0.01):
+def imp_plate(damping: Damping = 0.01) -> Structure:
     """The IMP cantilever plate: 5 x 5 elements (36 nodes, 108 DOFs before supports).
 
     IMP gives no dimensions; we take the thesis plate's size, material and thickness with the

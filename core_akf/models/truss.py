@@ -22,10 +22,13 @@ What the paper does not give is chosen here and documented:
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 
 from ..exceptions import ModelError
 from ..structure import Structure
+from ..types import ArrayLike, Damping
 
 #: S17 member connectivity, 1-based joints, in member order 1..34
 S17_MEMBERS = (
@@ -112,7 +115,9 @@ def bar_matrices(xy_i, xy_j, E, A, rho, lumped=False):
     return K, M, t / L
 
 
-def planar_truss(nodes, members, areas, E, rho, supports, damping=None, lumped=False, name="truss"):
+def planar_truss(nodes: ArrayLike, members: Sequence[tuple[int, int]], areas: float | ArrayLike, E: float, rho: float,
+                 supports: Mapping[int, str], damping: Damping = None, lumped: bool = False,
+                 name: str = "truss") -> Structure:
     """Assemble a planar truss.
 
     Parameters
@@ -181,7 +186,8 @@ def s17_areas():
     return a
 
 
-def s17_truss(E=200e9, rho=7800.0, damping=0.007, panel=1.0, height=1.0, lumped=False):
+def s17_truss(E: float = 200e9, rho: float = 7800.0, damping: Damping = 0.007, panel: float = 1.0, height: float = 1.0,
+              lumped: bool = False) -> Structure:
     """The S17 / IMP planar truss: 18 joints, 34 members, pin at joint 1, roller at joint 18.
 
     Parameters
