@@ -180,8 +180,13 @@ def check_covariance(mat, name, definite=False):
 
 
 def available_memory():
-    """Bytes of memory available to a new allocation (``MemAvailable`` on Linux, else the
-    physical memory); ``None`` if unknown."""
+    """Bytes of memory available to a new allocation.
+
+    Returns
+    -------
+    int or None
+        ``MemAvailable`` on Linux, else the physical memory; None if unknown.
+    """
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:

@@ -59,19 +59,25 @@ def default(name, value=None):
 
 
 def auto_modes(structure, dt, accelerations=True):
-    """The ``"auto"`` number of filter modes (with static correction): the modes whose
-    frequency lies below ``factor / dt`` Hz, with ``factor`` 10 when accelerometers are used and
-    6 otherwise (:data:`DEFAULTS`), and at least 4.
+    """The ``"auto"`` number of filter modes (with static correction).
 
-    Measured on the thesis plate at 2 kHz: 80 modes for strain gauges only (fitness within 0.1 %
-    of the full model's, same layout ranking, Spearman 0.997) and 101 with accelerometers; the
-    S17 truss and the IMP plate at 1 kHz keep 33 and 30 modes.
+    The modes whose frequency lies below ``factor / dt`` Hz, with ``factor`` 10 when
+    accelerometers are used and 6 otherwise (:data:`DEFAULTS`), and at least 4.  Measured on the
+    thesis plate at 2 kHz: 80 modes for strain gauges only (fitness within 0.1 % of the full
+    model's, same layout ranking, Spearman 0.997) and 101 with accelerometers; the S17 truss and
+    the IMP plate at 1 kHz keep 33 and 30 modes.
 
     Parameters
     ----------
     structure : Structure
-    dt : float -- time step (s)
-    accelerations : bool -- whether any acceleration sensor is (or may be) used
+    dt : float
+        Time step (s).
+    accelerations : bool
+        Whether any acceleration sensor is (or may be) used.
+
+    Returns
+    -------
+    int
     """
     factor = default("auto_modes_factor_acc" if accelerations else "auto_modes_factor_strain")
     f = structure.frequencies()

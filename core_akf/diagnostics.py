@@ -190,7 +190,12 @@ class RunningDiagnostics:
         return float(np.mean(np.abs(rho) < 1.96 / np.sqrt(n))), float(rho[0])
 
     def sensors(self):
-        """As :func:`sensor_diagnostics` of the whole record."""
+        """:func:`sensor_diagnostics` of the whole record.
+
+        Returns
+        -------
+        list of dict
+        """
         est = self.last
         out = []
         for j, s in enumerate(est.sensors):
@@ -221,7 +226,12 @@ class RunningDiagnostics:
                 for j, (node, d) in enumerate(est.force_locations)]
 
     def state(self):
-        """The accumulators as a dict of arrays (saved with a resumable run)."""
+        """The accumulators, saved with a resumable run.
+
+        Returns
+        -------
+        dict of str to ndarray
+        """
         return {f"diag_{k}": np.asarray(getattr(self, k)) for k in
                 ("skip", "step", "n", "sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step")}
 

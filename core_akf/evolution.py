@@ -57,10 +57,21 @@ class Individual(list):
             self.fitness.values = tuple(fitness)
 
     def key(self):
-        """A hashable key of the genome (cache and hall of fame)."""
+        """A hashable key of the genome (cache and hall of fame).
+
+        Returns
+        -------
+        tuple
+        """
         return tuple(self)
 
     def copy(self):
+        """A copy with the same genes and fitness.
+
+        Returns
+        -------
+        Individual
+        """
         return type(self)(self, self.fitness.values if self.fitness.valid else None)
 
 
@@ -351,7 +362,12 @@ class GeneticAlgorithm:
         return individuals
 
     def run(self):
-        """Run (or resume) the GA; returns a :class:`GAResult`."""
+        """Run (or resume) the GA.
+
+        Returns
+        -------
+        GAResult
+        """
         import pandas as pd
 
         alg, Ind = self.algorithm, self.algorithm.individual

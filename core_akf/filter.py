@@ -370,6 +370,21 @@ def run(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements | B
     in raw ``[u; u']`` the Riccati iteration is ill-conditioned; :func:`estimate` therefore
     transforms to energy-normalised modal coordinates first
     (:func:`core_akf.statespace.modal_state_transform`) and back afterwards.
+
+    Examples
+    --------
+    The AKF on matrices of one's own (here the S17 truss' augmented model):
+
+    >>> import numpy as np
+    >>> from core_akf import simulate, state_space
+    >>> from core_akf.models import s17_truss
+    >>> sensors, forces = ["strain:13", "acc:8:y"], ["8:y"]
+    >>> sim = simulate(s17_truss(), sensors, forces, np.full((200, 1), 100.0), 1e-3, relative_noise=0.02, seed=0)
+    >>> ss = state_space(s17_truss(), sensors, forces, 1e-3)
+    >>> Q = np.diag(np.r_[np.full(66, 1e-16), 1e4])
+    >>> X = run(ss.A_a, ss.G_a, Q, np.diag(sim.noise_std ** 2), sim.measurements, steady=True)
+    >>> X.shape, round(float(X[-1, -1]))          # the last state is the force (N)
+    ((200, 67), 100)
     """
     return filter_states(A_a, G_a, Q_a, R, Y, x0=x0, P0=P0, steady=steady).states
 
@@ -540,6 +555,21 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
     -------
     list of Estimate
         One per layout.
+
+    Examples
+    --------
+    Two layouts, each with its own record, in one call:
+
+    >>> import numpy as np
+    >>> from core_akf import simulate
+    >>> from core_akf.models import s17_truss
+    >>> truss, layouts = s17_truss(), [["strain:13", "acc:8:y"], ["strain:12", "acc:8:y"]]
+    >>> Y = np.stack([simulate(truss, l, ["8:y"], np.full((200, 1), 100.0), 1e-3, relative_noise=0.02,
+    ...                        seed=0).measurements for l in layouts])
+    >>> ests = estimate_batch(truss, layouts, ["8:y"], Y, 1e-3, model_error_cov=1e-16, force_increment_cov=1e4,
+    ...                       noise_cov={"strain": 1e-14, "acc": 1e-4})
+    >>> [round(float(e.forces[-50:].mean())) for e in ests]      # the 100 N step
+    [100, 100]
     """
     layouts = [as_layout(l) for l in layouts]
     if not layouts:

@@ -21,6 +21,11 @@ def time_grid(n_steps: int, dt: float) -> Time:
     -------
     ndarray (n_steps,)
         Time (s).
+
+    Examples
+    --------
+    >>> time_grid(4, 0.5).tolist()
+    [0.0, 0.5, 1.0, 1.5]
     """
     n_steps = int(n_steps)
     if n_steps < 1:
@@ -52,6 +57,12 @@ def half_sine_pulse(t: Time, start: float, duration: float, peak: float) -> Sign
     -------
     ndarray (N,)
         Force (N).
+
+    Examples
+    --------
+    >>> t = time_grid(10, 1e-3)
+    >>> half_sine_pulse(t, 0.002, 0.004, 100.0).round(1).tolist()
+    [0.0, 0.0, 0.0, 70.7, 100.0, 70.7, 0.0, 0.0, 0.0, 0.0]
     """
     if duration <= 0:
         raise AKFInputError(f"pulse duration must be positive, got {duration!r}")
@@ -76,6 +87,11 @@ def ramp(t: Time, start: float, end: float, peak: float) -> Signal:
     -------
     ndarray (N,)
         Force (N).
+
+    Examples
+    --------
+    >>> ramp(time_grid(5, 1.0), 1.0, 3.0, 10.0).tolist()
+    [0.0, 0.0, 5.0, 10.0, 10.0]
     """
     if end <= start:
         raise AKFInputError(f"ramp end ({end}) must be after its start ({start})")
@@ -99,6 +115,11 @@ def half_sine(t: Time, start: float, end: float, peak: float) -> Signal:
     -------
     ndarray (N,)
         Force (N).
+
+    Examples
+    --------
+    >>> half_sine(time_grid(5, 1.0), 0.0, 4.0, 10.0).round(2).tolist()
+    [0.0, 7.07, 10.0, 7.07, 0.0]
     """
     if end <= start:
         raise AKFInputError(f"half-sine end ({end}) must be after its start ({start})")
@@ -123,6 +144,11 @@ def sine(t: Time, frequency: float, amplitude: float, phase: float = 0.0) -> Sig
     -------
     ndarray (N,)
         Force (N).
+
+    Examples
+    --------
+    >>> sine(time_grid(4, 0.25), 1.0, 2.0).round(6).tolist()
+    [0.0, 2.0, 0.0, -2.0]
     """
     return amplitude * np.sin(2 * np.pi * frequency * np.asarray(t, float) + phase)
 
@@ -142,6 +168,12 @@ def white_noise(n_steps: int, std: float, seed: Seed = None) -> Signal:
     -------
     ndarray (n_steps,)
         Force (N).
+
+    Examples
+    --------
+    >>> f = white_noise(100000, 50.0, seed=0)
+    >>> round(float(f.std()), 0)
+    50.0
     """
     return _rng(seed).normal(0.0, std, int(n_steps))
 

@@ -66,5 +66,11 @@ def average_strain_error(estimate: ArrayLike, reference: ArrayLike, axis: int = 
     -------
     float or ndarray (B,)
         In m/m: one number, or one per batch for a leading batch axis.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> float(average_strain_error(np.full((4, 3), 2e-6), np.full((4, 3), 1e-6))) / 1e-6      # µε
+    1.0
     """
     return np.mean(rms_error(estimate, reference, axis=axis), axis=-1)

@@ -168,12 +168,19 @@ class StaticGain:
     def visibility(self):
         """How well the sensors see every force combination.
 
-        Returns ``(rel, combo, seen)``: the smallest singular value of the gain relative to the
-        largest after unit row and column scaling, the least visible force combination (unit
-        vector over the force locations), and whether every combination is seen.  It is seen if
-        the smallest singular value exceeds both ``SAFETY`` times the (equally scaled) perturbation
-        bound -- by Weyl's inequality rounding or model error cannot then have created it -- and
-        ``RANK_FLOOR`` times the largest one.
+        A combination is seen if the smallest singular value exceeds both ``SAFETY`` times the
+        (equally scaled) perturbation bound -- by Weyl's inequality rounding or model error cannot
+        then have created it -- and ``RANK_FLOOR`` times the largest one.
+
+        Returns
+        -------
+        rel : float
+            The smallest singular value of the gain relative to the largest, after unit row and
+            column scaling.
+        combo : ndarray (n_p,)
+            The least visible force combination (a unit vector over the force locations).
+        seen : bool
+            Whether every combination is seen.
         """
         H = self.gain
         m, n_p = H.shape

@@ -93,7 +93,12 @@ class ModalFilterModel:
         return np.hstack([G @ self.T, D])
 
     def strain_rows(self):
-        """Rows (n_strain x n_a) giving every strain component/member from the augmented state."""
+        """Rows giving every strain output from the augmented state (with the static correction).
+
+        Returns
+        -------
+        ndarray (n_strain, n_a)
+        """
         ops = self.structure.strain_operator            # (n_strain, n) in the model's coordinates
         out = np.zeros((ops.shape[0], self.n_a))
         out[:, :self.n_states] = np.hstack([ops, np.zeros_like(ops)]) @ self.T

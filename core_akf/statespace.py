@@ -627,6 +627,13 @@ def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float
     Returns
     -------
     StateSpace
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss
+    >>> ss = state_space(s17_truss(), ["strain:13", "acc:8:y"], ["8:y"], 1e-3)
+    >>> ss.A_a.shape, ss.G_a.shape             # 2 x 33 DOFs + 1 force
+    ((67, 67), (2, 67))
     """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)

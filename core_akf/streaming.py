@@ -73,6 +73,24 @@ class Estimator:
     switch_tol : float
         The time-varying filter continues with its (then constant) gain once its covariance
         changes by less than this, relatively (as :func:`core_akf.filter.filter_states`).
+
+    Examples
+    --------
+    A record in two chunks gives the estimate of the record in one piece:
+
+    >>> import numpy as np
+    >>> from core_akf import estimate, simulate
+    >>> from core_akf.models import s17_truss
+    >>> sensors, R = ["strain:13", "acc:8:y"], {"strain": 1e-14, "acc": 1e-4}
+    >>> Y = simulate(s17_truss(), sensors, ["8:y"], np.full((300, 1), 100.0), 1e-3, relative_noise=0.02,
+    ...              seed=0).measurements
+    >>> est = Estimator(s17_truss(), sensors, ["8:y"], 1e-3, model_error_cov=1e-16, force_increment_cov=1e4,
+    ...                 noise_cov=R)
+    >>> parts = np.vstack([est.update(Y[:120]).forces, est.update(Y[120:]).forces])
+    >>> whole = estimate(s17_truss(), sensors, ["8:y"], Y, 1e-3, model_error_cov=1e-16, force_increment_cov=1e4,
+    ...                  noise_cov=R).forces
+    >>> bool(np.allclose(parts, whole, rtol=1e-9, atol=1e-9 * np.abs(whole).max()))
+    True
     """
 
     def __init__(self, structure: Structure, sensors: Layout, forces: Forces, dt: float, *, model_error_cov: Covariance,
@@ -185,8 +203,13 @@ class Estimator:
         return h.hexdigest()
 
     def state(self) -> dict[str, np.ndarray]:
-        """What the filter carries to the next chunk, as a dict of arrays (``numpy.savez`` it):
-        the steps done, the last filtered state, the covariance and gain, and a fingerprint."""
+        """What the filter carries to the next chunk (``numpy.savez`` it).
+
+        Returns
+        -------
+        dict of str to ndarray
+            The steps done, the last filtered state, the covariance and gain, and a fingerprint.
+        """
         n = self.setup.A_a.shape[0]
         return {"n_steps": np.array(self.n_steps), "z": np.full(n, np.nan) if self._z is None else self._z.copy(),
                 "P": self._P.copy(), "L": self._gain().copy(), "switched": np.array(self._switched),

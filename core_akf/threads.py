@@ -24,7 +24,12 @@ _CONTROLLER = []
 
 
 def solver_threads():
-    """Threads for a stack of problems (see the module docstring)."""
+    """Threads for a stack of problems (see the module docstring).
+
+    Returns
+    -------
+    int
+    """
     for var in ("AKF_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
         value = os.environ.get(var, "").strip()
         if value.isdigit() and int(value) >= 1:
@@ -36,8 +41,14 @@ def solver_threads():
 
 
 def single_threaded_blas():
-    """Context in which BLAS runs on one thread (threadpoolctl; one controller made once, so a
-    switch costs ~12 us)."""
+    """A context in which BLAS runs on one thread.
+
+    threadpoolctl, one controller made once, so a switch costs ~12 us.
+
+    Returns
+    -------
+    contextlib.AbstractContextManager
+    """
     if not _CONTROLLER:
         from threadpoolctl import ThreadpoolController
         _CONTROLLER.append(ThreadpoolController())

@@ -64,6 +64,14 @@ def force_summary(force: Signal, dt: float, level: float = 0.1) -> ForceSummary:
     Returns
     -------
     ForceSummary
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from core_akf.loads import half_sine_pulse
+    >>> s = force_summary(half_sine_pulse(np.arange(1000) * 1e-3, 0.1, 0.004, 1e4), 1e-3)
+    >>> round(s.peak), round(s.duration, 3)
+    (10000, 0.003)
     """
     f = np.asarray(force, float)
     if f.ndim != 1 or f.size == 0:
@@ -130,6 +138,22 @@ def reconstruct(structure: Structure, sensors: Layout, measurements: Measurement
     Returns
     -------
     Reconstruction
+
+    Examples
+    --------
+    The force of the impact of :func:`impactloc.locate`'s example, at the joint it hit:
+
+    >>> from core_akf import simulate
+    >>> from core_akf.loads import half_sine_pulse, time_grid
+    >>> from core_akf.models import s17_truss
+    >>> from impactloc import default_covariances
+    >>> sensors = ["strain:5", "strain:9", "strain:13", "strain:22", "strain:26", "acc:6:y", "acc:10:y"]
+    >>> force = half_sine_pulse(time_grid(600, 1e-3), 0.3, 0.004, 1e4)[:, None]           # 10 kN at 0.3 s
+    >>> Y = simulate(s17_truss(), sensors, ["14:y"], force, 1e-3, absolute_noise={"strain": 1e-6, "acc": 1e-2},
+    ...              seed=0).measurements
+    >>> rec = reconstruct(s17_truss(), sensors, Y, 1e-3, (14, "y"), default_covariances(sensors, Y))
+    >>> round(rec.summary.time_of_peak, 3), rec.estimate.strains.shape
+    (0.303, (600, 34))
     """
     if n_modes is not None and structure.n > FULL_MODEL_LIMIT and not structure.is_reduced:
         from core_akf.defaults import auto_modes

@@ -69,6 +69,13 @@ def role_splits(sensors: Layout, n_ad: int, ad_kinds: Sequence[str] = ("strain",
     Returns
     -------
     list of :class:`RoleSplit`, in ``itertools.combinations`` order.
+
+    Examples
+    --------
+    Every way to hold one strain gauge back from three:
+
+    >>> [s.ad for s in role_splits(["strain:5", "strain:9", "strain:13", "acc:8:y"], 1)]
+    [(0,), (1,), (2,)]
     """
     layout = as_layout(sensors)
     ad_kinds = (ad_kinds,) if isinstance(ad_kinds, str) else tuple(ad_kinds)

@@ -40,6 +40,12 @@ class Covariances:
     force_increment : float -- ``S``, variance of the force increment per step (N^2)
     noise : dict -- ``R``, measurement-noise variance per sensor kind (SI^2), e.g.
         ``{"strain": 1e-12, "acc": 1e-4}``
+
+    Examples
+    --------
+    >>> c = Covariances(model_error=1e-16, force_increment=1e6, noise={"strain": 1e-12, "acc": 1e-4})
+    >>> c.as_dict()["noise_acc"]
+    0.0001
     """
 
     model_error: float
@@ -93,6 +99,14 @@ def default_covariances(sensors: Layout, measurements: Measurements, model_error
     Returns
     -------
     Covariances
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Y = np.column_stack([np.full(10, 2e-6), np.full(10, 0.5)])
+    >>> c = default_covariances(["strain:5", "acc:8:y"], Y, relative_noise=0.1)
+    >>> round(c.noise["strain"] / (0.1 * 2e-6) ** 2, 6), round(c.noise["acc"] / (0.1 * 0.5) ** 2, 6)
+    (1.0, 1.0)
     """
     layout = as_layout(sensors)
     Y = np.asarray(measurements, float)
@@ -118,6 +132,13 @@ def candidate_locations(structure: Structure, direction: str, nodes: Sequence[in
     Returns
     -------
     list of (int, str)
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss
+    >>> locs = candidate_locations(s17_truss(), "y")
+    >>> len(locs), locs[:2]                     # every joint free in y (not the supports 1 and 18)
+    (16, [(2, 'y'), (3, 'y')])
     """
     if nodes is None:
         nodes = [int(n) for n in structure.user_node_ids if _free(structure, int(n), direction)]
@@ -382,7 +403,13 @@ class ScanResult:
     warnings: list = field(default_factory=list)
 
     def ranking(self) -> list[dict]:
-        """``[{"node", "direction", "mean", "std"}, ...]``, best first."""
+        """The locations, best first.
+
+        Returns
+        -------
+        list of dict
+            ``{"node", "direction", "mean", "std"}`` per location.
+        """
         return [{"node": int(r.node), "direction": r.direction, "mean": float(r.mean), "std": float(r.std)}
                 for r in self.summary.itertuples()]
 
@@ -455,6 +482,23 @@ def scan(structure: Structure, sensors: Layout, measurements: Measurements, dt: 
     Returns
     -------
     ScanResult
+
+    Examples
+    --------
+    The impact of :func:`impactloc.locate`'s example, scanned over four candidate joints:
+
+    >>> from core_akf import simulate
+    >>> from core_akf.loads import half_sine_pulse, time_grid
+    >>> from core_akf.models import s17_truss
+    >>> from impactloc import role_splits
+    >>> sensors = ["strain:5", "strain:9", "strain:13", "strain:22", "strain:26", "acc:6:y", "acc:10:y"]
+    >>> force = half_sine_pulse(time_grid(600, 1e-3), 0.3, 0.004, 1e4)[:, None]
+    >>> Y = simulate(s17_truss(), sensors, ["14:y"], force, 1e-3, absolute_noise={"strain": 1e-6, "acc": 1e-2},
+    ...              seed=0).measurements
+    >>> res = scan(s17_truss(), sensors, Y, 1e-3, role_splits(sensors, 2), candidates=[(j, "y") for j in (10, 12, 14, 16)],
+    ...            covariances=default_covariances(sensors, Y))
+    >>> res.identified, len(res.splits)
+    ((14, 'y'), 10)
     """
     from joblib import Parallel, delayed, effective_n_jobs
 

@@ -127,6 +127,16 @@ class CandidateSet:
         measure something.
     neighbours : int
         Candidates of the same kind a *move* mutation may step to (nearest first).
+
+    Examples
+    --------
+    Strain gauges on the S17 truss' members and accelerometers on its free joints:
+
+    >>> from core_akf.models import s17_truss
+    >>> candidates = CandidateSet(s17_truss(), kinds=("strain", "acc"), budget={"strain": 2, "acc": 1})
+    >>> layout = candidates.from_sensors(["strain:13", "strain:9", "acc:8:y"])
+    >>> candidates.sensors(layout), candidates.counts(layout), candidates.is_valid(layout)
+    (['strain:9', 'strain:13', 'acc:8:y'], {'strain': 2, 'acc': 1}, True)
     """
 
     def __init__(self, structure: Structure, kinds: Sequence[str] = ("strain", "acc"), n_sensors: int | None = None,
@@ -844,6 +854,12 @@ def make_encoding(structure: Structure, kinds: Sequence[str] | None = None, n_se
     Returns
     -------
     CandidateSet or PlateGrid
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss, th_plate
+    >>> type(make_encoding(th_plate(), n_sensors=3)).__name__, type(make_encoding(s17_truss(), n_sensors=3)).__name__
+    ('PlateGrid', 'CandidateSet')
     """
     if candidates is None:
         if kinds is None:

@@ -174,6 +174,18 @@ def place(objective: Objective, encoding: CandidateSet, *, population: int = 50,
     Returns
     -------
     PlacementResult
+
+    Examples
+    --------
+    A short search with a user objective (the sum of the member numbers, least is best):
+
+    >>> from core_akf.models import s17_truss
+    >>> from sensoropt import FunctionObjective, make_encoding
+    >>> member_sum = FunctionObjective(lambda sensors: float(sum(int(s.split(":")[1]) for s in sensors)))
+    >>> res = place(member_sum, make_encoding(s17_truss(), kinds=("strain",), n_sensors=2), population=8,
+    ...             generations=3, seed=1)
+    >>> len(res.sensors), res.best_error <= 10, res.stopped
+    (2, True, 'generations')
     """
     if population < 2 or generations < 0 or not 0 <= elite < population:
         raise AKFInputError("need population >= 2, generations >= 0 and 0 <= elite < population")
@@ -228,6 +240,16 @@ def independent_runs(objective: Objective, encoding: CandidateSet, runs: int = 4
         One row per run (best error, sensors) with ``shared_with_best`` (share of the run's
         sensors that are in the overall best layout) and ``mean_distance`` (layout distance to
         the other runs' best, in candidate spacings).
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss
+    >>> from sensoropt import FunctionObjective, make_encoding
+    >>> count = FunctionObjective(lambda sensors: float(len(sensors)))
+    >>> results, agreement = independent_runs(count, make_encoding(s17_truss(), kinds=("strain",), n_sensors=2),
+    ...                                       runs=2, population=4, generations=1)
+    >>> len(results), "shared_with_best" in agreement.columns
+    (2, True)
     """
     import pandas as pd
 

@@ -169,6 +169,17 @@ def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...]
     Returns
     -------
     ParetoResult
+
+    Examples
+    --------
+    The front of a toy objective (one over the number of gauges) on a small plate:
+
+    >>> from core_akf.models import plate
+    >>> from sensoropt import FunctionObjective
+    >>> res = pareto(FunctionObjective(lambda sensors: 1.0 / len(sensors)), plate(4, 4, 0.4, 0.4, 0.002, 200e9, 0.3, 7800.0),
+    ...              sizes=(1, 3), population=8, generations=2, seed=0)
+    >>> res.front["n_sensors"].tolist(), [round(e, 3) for e in res.front["error"]]
+    ([1, 2, 3], [1.0, 0.5, 0.333])
     """
     import pandas as pd
 

@@ -101,6 +101,42 @@ def test_every_parameter_is_documented(package):
     assert not undocumented, f"{len(undocumented)} callables with undocumented parameters:\n" + "\n".join(undocumented)
 
 
+def _returns_a_value(func):
+    """Whether ``func`` has a ``return value`` or a ``yield`` of its own (not of a nested function)."""
+    import ast
+    import textwrap
+
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(func)))
+    except (OSError, TypeError, SyntaxError):
+        return False
+    top = tree.body[0]
+    nested = {id(n) for d in ast.walk(top) if d is not top and isinstance(d, (ast.FunctionDef, ast.Lambda))
+              for n in ast.walk(d)}
+    for node in ast.walk(top):
+        if id(node) in nested:
+            continue
+        if isinstance(node, (ast.Yield, ast.YieldFrom)):
+            return True
+        if isinstance(node, ast.Return) and node.value is not None and not (
+                isinstance(node.value, ast.Constant) and node.value.value is None):
+            return True
+    return False
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_what_a_function_returns_is_documented(package):
+    """A function that returns or yields a value has a Returns or Yields section."""
+    missing = []
+    for qualified, func, doc in CALLABLES:
+        if not qualified.startswith(package + ".") or func is None or not inspect.isfunction(func) \
+                or func.__name__ == "__init__":
+            continue
+        if _returns_a_value(func) and not re.search(r"\n(Returns|Yields)\n-+\n", doc or ""):
+            missing.append(qualified)
+    assert not missing, missing
+
+
 def test_the_check_finds_an_undocumented_parameter():
     def documented(a, b):
         """Parameters
@@ -193,3 +229,28 @@ def test_the_annotations_name_real_types():
         except Exception as exc:  # noqa: BLE001 -- any failure names the function
             failures.append(f"{qualified}: {type(exc).__name__}: {exc}")
     assert not failures, "\n".join(failures)
+
+
+# ----------------------------------------------------------------------------- examples
+#: the classes a user builds (results are shown by the examples of the functions that return them)
+BUILT_CLASSES = ("core_akf.Structure", "core_akf.streaming.Estimator", "core_akf.io.Record", "sensoropt.CandidateSet",
+                 "sensoropt.FunctionObjective", "sensoropt.PlacementProblem", "impactloc.Covariances")
+
+
+def test_the_api_has_examples():
+    """Every function the API exports (figures aside) and every class a user builds has an
+    Examples section; tests/test_docs.py runs them (doctest)."""
+    missing = []
+    for name in API_MODULES:
+        module = importlib.import_module(name)
+        exported = getattr(module, "__all__", None) or [n for n in vars(module) if not n.startswith("_")]
+        for n in exported:
+            obj = getattr(module, n)
+            if inspect.isfunction(obj) and obj.__module__.split(".")[0] in PACKAGES and not n.startswith("plot_") \
+                    and "\nExamples\n--" not in (inspect.getdoc(obj) or ""):
+                missing.append(f"{name}.{n}")
+    for qualified in BUILT_CLASSES:
+        module, n = qualified.rsplit(".", 1)
+        if "\nExamples\n--" not in (inspect.getdoc(getattr(importlib.import_module(module), n)) or ""):
+            missing.append(qualified)
+    assert not missing, missing

@@ -100,15 +100,31 @@ class Reader(ABC):
 
     @abstractmethod
     def channels(self) -> list:
-        """The channel names in the file (without the time column)."""
+        """The channel names in the file (without the time column).
+
+        Returns
+        -------
+        list of str
+        """
 
     def units(self) -> dict:
-        """Units the file records per channel (``{}`` where it records none)."""
+        """Units the file records per channel.
+
+        Returns
+        -------
+        dict
+            Channel -> unit (``{}`` where it records none).
+        """
         return {}
 
     @abstractmethod
     def timing(self) -> Timing:
-        """The time grid, checked: increasing, uniform within :data:`TIME_GRID_RTOL` of a step."""
+        """The time grid, checked: increasing, uniform within :data:`TIME_GRID_RTOL` of a step.
+
+        Returns
+        -------
+        Timing
+        """
 
     @abstractmethod
     def chunks(self, channels: Sequence[str], size: int) -> Iterator[np.ndarray]:
@@ -598,13 +614,35 @@ class Hdf5Reader(_SlicedReader):
 _READERS: dict = {}
 
 
-def register_reader(cls: type[Reader]) -> type[Reader]:
-    """Register a :class:`Reader` subclass for its ``format`` name and ``extensions`` (a class
-    decorator; a later registration of the same name or extension wins)."""
-    if not (isinstance(cls, type) and issubclass(cls, Reader)) or not cls.format:
-        raise TypeError(f"{cls!r} is not a Reader subclass with a format name")
-    _READERS[cls.format] = cls
-    return cls
+def register_reader(reader: type[Reader]) -> type[Reader]:
+    """Register a :class:`Reader` subclass for its ``format`` name and ``extensions``.
+
+    A class decorator; a later registration of the same name or extension wins.
+
+    Parameters
+    ----------
+    reader : type
+        A :class:`Reader` subclass with a ``format`` name.
+
+    Returns
+    -------
+    type
+        ``reader``.
+
+    Examples
+    --------
+    A reader of one's own, here CSV files with another extension:
+
+    >>> @register_reader
+    ... class LoggerCsv(CsvReader):
+    ...     format, extensions = "logger-csv", (".lcsv",)
+    >>> formats()["logger-csv"]
+    ('.lcsv',)
+    """
+    if not (isinstance(reader, type) and issubclass(reader, Reader)) or not reader.format:
+        raise TypeError(f"{reader!r} is not a Reader subclass with a format name")
+    _READERS[reader.format] = reader
+    return reader
 
 
 for _cls in (CsvReader, ParquetReader, TdmsReader, Uff58Reader, Hdf5Reader):
@@ -629,8 +667,19 @@ def _load_entry_points():
             warnings.warn(f"reader plugin {ep.name!r} ({ep.value}) could not be loaded: {exc}")
 
 
-def formats() -> dict[str, type[Reader]]:
-    """Registered format names -> their extensions."""
+def formats() -> dict[str, tuple[str, ...]]:
+    """The registered formats.
+
+    Returns
+    -------
+    dict
+        Format name -> its file extensions.
+
+    Examples
+    --------
+    >>> sorted(formats())
+    ['csv', 'hdf5', 'parquet', 'tdms', 'uff']
+    """
     _load_entry_points()
     return {name: cls.extensions for name, cls in _READERS.items()}
 
@@ -679,5 +728,15 @@ def open_file(path: str | os.PathLike, format: str | None = None, time_column: s
     Returns
     -------
     Reader
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> path = os.path.join(tempfile.mkdtemp(), "run.csv")
+    >>> import pandas as pd
+    >>> pd.DataFrame({"time": [0.0, 0.001, 0.002], "SG13": [1.0, 2.0, 3.0]}).to_csv(path, index=False)
+    >>> reader = open_file(path)
+    >>> reader.channels(), reader.timing().n_steps
+    (['SG13'], 3)
     """
     return reader_class(path, format)(path, time_column=time_column, group=group)

@@ -47,6 +47,15 @@ def record_files(spec: str | os.PathLike | Sequence[str | os.PathLike]) -> list[
     -------
     list of str
         Sorted by name (:class:`Record` orders them by time).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> folder = tempfile.mkdtemp()
+    >>> for name in ("b.csv", "a.csv", "notes.md"):
+    ...     open(os.path.join(folder, name), "w").close()
+    >>> [os.path.basename(f) for f in record_files(folder)]      # files of a registered format, by name
+    ['a.csv', 'b.csv']
     """
     specs = [spec] if isinstance(spec, (str, os.PathLike)) else list(spec)
     if not specs:
@@ -128,6 +137,24 @@ class Record:
         The time column or channel.
     group : str, optional
         TDMS or HDF5 group holding the channels.
+
+    Examples
+    --------
+    A CSV record with its own channel names and units:
+
+    >>> import os, tempfile
+    >>> import numpy as np, pandas as pd
+    >>> folder = tempfile.mkdtemp()
+    >>> t = np.arange(100) * 1e-3
+    >>> pd.DataFrame({"time": t, "SG13": 5.0 * np.sin(20 * t), "ACC8": 0.1 * np.cos(20 * t)}).to_csv(
+    ...     os.path.join(folder, "run1.csv"), index=False)
+    >>> rec = Record(os.path.join(folder, "*.csv"), ["strain:13", "acc:8:y"],
+    ...              channels={"SG13": "strain:13", "ACC8": "acc:8:y"}, units={"SG13": "microstrain", "ACC8": "g"})
+    >>> rec.describe()
+    ['strain:13 <- SG13 [microstrain]', 'acc:8:y <- ACC8 [g]']
+    >>> t, Y = rec.read()                       # SI: m/m and m/s^2
+    >>> Y.shape, round(float(Y[0, 1]), 5)
+    ((100, 2), 0.98067)
     """
 
     def __init__(self, files: str | os.PathLike | Sequence[str | os.PathLike], sensors: Layout, *,
@@ -387,7 +414,12 @@ class Record:
         return self.start + self.dt * np.arange(Y.shape[0]), Y
 
     def describe(self) -> list[str]:
-        """One line per sensor: ``sensor <- channel [unit, sign]`` (for logs and summaries)."""
+        """One line per sensor: ``sensor <- channel [unit, sign]`` (for logs and summaries).
+
+        Returns
+        -------
+        list of str
+        """
         return [f"{s.sensor} <- {s.name} [{s.unit}{', inverted' if s.sign < 0 else ''}"
                 f"{f', bridge {s.convert.bridge} GF {s.convert.gauge_factor:g}' if s.convert.bridge else ''}]"
                 for s in self.sources[0]]

@@ -111,6 +111,12 @@ def footbridge_matrices(**overrides: float) -> dict:
         ``K``, ``M`` (sparse CSR over all 3 DOFs of every node, N/m and kg), ``dofs`` (node,
         direction per row), ``nodes`` (id -> (x, y, z)), ``fixed`` (the supports), ``members``
         (n_members x 2, 1-based) and ``groups``.
+
+    Examples
+    --------
+    >>> m = footbridge_matrices(n_panels=4)
+    >>> m["K"].shape, len(m["members"])         # 20 nodes x 3 DOFs
+    ((60, 60), 57)
     """
     import scipy.sparse
 
@@ -167,6 +173,12 @@ def footbridge(damping: Damping = 0.005, n_modes: int | None = None, **overrides
     Returns
     -------
     Structure
+
+    Examples
+    --------
+    >>> bridge = footbridge()
+    >>> bridge.n, bridge.n_strain
+    (1011, 1097)
     """
     from .matrices import from_matrices
 

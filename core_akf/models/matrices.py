@@ -68,6 +68,15 @@ def load_matrix(path: str | os.PathLike) -> np.ndarray | scipy.sparse.sparray:
     Returns
     -------
     ndarray or scipy.sparse matrix
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import scipy.io, scipy.sparse
+    >>> path = os.path.join(tempfile.mkdtemp(), "K.mtx")
+    >>> scipy.io.mmwrite(path, scipy.sparse.identity(3).tocsr())
+    >>> load_matrix(path).shape
+    (3, 3)
     """
     import scipy.io
     import scipy.sparse
@@ -405,6 +414,23 @@ def from_files(K: str, M: str, dofs: str, nodes: str, fixed: Sequence | None = N
     Returns
     -------
     Structure
+
+    Examples
+    --------
+    A two-storey shear frame written as an FE program would export it:
+
+    >>> import os, tempfile
+    >>> import numpy as np, scipy.io, scipy.sparse
+    >>> folder = tempfile.mkdtemp()
+    >>> K = scipy.sparse.csr_matrix(np.array([[2.0, -1.0], [-1.0, 1.0]]) * 1e4)         # N/m
+    >>> scipy.io.mmwrite(os.path.join(folder, "K.mtx"), K)
+    >>> scipy.io.mmwrite(os.path.join(folder, "M.mtx"), scipy.sparse.identity(2).tocsr())  # kg
+    >>> _ = open(os.path.join(folder, "dofs.csv"), "w").write("node,direction\\n1,x\\n2,x\\n")
+    >>> _ = open(os.path.join(folder, "nodes.csv"), "w").write("node,x,y\\n1,0,1\\n2,0,2\\n")
+    >>> frame = from_files(*(os.path.join(folder, f) for f in ("K.mtx", "M.mtx", "dofs.csv", "nodes.csv")),
+    ...                    damping=0.02)
+    >>> [round(float(f), 3) for f in frame.frequencies()]          # Hz
+    [9.836, 25.752]
     """
     if isinstance(damping, list):
         damping = tuple(damping)

@@ -262,6 +262,12 @@ def plate_matrices(nx: int, ny: int, lx: float, ly: float, thickness: float, E: 
         ``K``, ``M`` (N/m, kg; all DOFs, CSR), ``strains`` (3 n_nodes x n_dofs: all e_x, then
         e_y, then g_xy at the nodes), ``dofs`` (node id, direction per row: ``z`` for w, ``rx``,
         ``ry``), ``nodes`` (id -> (x, y), m) and ``fixed`` (the constrained DOFs).
+
+    Examples
+    --------
+    >>> m = plate_matrices(2, 2, 0.2, 0.2, 0.002, 200e9, 0.3, 7800.0)
+    >>> m["K"].shape, m["strains"].shape, len(m["fixed"])     # 9 nodes x 3 DOFs; y = 0 clamped
+    ((27, 27), (27, 27), 9)
     """
     K, M, S, nodes, free = _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges,
                                      True)
@@ -303,6 +309,12 @@ def uniform_pressure_load(structure: Structure, q: float) -> FloatArray:
     -------
     ndarray (n,)
         Forces (N) and moments (N m) in the free DOFs.
+
+    Examples
+    --------
+    >>> f = uniform_pressure_load(imp_plate(), 1000.0)       # 1 kPa
+    >>> f.shape
+    (90,)
     """
     meta = structure.meta
     nx, ny = meta["nx"], meta["ny"]
@@ -336,6 +348,12 @@ def th_plate(nx: int = 10, ny: int = 10, rho: float = TH_PLATE["rho"], damping: 
     Returns
     -------
     Structure
+
+    Examples
+    --------
+    >>> p = th_plate()
+    >>> p.n_nodes, p.n, p.n_strain          # 11 x 11 nodes, the clamped edge removed
+    (121, 330, 363)
     """
     p = dict(TH_PLATE, rho=rho)
     return plate(nx, ny, p["lx"], p["ly"], p["thickness"], p["E"], p["nu"], p["rho"],
@@ -356,6 +374,11 @@ def imp_plate(damping: Damping = 0.01) -> Structure:
     Returns
     -------
     Structure
+
+    Examples
+    --------
+    >>> imp_plate().n
+    90
     """
     p = TH_PLATE
     return plate(5, 5, p["lx"], p["ly"], p["thickness"], p["E"], p["nu"], p["rho"],

@@ -143,6 +143,15 @@ def planar_truss(nodes: ArrayLike, members: Sequence[tuple[int, int]], areas: fl
     -------
     Structure
         Strain outputs ``strain:1`` .. ``strain:K``: the members in order.
+
+    Examples
+    --------
+    A three-bar triangle, pinned at joint 1 and on a roller at joint 2:
+
+    >>> t = planar_truss([[0, 0], [1, 0], [0.5, 0.5]], [(1, 2), (2, 3), (1, 3)], 1e-4, 200e9, 7800.0,
+    ...                  {1: "xy", 2: "y"})
+    >>> t.n, t.strain_labels
+    (3, ['strain:1', 'strain:2', 'strain:3'])
     """
     nodes = np.asarray(nodes, float)
     n_nodes = nodes.shape[0]
@@ -179,7 +188,13 @@ def planar_truss(nodes: ArrayLike, members: Sequence[tuple[int, int]], areas: fl
 
 
 def s17_areas():
-    """Member areas (m^2) of the S17 truss, shape (34,), by the paper's area groups."""
+    """Member areas of the S17 truss, by the paper's area groups.
+
+    Returns
+    -------
+    ndarray (34,)
+        m^2.
+    """
     a = np.full(34, S17_AREA_OTHER)
     a[np.asarray(S17_BOTTOM) - 1] = S17_AREA_BOTTOM
     a[np.asarray(S17_VERTICAL) - 1] = S17_AREA_VERTICAL
