@@ -1,7 +1,17 @@
-"""Estimation jobs: one structure, sensors, force locations, filter settings and either a
-simulated scenario or measured data -- from a TOML file or a built-in example.
+"""A job, read once: one structure, its sensors and unknown forces, the filter's settings and a
+simulated scenario or measured data, from a TOML file or a built-in example, for one command.
 
-A job file (TOML)::
+:func:`load_job` (a file) or :meth:`Job.from_dict` (a dict) checks it against the schema
+(:mod:`akf.schema`) once, makes its data paths relative to the job file and applies every
+default once: the runners (:func:`akf.estimating.estimate_job`, :func:`akf.locating.run_locate_job`,
+:func:`akf.placement.problem_from_job`) take the :class:`Job` and resolve nothing again.
+
+>>> from akf.examples import example
+>>> job = example("s17-case4", overrides={"simulation.duration": 0.5})
+>>> job.command, job.stiffness_factor, job.n_modes, job.steady
+('estimate', 1.05, None, True)
+
+An estimate job file (TOML)::
 
     name = "my-truss"
     dt = 0.000244140625            # s

@@ -16,8 +16,9 @@ from .locate import LocateResult, locate, plot_locate
 from .reconstruct import ForceSummary, Reconstruction, force_summary, reconstruct
 from .roles import RoleSplit, role_splits
 from .scan import Covariances, ImpactModel, ScanResult, candidate_locations, default_covariances, scan
+from .simulation import simulate_impact
 from .tuning import TuningResult, tune_covariances
 
 __all__ = ["LocateResult", "locate", "plot_locate", "ForceSummary", "Reconstruction",
            "force_summary", "reconstruct", "RoleSplit", "role_splits", "Covariances", "ImpactModel", "ScanResult",
-           "candidate_locations", "default_covariances", "scan", "TuningResult", "tune_covariances"]
+           "candidate_locations", "default_covariances", "scan", "simulate_impact", "TuningResult", "tune_covariances"]

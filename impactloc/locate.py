@@ -134,16 +134,14 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
 
     Examples
     --------
-    A 10 kN, 4 ms impact at joint 14 of the S17 truss, found among four candidate joints:
+    A 10 kN, 4 ms impact at joint 14 of the S17 truss (:func:`simulate_impact`), found among four
+    candidate joints:
 
-    >>> from core_akf import simulate
-    >>> from core_akf.loads import half_sine_pulse, time_grid
     >>> from core_akf.models import s17_truss
+    >>> from impactloc import simulate_impact
     >>> sensors = ["strain:5", "strain:9", "strain:13", "strain:22", "strain:26", "acc:6:y", "acc:10:y"]
-    >>> force = half_sine_pulse(time_grid(600, 1e-3), 0.3, 0.004, 1e4)[:, None]
-    >>> sim = simulate(s17_truss(), sensors, ["14:y"], force, 1e-3, absolute_noise={"strain": 1e-6, "acc": 1e-2},
-    ...                seed=0)
-    >>> res = locate(s17_truss(), sensors, sim.measurements, 1e-3, n_ad=2, direction="y", candidates=[10, 12, 14, 16],
+    >>> Y = simulate_impact(s17_truss(), sensors, "14:y").measurements
+    >>> res = locate(s17_truss(), sensors, Y, 1e-3, n_ad=2, direction="y", candidates=[10, 12, 14, 16],
     ...              tune=False)
     >>> res.scan.identified, res.scan.confidence
     ((14, 'y'), 1.0)

@@ -141,16 +141,13 @@ def reconstruct(structure: Structure, sensors: Layout, measurements: Measurement
 
     Examples
     --------
-    The force of the impact of :func:`impactloc.locate`'s example, at the joint it hit:
+    The force of the impact of :func:`impactloc.locate`'s example (10 kN at 0.3 s), at the joint
+    it hit:
 
-    >>> from core_akf import simulate
-    >>> from core_akf.loads import half_sine_pulse, time_grid
     >>> from core_akf.models import s17_truss
-    >>> from impactloc import default_covariances
+    >>> from impactloc import default_covariances, simulate_impact
     >>> sensors = ["strain:5", "strain:9", "strain:13", "strain:22", "strain:26", "acc:6:y", "acc:10:y"]
-    >>> force = half_sine_pulse(time_grid(600, 1e-3), 0.3, 0.004, 1e4)[:, None]           # 10 kN at 0.3 s
-    >>> Y = simulate(s17_truss(), sensors, ["14:y"], force, 1e-3, absolute_noise={"strain": 1e-6, "acc": 1e-2},
-    ...              seed=0).measurements
+    >>> Y = simulate_impact(s17_truss(), sensors, "14:y").measurements
     >>> rec = reconstruct(s17_truss(), sensors, Y, 1e-3, (14, "y"), default_covariances(sensors, Y))
     >>> round(rec.summary.time_of_peak, 3), rec.estimate.strains.shape
     (0.303, (600, 34))

@@ -487,14 +487,10 @@ def scan(structure: Structure, sensors: Layout, measurements: Measurements, dt: 
     --------
     The impact of :func:`impactloc.locate`'s example, scanned over four candidate joints:
 
-    >>> from core_akf import simulate
-    >>> from core_akf.loads import half_sine_pulse, time_grid
     >>> from core_akf.models import s17_truss
-    >>> from impactloc import role_splits
+    >>> from impactloc import role_splits, simulate_impact
     >>> sensors = ["strain:5", "strain:9", "strain:13", "strain:22", "strain:26", "acc:6:y", "acc:10:y"]
-    >>> force = half_sine_pulse(time_grid(600, 1e-3), 0.3, 0.004, 1e4)[:, None]
-    >>> Y = simulate(s17_truss(), sensors, ["14:y"], force, 1e-3, absolute_noise={"strain": 1e-6, "acc": 1e-2},
-    ...              seed=0).measurements
+    >>> Y = simulate_impact(s17_truss(), sensors, "14:y").measurements
     >>> res = scan(s17_truss(), sensors, Y, 1e-3, role_splits(sensors, 2), candidates=[(j, "y") for j in (10, 12, 14, 16)],
     ...            covariances=default_covariances(sensors, Y))
     >>> res.identified, len(res.splits)

@@ -196,14 +196,10 @@ def tune_covariances(structure: Structure, sensors: Layout, measurements: Measur
     --------
     A one-generation search around the assumed levels (the best is never worse than the start):
 
-    >>> from core_akf import simulate
-    >>> from core_akf.loads import half_sine_pulse, time_grid
     >>> from core_akf.models import s17_truss
-    >>> from impactloc import default_covariances, role_splits
+    >>> from impactloc import default_covariances, role_splits, simulate_impact
     >>> sensors = ["strain:5", "strain:9", "strain:13", "strain:22", "strain:26", "acc:6:y", "acc:10:y"]
-    >>> force = half_sine_pulse(time_grid(600, 1e-3), 0.3, 0.004, 1e4)[:, None]
-    >>> Y = simulate(s17_truss(), sensors, ["14:y"], force, 1e-3, absolute_noise={"strain": 1e-6, "acc": 1e-2},
-    ...              seed=0).measurements
+    >>> Y = simulate_impact(s17_truss(), sensors, "14:y").measurements
     >>> res = tune_covariances(s17_truss(), sensors, Y, 1e-3, (14, "y"), role_splits(sensors, 2),
     ...                        start=default_covariances(sensors, Y), population=4, generations=1, seed=0)
     >>> res.tuned_error <= res.initial_error, sorted(res.genes)[:2]
