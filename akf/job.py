@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import copy
 import os
+from functools import cached_property
 
 import numpy as np
 
@@ -184,16 +185,16 @@ class Job:
             self._structure = build_structure(self.spec.structure.model_dump())
         return self._structure
 
-    @property
+    @cached_property
     def sensors(self):
-        """The sensor layout (list of :class:`core_akf.sensors.Sensor`), checked against the structure."""
+        """The sensor layout (tuple of :class:`core_akf.sensors.Sensor`), checked against the structure."""
         layout = as_layout(self.spec.sensors)
         selection_matrices(self.structure, layout)       # every sensor exists on this structure
         return layout
 
-    @property
+    @cached_property
     def forces(self):
-        """The unknown force locations as 1-based ``(node, direction)`` pairs."""
+        """The unknown force locations as 1-based ``(node, direction)`` pairs, checked against the structure."""
         return parse_force_locations(self.structure, self.spec.forces)
 
     def filter_model(self):
