@@ -47,6 +47,8 @@ CHECKPOINT = ".akf-resume.npz"
 
 #: units of the numbers in :attr:`EstimateResult.metrics` (and the CLI's JSON)
 METRIC_UNITS = {"rms_force": "N", "rms_strain": "m/m", "avg_strain_error": "m/m", "avg_strain_error_microstrain": "µε",
+                "loglik": "the natural log of a probability density of the record in SI units (higher is likelier; "
+                          "compare runs of one record only)",
                 "forces": {"rms": "N", "peak": "N", "time_of_peak": "s"},
                 "sensors": "per channel: the sensor's SI unit (m/m, m/s^2, m/s, m); consistency and whiteness "
                            "are dimensionless"}
@@ -76,7 +78,7 @@ def summary_frame(metrics):
     rows += [{"quantity": "strain", "channel": k, "unit": "m/m", "rms_error": v}
              for k, v in m.get("rms_strain", {}).items()]
     columns = ["quantity", "channel", "unit", "rms_error", "rms", "peak", "time_of_peak", "innovation_rms",
-               "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation"]
+               "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation", "loglik"]
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -88,8 +90,9 @@ class EstimateResult:
     ----------
     job : Job
     metrics : dict
-        ``detectable``, ``n_steps``, ``units`` (:data:`METRIC_UNITS`), ``forces`` and ``sensors``
-        (per channel, :mod:`core_akf.diagnostics`), ``warnings``; for a simulated job also
+        ``detectable``, ``n_steps``, ``units`` (:data:`METRIC_UNITS`), ``loglik`` (the Gaussian
+        log-likelihood of the innovations, :mod:`core_akf.likelihood`), ``forces`` and ``sensors``
+        (per channel, :mod:`core_akf.diagnostics`, each with its ``loglik``), ``warnings``; for a simulated job also
         ``rms_force`` (N per force), ``rms_strain`` (m/m per output), ``avg_strain_error`` (m/m)
         and ``avg_strain_error_microstrain``.  Empty for a run stopped before its end.
     files : dict
@@ -420,6 +423,7 @@ def _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors
             metrics["rms_strain"] = dict(zip(job.structure.strain_labels, map(float, rs)))
             metrics["avg_strain_error"] = float(average_strain_error(whole.strains, sim.strains))
             metrics["avg_strain_error_microstrain"] = metrics["avg_strain_error"] / MICROSTRAIN
+    metrics["loglik"] = diag.loglik()
     metrics["forces"] = diag.forces(t0)
     metrics["sensors"] = diag.sensors()
     metrics["warnings"] = warnings_for(last, metrics["sensors"], duration=n_total * job.dt)

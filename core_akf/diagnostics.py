@@ -70,10 +70,12 @@ def sensor_diagnostics(est):
         One per sensor: ``channel``, ``unit``, ``measured_rms``, ``innovation_rms``,
         ``predicted_innovation_std`` (``sqrt(S_ii)``), ``consistency`` (their ratio, about 1 when
         the model and the covariances fit the data), ``whiteness`` and ``lag1_autocorrelation``
-        (:func:`whiteness`).
+        (:func:`whiteness`), and ``loglik``, the channel's log-likelihood over the whole record
+        (:attr:`core_akf.filter.Estimate.loglik_channels`).
     """
     Y, E = est.measurements, est.innovations
     k0 = _skip(Y.shape[0])
+    loglik = est.loglik_channels                      # over the whole record
     out = []
     for j, s in enumerate(est.sensors):
         e = E[k0:, j]
@@ -83,7 +85,7 @@ def sensor_diagnostics(est):
         out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": float(np.sqrt(np.mean(Y[k0:, j] ** 2))),
                     "innovation_rms": irms, "predicted_innovation_std": std,
                     "consistency": irms / std if std > 0 else float("inf"), "whiteness": white,
-                    "lag1_autocorrelation": lag1})
+                    "lag1_autocorrelation": lag1, "loglik": float(loglik[j])})
     return out
 
 
@@ -140,6 +142,7 @@ class RunningDiagnostics:
         self.lag = np.zeros((self.lags, m))
         self.head, self.tail = np.zeros((0, m)), np.zeros((0, m))
         self.sum_f2, self.peak, self.peak_step = np.zeros(p), np.zeros(p), np.zeros(p, int)
+        self.sum_loglik = np.zeros(m)
 
     def update(self, est):
         """Add one chunk.
@@ -152,6 +155,7 @@ class RunningDiagnostics:
         if self.last is None:
             self._start(est)
         k = est.forces.shape[0]
+        self.sum_loglik += est.loglik_channels            # the likelihood of the whole record: no skip
         cut = min(max(self.skip - self.step, 0), k)
         first = self.step + cut                      # record step of the first counted sample
         self.step += k
@@ -205,8 +209,17 @@ class RunningDiagnostics:
             out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": float(np.sqrt(self.sum_y2[j] / self.n)),
                         "innovation_rms": irms, "predicted_innovation_std": std,
                         "consistency": irms / std if std > 0 else float("inf"), "whiteness": white,
-                        "lag1_autocorrelation": lag1})
+                        "lag1_autocorrelation": lag1, "loglik": float(self.sum_loglik[j])})
         return out
+
+    def loglik(self):
+        """The log-likelihood of the whole record's innovations (:attr:`core_akf.filter.Estimate.loglik`).
+
+        Returns
+        -------
+        float
+        """
+        return float(self.sum_loglik.sum())
 
     def forces(self, t0=0.0):
         """:func:`force_statistics` of the whole record.
@@ -233,7 +246,8 @@ class RunningDiagnostics:
         dict of str to ndarray
         """
         return {f"diag_{k}": np.asarray(getattr(self, k)) for k in
-                ("skip", "step", "n", "sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step")}
+                ("skip", "step", "n", "sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step",
+                 "sum_loglik")}
 
     def restore(self, state, est):
         """Continue from a saved :meth:`state`.
@@ -251,7 +265,7 @@ class RunningDiagnostics:
             ``self``.
         """
         self._start(est)
-        for k in ("sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step"):
+        for k in ("sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step", "sum_loglik"):
             setattr(self, k, np.array(state[f"diag_{k}"]))
         self.skip, self.step, self.n = (int(state[f"diag_{k}"]) for k in ("skip", "step", "n"))
         self.last = est

@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 from .checks import as_finite_array, check_covariance
 from .covariances import augmented_covariance, diag_levels, noise_covariance, state_covariance  # noqa: F401
 from .exceptions import AKFInputError
+from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError
 from .sensors import as_layout, parse_force_locations
@@ -91,12 +92,16 @@ class FilterResult:
         The steady-state gain, or the last one of the time-varying filter.
     P_prior : ndarray (n_a, n_a)
         The steady-state prior covariance, or the last one.
+    loglik_terms : ndarray (N, m)
+        The log-likelihood of the innovations per step and channel
+        (:func:`core_akf.likelihood.loglik_terms`); their sum is the record's log-likelihood.
     """
 
     states: np.ndarray
     innovations: np.ndarray
     gain: np.ndarray
     P_prior: np.ndarray
+    loglik_terms: np.ndarray = None
 
 
 class ModalBlockTransition:
@@ -242,6 +247,9 @@ def time_varying_filter(A, G, Q, R, Y, x, P, switch_tol, transition=None):
         The prior covariance of the next step (or, ``switched``, the converged one).
     switched : bool
         Whether the filter went over to the fixed gain.
+    terms : ndarray (B, N, m)
+        The log-likelihood of the innovations per step and channel
+        (:func:`core_akf.likelihood.loglik_terms`).
     """
     B, N, m = Y.shape
     n = A.shape[-1]
@@ -249,6 +257,7 @@ def time_varying_filter(A, G, Q, R, Y, x, P, switch_tol, transition=None):
     innov = np.empty((B, N, m))
     At = np.swapaxes(A, -1, -2)
     Gt = np.swapaxes(G, -1, -2)
+    terms = np.empty((B, N, m))
     P_check = P.copy()
     for k in range(N):
         e = Y[:, k] - np.einsum("bij,bj->bi", G, x)
@@ -263,8 +272,10 @@ def time_varying_filter(A, G, Q, R, Y, x, P, switch_tol, transition=None):
                 out[:, k:] = lti_response(I_LG @ A, L, Y[:, k:], first)
                 innov[:, k] = e
                 innov[:, k + 1:] = Y[:, k + 1:] - out[:, k:-1] @ np.swapaxes(G @ A, -1, -2)
-                return out, innov, L, P, True
+                terms[:, k:] = loglik_terms(innov[:, k:], S)       # the covariance has converged: S from here on
+                return out, innov, L, P, True, terms
             P_check = P.copy()
+        terms[:, k] = loglik_terms(e[:, None], S)[:, 0]
         x = x + np.einsum("bij,bj->bi", L, e)
         P = P - L @ np.swapaxes(PGt, -1, -2)  # a new array: P0 given by the caller stays untouched
         out[:, k] = x
@@ -275,7 +286,7 @@ def time_varying_filter(A, G, Q, R, Y, x, P, switch_tol, transition=None):
             P = 0.5 * (P + np.swapaxes(P, -1, -2))
         else:
             P = transition.propagate(P, Q)
-    return out, innov, L, P, False
+    return out, innov, L, P, False, terms
 
 
 #: the time-varying filter tests every this many steps whether its covariance has converged
@@ -287,7 +298,25 @@ def _steady(A, G, Q, R, Y, x):
     innov = np.empty_like(Y)                          # y_k - G A X_{k-1}: (G A) is only m x n
     innov[:, 0] = Y[:, 0] - np.einsum("bij,bj->bi", G, x)
     innov[:, 1:] = Y[:, 1:] - out[:, :-1] @ np.swapaxes(G @ A, -1, -2)
-    return out, innov, L, P
+    return out, innov, L, P, loglik_terms(innov, innovation_covariance(G, P, R))
+
+
+def innovation_covariance(G, P, R):
+    """The predicted innovation covariance ``S = G P G^T + R``, symmetrised.
+
+    Parameters
+    ----------
+    G : ndarray (..., m, n)
+    P : ndarray (..., n, n)
+        A prior covariance.
+    R : ndarray (..., m, m)
+
+    Returns
+    -------
+    ndarray (..., m, m)
+    """
+    S = G @ P @ np.swapaxes(G, -1, -2) + R
+    return 0.5 * (S + np.swapaxes(S, -1, -2))
 
 
 def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_tol=1e-14, transition=None,
@@ -325,17 +354,17 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_to
             raise AKFInputError(f"x0 must have {n} entries (the augmented state), got shape {x0.shape}")
     x = np.zeros((B, n)) if x0 is None else np.broadcast_to(x0, (B, n)).copy()
     if steady:
-        out, innov, L, P = _steady(A, G, Q, Rb, Yb, x)
+        out, innov, L, P, terms = _steady(A, G, Q, Rb, Yb, x)
     else:
         if P0 is not None:
             P0 = check_covariance(P0, "initial covariance P0") if check else np.asarray(P0, float)
             if P0.shape[-2:] != (n, n):
                 raise AKFInputError(f"P0 must be {n}x{n}, got {P0.shape}")
         P = Q.copy() if P0 is None else np.broadcast_to(P0, (B, n, n)).copy()
-        out, innov, L, P, _ = time_varying_filter(A, G, Q, Rb, Yb, x, P, switch_tol, transition)
+        out, innov, L, P, _, terms = time_varying_filter(A, G, Q, Rb, Yb, x, P, switch_tol, transition)
     if not batched:
-        out, innov, L, P = out[0], innov[0], L[0], P[0]
-    return FilterResult(states=out, innovations=innov, gain=L, P_prior=P)
+        out, innov, L, P, terms = out[0], innov[0], L[0], P[0], terms[0]
+    return FilterResult(states=out, innovations=innov, gain=L, P_prior=P, loglik_terms=terms)
 
 
 def run(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements | BatchMeasurements, x0: ArrayLike | None = None,
@@ -427,6 +456,9 @@ class Estimate:
     t0 : float
         Time of the first step (s); 0 except for chunks of a streamed record
         (:class:`core_akf.streaming.Estimator`).
+    loglik_terms : ndarray (N, m)
+        The log-likelihood of the innovations per step and channel
+        (:func:`core_akf.likelihood.loglik_terms`); see :attr:`loglik`.
     """
 
     structure: object
@@ -442,6 +474,19 @@ class Estimate:
     innovation_cov: np.ndarray = field(repr=False, default=None)
     filter_matrices: tuple = field(repr=False, default=None)
     t0: float = 0.0
+    loglik_terms: np.ndarray = field(repr=False, default=None)
+
+    @property
+    def loglik(self):
+        """The Gaussian log-likelihood of the innovations (a float, dimensionless): how probable
+        the record is under the filter's model and covariances (:mod:`core_akf.likelihood`)."""
+        return float(np.sum(self.loglik_terms))
+
+    @property
+    def loglik_channels(self):
+        """The log-likelihood per channel, shape (m,): each channel's innovations given those of
+        the channels before it in the layout; they sum to :attr:`loglik`."""
+        return np.sum(self.loglik_terms, axis=0)
 
     @property
     def predicted(self):
@@ -598,7 +643,7 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
                             transition=transition, check=False)
     except RiccatiError as exc:
         raise setup.riccati_error(exc) from None
-    return setup.estimates(res.states, res.innovations, res.gain, res.P_prior, Y, reports)
+    return setup.estimates(res.states, res.innovations, res.gain, res.P_prior, Y, reports, terms=res.loglik_terms)
 
 
 class FilterSetup:
@@ -674,7 +719,7 @@ class FilterSetup:
         names = "; ".join(", ".join(s.label for s in self.layouts[b]) for b in exc.problems)
         return RiccatiError(f"steady-state gain failed for the layout(s) [{names}]: {exc}", exc.problems)
 
-    def estimates(self, states, innovations, gain, P_prior, Y, reports, t0=0.0):
+    def estimates(self, states, innovations, gain, P_prior, Y, reports, t0=0.0, terms=None):
         """One :class:`Estimate` per layout from the filter's output in modal coordinates.
 
         States go back to physical ``[u; u'; f]`` and gains to the physical state.
@@ -692,6 +737,8 @@ class FilterSetup:
             One per layout.
         t0 : float
             Time of the first step (s).
+        terms : ndarray (B, N, m), optional
+            The log-likelihood terms of the innovations.
 
         Returns
         -------
@@ -703,7 +750,8 @@ class FilterSetup:
         S_innov = self.G_a @ P_prior @ np.swapaxes(self.G_a, -1, -2) + self.R
         return [Estimate(self.structure, l, self.locs, self.dt, states[b, :, :nx], states[b, :, nx:],
                          innovations[b], gains[b], reports[b], Y[b], 0.5 * (S_innov[b] + S_innov[b].T),
-                         (self.A_a, self.G_a[b], gain[b]), t0=t0) for b, l in enumerate(self.layouts)]
+                         (self.A_a, self.G_a[b], gain[b]), t0=t0, loglik_terms=None if terms is None else terms[b])
+                for b, l in enumerate(self.layouts)]
 
 
 def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,

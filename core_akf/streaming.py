@@ -26,7 +26,8 @@ import numpy as np
 
 from .checks import as_finite_array
 from .exceptions import AKFInputError
-from .filter import FilterSetup, ModalBlockTransition, time_varying_filter
+from .filter import FilterSetup, ModalBlockTransition, innovation_covariance, time_varying_filter
+from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError, steady_gain
 from .sensors import as_layout, parse_force_locations
@@ -167,7 +168,8 @@ class Estimator:
         t0 = self.t0 + self.n_steps * self.dt
         if Y.shape[0] == 0:
             return self.setup.estimates(np.zeros((1, 0, self.setup.A_a.shape[0])), Y[None], self._gain()[None],
-                                        self._P[None], Y[None], [self.report], t0=t0)[0]
+                                        self._P[None], Y[None], [self.report], t0=t0,
+                                        terms=np.zeros((1, 0, Y.shape[1])))[0]
         s = self.setup
         x = self._prior()
         if self._switched:
@@ -178,15 +180,18 @@ class Estimator:
             innov = np.empty_like(Y)
             innov[0] = Y[0] - s.G_a[0] @ x
             innov[1:] = Y[1:] - X[:-1] @ self._GA.T
+            terms = loglik_terms(innov, innovation_covariance(s.G_a[0], self._P, s.R[0]))
         else:
-            X, innov, L, P, switched = time_varying_filter(s.A_a[None], s.G_a, s.Q_a[None], s.R, Y[None], x[None],
-                                                     self._P[None], self.switch_tol, self._transition)
-            X, innov, L, self._P = X[0], innov[0], L[0], np.ascontiguousarray(P[0])
+            X, innov, L, P, switched, terms = time_varying_filter(
+                s.A_a[None], s.G_a, s.Q_a[None], s.R, Y[None], x[None], self._P[None], self.switch_tol,
+                self._transition)
+            X, innov, L, self._P, terms = X[0], innov[0], L[0], np.ascontiguousarray(P[0]), terms[0]
             if switched:
                 self._switched, self._L = True, np.ascontiguousarray(L)
         self._z = X[-1].copy()
         self.n_steps += Y.shape[0]
-        return s.estimates(X[None], innov[None], L[None], self._P[None], Y[None], [self.report], t0=t0)[0]
+        return s.estimates(X[None], innov[None], L[None], self._P[None], Y[None], [self.report], t0=t0,
+                           terms=terms[None])[0]
 
     def _gain(self):
         return self._L if self._L is not None else np.zeros((self.setup.A_a.shape[0], self.n_channels))

@@ -44,7 +44,7 @@ def _estimate(args):
     m = res.metrics
     if args.json:
         print(json.dumps({"name": job.name, "complete": res.complete, "detectable": m.get("detectable"),
-                          "n_steps": m.get("n_steps"), "rms_force": m.get("rms_force"),
+                          "n_steps": m.get("n_steps"), "loglik": m.get("loglik"), "rms_force": m.get("rms_force"),
                           "avg_strain_error": m.get("avg_strain_error"),
                           "avg_strain_error_microstrain": m.get("avg_strain_error_microstrain"),
                           "forces": m.get("forces"), "sensors": m.get("sensors"), "warnings": m.get("warnings", []),
@@ -85,10 +85,12 @@ def _print_results(job, res):
     print("  estimated forces (N):            RMS          peak   at (s)")
     for f in m["forces"]:
         print(f"    {f['channel']:>8s}           {f['rms']:10.4g}   {f['peak']:11.4g}   {f['time_of_peak']:.4f}")
-    print("  sensors: measured RMS, innovation RMS (SI), consistency (innovation / predicted; ~1 is good), whiteness")
+    print("  sensors: measured RMS, innovation RMS (SI), consistency (innovation / predicted; ~1 is good), whiteness, "
+          "log-likelihood")
     for d in m["sensors"]:
         print(f"    {d['channel']:>14s}  {d['measured_rms']:10.4g}  {d['innovation_rms']:10.4g}  {d['consistency']:8.3g}"
-              f"  {d['whiteness']:6.2f}")
+              f"  {d['whiteness']:6.2f}  {d['loglik']:12.6g}")
+    print(f"  log-likelihood of the innovations: {m['loglik']:.8g}")
     for w in m["warnings"]:
         print(f"  WARNING: {w}")
     sys.stdout.flush()
