@@ -90,7 +90,8 @@ class EstimateResult:
     ----------
     job : Job
     metrics : dict
-        ``detectable``, ``n_steps``, ``units`` (:data:`METRIC_UNITS`), ``loglik`` (the Gaussian
+        ``detectable``, ``n_steps``, ``units`` (:data:`METRIC_UNITS`), ``calibration`` (with
+        ``[filter] calibrate``: :func:`calibrate_job`), ``loglik`` (the Gaussian
         log-likelihood of the innovations, :mod:`core_akf.likelihood`), ``forces`` and ``sensors``
         (per channel, :mod:`core_akf.diagnostics`, each with its ``loglik``), ``warnings``; for a simulated job also
         ``rms_force`` (N per force), ``rms_strain`` (m/m per output), ``avg_strain_error`` (m/m)
@@ -361,9 +362,13 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         sim = job.simulate(4 * n_a + 2 * 2 * structure.n + 3 * structure.n_strain + 4 * len(sensors))
         n_total, t0 = sim.measurements.shape[0], 0.0
         noise_cov = job.noise_cov(sim)
+    Q, S = job.model_error_cov, job.force_increment_cov
+    calibration = None
+    if job.calibrate:        # learn the model and the covariances from the record first
+        Y_cal = sim.measurements if sim is not None else calibration_record(job, record)
+        model, Q, S, noise_cov, calibration = calibrate_job(job, model, sensors, forces, Y_cal, noise_cov)
     estimator = Estimator(model, sensors, forces, dt, steady=job.steady, allow_undetectable=job.allow_undetectable,
-                          model_error_cov=job.model_error_cov, force_increment_cov=job.force_increment_cov,
-                          noise_cov=noise_cov, t0=t0)
+                          model_error_cov=Q, force_increment_cov=S, noise_cov=noise_cov, t0=t0)
     notes = []
     tidy = TidyRows(model, forces, strain_outputs(job, structure, n_total, notes) if out is not None else [])
     if record is None or out is None:
@@ -400,6 +405,9 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     whole = last if done == 1 and start == 0 else None
     metrics = _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors, forces, noise_cov,
                        lambda: first_chunk if first_chunk is not None else next(iter(record.chunks(chunk)))[1])
+    if calibration is not None:
+        metrics["calibration"] = calibration
+        metrics["warnings"] = [f"calibration: {w}" for w in calibration["warnings"]] + metrics["warnings"]
     result = EstimateResult(job, metrics, {}, record.describe() if record is not None else [], notes, start,
                             estimate=whole, simulation=sim)
     if run is not None:
@@ -436,6 +444,53 @@ def _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors
             metrics["warnings"].append("check the channel map in [measurements]: units, invert (sign) and "
                                        "gauge_factor of the channels named above")
     return metrics
+
+
+def calibration_record(job, record):
+    """The part of a measured record that calibrates the filter: its first ``[filter]
+    calibrate_window`` seconds, or the whole record up to :data:`DEFAULT_CHUNK_STEPS` steps."""
+    steps = DEFAULT_CHUNK_STEPS if job.calibrate_window is None else max(2, int(round(job.calibrate_window / job.dt)))
+    return next(iter(record.chunks(min(steps, record.n_steps))))[1]
+
+
+def calibrate_job(job, model, sensors, forces, Y, noise_cov):
+    """Fit ``[filter] calibrate`` of a job on the record ``Y`` (:func:`core_akf.calibration.calibrate`).
+
+    Returns the fitted ``(model, Q, S, R)`` and the report of the fit (the ``calibration`` object of
+    the metrics): the fitted values under their ``[filter]`` names (``stiffness_factor`` relative to
+    ``[structure]``; ``noise_cov`` per sensor kind when the job gives it so, else per channel), the
+    log-likelihood and the consistency per channel before and after, the standard errors
+    (relative) and the warnings of the fit."""
+    from core_akf.calibration import calibrate
+    from core_akf.diagnostics import sensor_diagnostics
+    from core_akf.filter import estimate
+
+    Q, S = job.model_error_cov, job.force_increment_cov
+    fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
+                    force_increment_cov=S, noise_cov=noise_cov)
+    fitted = fit.apply(model, sensors, Q, S, noise_cov)
+
+    def consistency(m, q, s, r):
+        est = estimate(m, sensors, forces, Y, job.dt, model_error_cov=q, force_increment_cov=s, noise_cov=r)
+        return {d["channel"]: d["consistency"] for d in sensor_diagnostics(est)}
+    report = {"parameters": list(job.calibrate), "record_steps": int(Y.shape[0])}
+    m = fit.multipliers
+    if "stiffness_factor" in m:
+        report["stiffness_factor"] = job.stiffness_factor * m["stiffness_factor"]
+    if "noise_cov" in job.calibrate:
+        given = job.spec.filter.noise_cov
+        if isinstance(given, dict):
+            report["noise_cov"] = fit.values["noise_cov"]
+        else:
+            report["noise_cov"] = [float(v) for v in np.diag(fitted[3])]
+    for name, value in (("force_increment_cov", fitted[2]), ("model_error_cov", fitted[1])):
+        if name in job.calibrate:
+            report[name] = float(value) if np.ndim(value) == 0 else np.asarray(value).tolist()
+    report |= {"multipliers": m, "std_errors": fit.std_errors, "loglik_before": fit.loglik_before,
+               "loglik_after": fit.loglik_after, "consistency_before": consistency(model, Q, S, noise_cov),
+               "consistency_after": consistency(*fitted), "warnings": list(fit.warnings),
+               "evaluations": fit.evaluations, "seconds": fit.seconds}
+    return (*fitted, report)
 
 
 class _Run:

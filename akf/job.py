@@ -122,6 +122,11 @@ class Job:
         The filter form; None: the steady-state filter where the sensor set is detectable.
     allow_undetectable : bool
         Run even if the PBH test fails.
+    calibrate : list of str
+        The ``[filter]`` keys to learn from the record (:mod:`core_akf.calibration`); empty: none.
+    calibrate_window : float or None
+        Calibrate on the record's first this many seconds (None: the whole record, at most one
+        chunk).
     n_modes : int, "auto" or None
         Modes kept in the filter's model (with a static correction); None: the full model.
         estimate: ``[filter] n_modes``; place and locate: ``[place]`` / ``[locate] n_modes``
@@ -140,6 +145,8 @@ class Job:
         self.force_increment_cov = default("force_increment_cov", f.force_increment_cov)
         self.steady = f.steady
         self.allow_undetectable = bool(f.allow_undetectable)
+        self.calibrate = list(f.calibrate or [])
+        self.calibrate_window = f.calibrate_window
         section = {"place": spec.place, "locate": spec.locate}.get(command)
         if command == "estimate":
             self.n_modes = f.n_modes

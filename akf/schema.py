@@ -131,6 +131,15 @@ class Filter(Section):
     allow_undetectable: bool = key("true or false (a TOML boolean, not a string or a number)",
                                              "run even if the PBH detectability test fails (the estimate drifts)",
                                              used_by=ESTIMATE)
+    calibrate: Annotated[list[Literal["stiffness_factor", "noise_cov", "force_increment_cov", "model_error_cov"]],
+                         Field(min_length=1)] = key(
+        "a non-empty list of \"stiffness_factor\", \"noise_cov\", \"force_increment_cov\", \"model_error_cov\"",
+        "learn these [filter] keys from the record by maximum likelihood before estimating (noise_cov: one factor per "
+        "sensor kind); the JSON and summary report the fit, akf calibrate writes the job with the fitted values",
+        used_by=ESTIMATE)
+    calibrate_window: Positive = key("a positive number", "the first this many seconds of the record are used to "
+                                     "calibrate (default the whole record, at most 65536 steps)",
+                                     used_by=ESTIMATE, unit="s")
 
 
 class LoadComponent(BaseModel):

@@ -30,6 +30,10 @@ DEFAULTS = {
                                            "correction for the rest)"),
     "auto_modes_factor_acc": (10.0, "-", "auto rule: the same with accelerometers, which see higher modes"),
     "auto_modes_minimum": (4, "-", "auto rule: at least this many modes"),
+    "calibration_stiffness_range": ((0.7, 1.4), "-", "calibration: the stiffness factor is searched in this range "
+                                                     "of the starting model's (a grid scan, then a local fit)"),
+    "calibration_decades": (3.0, "decades", "calibration: a covariance is searched this many decades either side "
+                                            "of its starting level"),
 }
 
 

@@ -44,7 +44,8 @@ def _estimate(args):
     m = res.metrics
     if args.json:
         print(json.dumps({"name": job.name, "complete": res.complete, "detectable": m.get("detectable"),
-                          "n_steps": m.get("n_steps"), "loglik": m.get("loglik"), "rms_force": m.get("rms_force"),
+                          "n_steps": m.get("n_steps"), "loglik": m.get("loglik"), "calibration": m.get("calibration"),
+                          "rms_force": m.get("rms_force"),
                           "avg_strain_error": m.get("avg_strain_error"),
                           "avg_strain_error_microstrain": m.get("avg_strain_error_microstrain"),
                           "forces": m.get("forces"), "sensors": m.get("sensors"), "warnings": m.get("warnings", []),
@@ -73,6 +74,11 @@ def _print_results(job, res):
         return []
     print(f"  {len(m['sensors'])} sensors, {len(m['forces'])} unknown forces, {m['n_steps']} steps, "
           f"{'detectable' if m['detectable'] else 'NOT detectable (forced)'}")
+    if "calibration" in m:
+        c = m["calibration"]
+        print(f"  calibrated on {c['record_steps']} steps ({c['seconds']:.2f} s): log-likelihood {c['loglik_before']:.8g} "
+              f"-> {c['loglik_after']:.8g}; factors " + ", ".join(f"{k} {v:.5g}" for k, v in c["multipliers"].items())
+              + (f"; stiffness_factor = {c['stiffness_factor']:.6g}" if "stiffness_factor" in c else ""))
     if "rms_force" in m:
         print("  RMS force error (N):")
         for k, v in m["rms_force"].items():

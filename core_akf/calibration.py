@@ -1,0 +1,394 @@
+"""Learning the model and the covariances from a record: maximum likelihood over the stiffness
+factor and the covariance levels (Q, S, R per sensor kind).
+
+The log-likelihood of the innovations (:mod:`core_akf.likelihood`) says how probable a record is
+under a filter's model and covariances; it peaks at the model that made the record.  Each
+evaluation runs the steady-state filter straight to the innovations (one batched Riccati solve
+and the lifted recursion to the predicted channels, :func:`steady_logliks`), so a whole stack of
+parameter sets costs little more than one: the gradient's central differences and a grid scan
+run as one batch each.
+
+The parameters are searched in logarithms (a factor 2 up is as far as a factor 2 down):
+``stiffness_factor`` multiplies the starting model's stiffness (every frequency by its square
+root); ``noise_cov`` multiplies R, one factor per sensor kind; ``force_increment_cov`` and
+``model_error_cov`` multiply S and Q.  The stiffness is scanned on a grid first (the likelihood
+of a frequency can have several peaks); then L-BFGS-B refines all of them together.  Standard
+errors come from the curvature of the log-likelihood at the optimum (the observed information).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .checks import as_finite_array
+from .covariances import noise_covariance
+from .defaults import default
+from .exceptions import AKFInputError
+from .filter import FilterSetup
+from .likelihood import loglik_terms
+from .recursion import lti_response
+from .riccati import RiccatiError, steady_gain
+from .sensors import as_layout, parse_force_locations
+from .statespace import check_detectable
+from .types import Covariance, Forces, Layout, Measurements, NoiseCovariance
+
+#: the parameters :func:`calibrate` can learn
+PARAMETERS = ("stiffness_factor", "noise_cov", "force_increment_cov", "model_error_cov")
+#: central-difference step of the gradient and the curvature, in natural-log units (a 1e-4 relative change)
+LOG_STEP = 1e-4
+#: a parameter whose log-likelihood changes by less than this over its whole search range is not
+#: identifiable from the record
+FLAT = 1e-3
+
+
+def steady_logliks(A, G, Q, R, Y):
+    """The log-likelihood of a record under a stack of steady-state filters.
+
+    Parameters
+    ----------
+    A : ndarray (B, n, n)
+        Augmented transitions.
+    G : ndarray (B, m, n)
+        Augmented observations.
+    Q : ndarray (B, n, n)
+        Process covariances.
+    R : ndarray (B, m, m)
+        Measurement-noise covariances.
+    Y : ndarray (N, m)
+        The record (SI), the same for every filter.
+
+    Returns
+    -------
+    ndarray (B,)
+        One log-likelihood per filter; ``-inf`` where the steady-state gain does not exist.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> A, G = np.array([[[1.0]]]), np.array([[[1.0]]])
+    >>> Y = np.random.default_rng(0).normal(size=(500, 1))
+    >>> ll = steady_logliks(np.repeat(A, 2, 0), np.repeat(G, 2, 0), np.array([[[1e-6]], [[1e-6]]]),
+    ...                     np.array([[[1.0]], [[4.0]]]), Y)
+    >>> bool(ll[0] > ll[1])              # unit-variance data: R = 1 is likelier than R = 4
+    True
+    """
+    Y = np.asarray(Y, float)
+    B = A.shape[0]
+    out = np.full(B, -np.inf)
+    try:
+        P, L = steady_gain(A, G, Q, R)
+        ok = np.arange(B)
+    except RiccatiError as exc:
+        ok = np.array([b for b in range(B) if b not in set(exc.problems)], int)
+        if not ok.size:
+            return out
+        P, L = steady_gain(A[ok], G[ok], Q[ok], R[ok])
+    A, G, R = A[ok], G[ok], R[ok]
+    n = A.shape[-1]
+    F = (np.eye(n) - L @ G) @ A
+    Ys = np.broadcast_to(Y, (ok.size,) + Y.shape)
+    first = np.einsum("bij,bj->bi", L, Ys[:, 0])
+    predicted = lti_response(F, L, Ys, first, G @ A)            # G A X_k: the next step's predicted channels
+    E = np.empty_like(Ys)
+    E[:, 0] = Ys[:, 0]
+    E[:, 1:] = Ys[:, 1:] - predicted[:, :-1]
+    S = G @ P @ np.swapaxes(G, -1, -2) + R
+    out[ok] = loglik_terms(E, 0.5 * (S + np.swapaxes(S, -1, -2))).sum(axis=(1, 2))
+    return out
+
+
+@dataclass
+class CalibrationResult:
+    """Outcome of :func:`calibrate`.
+
+    Attributes
+    ----------
+    values : dict
+        The fitted values under the names of :data:`PARAMETERS`: ``stiffness_factor`` relative
+        to the structure given; ``noise_cov`` a dict of variances per sensor kind (SI^2) when R
+        was given per kind, else the fitted multiplier per kind; ``force_increment_cov`` and
+        ``model_error_cov`` levels.
+    multipliers : dict
+        The fitted factor of each parameter on its starting value (``noise_cov:acc``, ...).
+    std_errors : dict
+        The standard error of each factor, relative (the standard error of its natural log,
+        from the observed information); NaN where the curvature is not negative.
+    loglik_before, loglik_after : float
+        The record's log-likelihood with the starting and the fitted values.
+    warnings : list of str
+        A fit on a search bound, a flat likelihood (a parameter the record cannot identify).
+    evaluations : int
+        Filters run.
+    seconds : float
+        Wall time.
+    """
+
+    values: dict
+    multipliers: dict
+    std_errors: dict
+    loglik_before: float
+    loglik_after: float
+    warnings: list = field(default_factory=list)
+    evaluations: int = 0
+    seconds: float = 0.0
+
+    def apply(self, structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
+              noise_cov: NoiseCovariance) -> tuple:
+        """The filter's model and covariances with the fitted factors.
+
+        Parameters
+        ----------
+        structure : Structure
+            The starting model the fit began from.
+        sensors : sequence of sensor specs
+            The layout.
+        model_error_cov, force_increment_cov, noise_cov
+            The starting Q, S and R.
+
+        Returns
+        -------
+        structure : Structure
+            The model with the fitted stiffness factor.
+        model_error_cov, force_increment_cov : float or ndarray
+            Q and S with their fitted factors.
+        noise_cov : ndarray (m, m)
+            R with its fitted factor per sensor kind.
+        """
+        m = self.multipliers
+        model = structure if "stiffness_factor" not in m else structure.scaled(m["stiffness_factor"])
+        layout = as_layout(sensors)
+        scale = np.array([np.sqrt(m.get(f"noise_cov:{s.kind}", 1.0)) for s in layout])
+        R = noise_covariance(layout, noise_cov) * np.outer(scale, scale)
+        Q = np.asarray(model_error_cov, float) * m.get("model_error_cov", 1.0)
+        S = np.asarray(force_increment_cov, float) * m.get("force_increment_cov", 1.0)
+        return model, Q, S, R
+
+
+class _Problem:
+    """The log-likelihood as a function of the log-factors ``u`` of the chosen parameters."""
+
+    def __init__(self, structure, layout, locs, Y, dt, Q, S, R, names):
+        self.structure, self.layout, self.locs, self.Y, self.dt = structure, layout, locs, Y, dt
+        self.Q, self.S = Q, S
+        self.R = noise_covariance(layout, R)
+        self.kinds = sorted({s.kind for s in layout})
+        self.names = []
+        for name in names:
+            if name == "noise_cov":
+                self.names += [f"noise_cov:{k}" for k in self.kinds]
+            else:
+                self.names.append(name)
+        self._setups = {}
+        self.evaluations = 0
+
+    def setup(self, log_f):
+        """The filter matrices of the stiffness factor ``exp(log_f)`` (kept per factor)."""
+        key = round(float(log_f), 12)
+        if key not in self._setups:
+            model = self.structure if key == 0.0 else self.structure.scaled(float(np.exp(key)))
+            self._setups[key] = FilterSetup(model, [self.layout], self.locs, self.dt, self.Q, self.S, self.R)
+            if len(self._setups) > 64:
+                self._setups.pop(next(iter(self._setups)))
+        return self._setups[key]
+
+    def matrices(self, u):
+        """``(A_a, G_a, Q_a, R)`` of the log-factors ``u``."""
+        p = dict(zip(self.names, u))
+        setup = self.setup(p.get("stiffness_factor", 0.0))
+        nx = setup.nx
+        Q_a = setup.Q_a.copy()             # blockdiag(Q, S) in modal coordinates: each block is linear in its level
+        Q_a[:nx, :nx] *= np.exp(p.get("model_error_cov", 0.0))
+        Q_a[nx:, nx:] *= np.exp(p.get("force_increment_cov", 0.0))
+        scale = np.array([np.exp(0.5 * p.get(f"noise_cov:{s.kind}", 0.0)) for s in self.layout])
+        return setup.A_a, setup.G_a[0], Q_a, self.R * np.outer(scale, scale)
+
+    def logliks(self, U):
+        """The log-likelihood at every row of ``U`` (one batch)."""
+        mats = [self.matrices(u) for u in np.atleast_2d(U)]
+        self.evaluations += len(mats)
+        A, G, Q, R = (np.stack(x) for x in zip(*mats))
+        return steady_logliks(A, G, Q, R, self.Y)
+
+
+def calibrate(structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
+              parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance,
+              noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
+              decades: float | None = None) -> CalibrationResult:
+    """Fit the filter's model and covariances to a record by maximum likelihood.
+
+    Parameters
+    ----------
+    structure : Structure
+        The starting model (the filter's model before calibration).
+    sensors : sequence of sensor specs
+        The layout, m channels; it must be detectable (the steady-state filter is used).
+    forces : sequence of force specs
+        The unknown force locations.
+    measurements : array_like (N, m)
+        The record (SI).
+    dt : float
+        Time step (s).
+    parameters : list of str
+        What to learn, a subset of :data:`PARAMETERS`.
+    model_error_cov, force_increment_cov, noise_cov
+        The starting Q, S and R, as in :func:`core_akf.filter.estimate`.
+    stiffness_range : (float, float), optional
+        The range of the stiffness factor (default ``calibration_stiffness_range`` of
+        :data:`core_akf.defaults.DEFAULTS`).
+    decades : float, optional
+        The covariance factors are searched this many decades either side of 1 (default
+        ``calibration_decades``).
+
+    Returns
+    -------
+    CalibrationResult
+
+    Raises
+    ------
+    AKFInputError
+        For an unknown parameter, a parameter given twice, a record too short to identify
+        anything, a starting level of zero for a covariance to scale, or a likelihood that is
+        not finite at the start.
+
+    Examples
+    --------
+    A record of the true S17 truss, and a filter model 5 % too stiff:
+
+    >>> import numpy as np
+    >>> from core_akf import simulate
+    >>> from core_akf.loads import band_limited_white_noise
+    >>> from core_akf.models import s17_truss
+    >>> sensors, loads = ["strain:13", "strain:26", "acc:8:y"], band_limited_white_noise(2000, 1e-3, 200.0, 0, 50, seed=1)
+    >>> sim = simulate(s17_truss(), sensors, ["8:y"], loads[:, None], 1e-3, relative_noise=0.02, seed=0)
+    >>> fit = calibrate(s17_truss().scaled(1.05), sensors, ["8:y"], sim.measurements, 1e-3,
+    ...                 parameters=["stiffness_factor"], model_error_cov=1e-16, force_increment_cov=1e3,
+    ...                 noise_cov=np.diag(sim.noise_std ** 2))
+    >>> round(1.05 * fit.values["stiffness_factor"], 2), fit.loglik_after > fit.loglik_before
+    (1.0, True)
+    """
+    from scipy.optimize import minimize
+
+    start_time = time.perf_counter()
+    names = list(parameters)
+    unknown = [p for p in names if p not in PARAMETERS]
+    if unknown:
+        raise AKFInputError(f"cannot calibrate {unknown}; the parameters are {list(PARAMETERS)}")
+    if len(set(names)) != len(names) or not names:
+        raise AKFInputError(f"parameters must name each of {list(PARAMETERS)} at most once, and one at least; got {names}")
+    layout = as_layout(sensors)
+    locs = parse_force_locations(structure, forces)
+    Y = as_finite_array(measurements, "measurements", ndim=2)
+    if Y.shape[1] != len(layout):
+        raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
+    if Y.shape[0] < 10 * (len(names) + 1):
+        raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(names)} parameter(s)")
+    check_detectable(structure, layout, locs)
+    Q, S = _level(model_error_cov, "model_error_cov", "model_error_cov" in names), \
+        _level(force_increment_cov, "force_increment_cov", "force_increment_cov" in names)
+    problem = _Problem(structure, layout, locs, Y, dt, Q, S, noise_cov, names)
+    lo_f, hi_f = default("calibration_stiffness_range", stiffness_range)
+    width = np.log(10.0) * default("calibration_decades", decades)
+    bounds = [(np.log(lo_f), np.log(hi_f)) if n == "stiffness_factor" else (-width, width) for n in problem.names]
+    u0 = np.zeros(len(problem.names))
+    before = float(problem.logliks(u0)[0])
+    if not np.isfinite(before):
+        raise AKFInputError("the log-likelihood at the starting values is not finite (no steady-state filter): "
+                            "check the covariances")
+    if "stiffness_factor" in problem.names:            # a grid first: the likelihood of a frequency may have several peaks
+        j = problem.names.index("stiffness_factor")
+        grid = np.linspace(*bounds[j], 25)
+        U = np.tile(u0, (grid.size, 1))
+        U[:, j] = grid
+        ll = problem.logliks(U)
+        if np.max(ll) > before:
+            u0 = U[int(np.argmax(ll))]
+
+    def negative(u):
+        k = len(u)
+        U = np.vstack([u, u + LOG_STEP * np.eye(k), u - LOG_STEP * np.eye(k)])
+        ll = problem.logliks(U)
+        if not np.isfinite(ll[0]):
+            return np.inf, np.zeros(k)
+        grad = (ll[1:k + 1] - ll[k + 1:]) / (2 * LOG_STEP)
+        return -ll[0], -np.nan_to_num(grad)
+
+    fit = minimize(negative, u0, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options={"maxiter": 200, "ftol": 1e-12, "gtol": 1e-6})
+    u = fit.x
+    after = float(problem.logliks(u)[0])
+    if after < before:                                  # never worse than the start
+        u, after = np.zeros(len(u)), before
+    errors, warnings = _curvature(problem, u, bounds, before)
+    multipliers = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
+    return CalibrationResult(_values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, problem.kinds),
+                             multipliers, errors, before, after, warnings, problem.evaluations,
+                             time.perf_counter() - start_time)
+
+
+def _level(value, name, scaled):
+    """A covariance as given, checked that it can be scaled (not zero) when it is learnt."""
+    if scaled and np.all(np.asarray(value, float) == 0):
+        raise AKFInputError(f"{name} starts at 0: a level of zero cannot be scaled; give a small positive level "
+                            "to start from")
+    return value
+
+
+def _curvature(problem, u, bounds, before):
+    """Standard errors of the log-factors from the observed information, and warnings for a fit on
+    a bound or a parameter the likelihood does not see."""
+    k = len(u)
+    h = 10 * LOG_STEP
+    E = np.eye(k) * h
+    points = [u]
+    for i in range(k):
+        for j in range(i, k):
+            points += [u + E[i] + E[j], u + E[i] - E[j], u - E[i] + E[j], u - E[i] - E[j]]
+    ll = problem.logliks(np.array(points))
+    H = np.zeros((k, k))
+    c = 1
+    for i in range(k):
+        for j in range(i, k):
+            H[i, j] = H[j, i] = (ll[c] - ll[c + 1] - ll[c + 2] + ll[c + 3]) / (4 * h * h)
+            c += 4
+    warnings = []
+    try:
+        cov = np.linalg.inv(-H)
+        std = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
+    except np.linalg.LinAlgError:
+        std = np.full(k, np.nan)
+    errors = {}
+    for i, name in enumerate(problem.names):
+        lo, hi = bounds[i]
+        errors[name] = float(std[i])
+        if np.isclose(u[i], lo, atol=1e-3) or np.isclose(u[i], hi, atol=1e-3):
+            side = "lower" if np.isclose(u[i], lo, atol=1e-3) else "upper"
+            ends = problem.logliks(np.array([np.where(np.arange(k) == i, b, u) for b in (lo, hi)]))
+            if np.nanmax(np.abs(ends - ends.max())) < FLAT:
+                warnings.append(f"{name}: the likelihood is flat over its search range; the record cannot identify "
+                                "it (keep its starting value, or add sensors that see it)")
+            else:
+                warnings.append(f"{name} was fitted at its {side} search bound (factor {np.exp(u[i]):.3g}): the "
+                                "optimum may lie beyond it; widen the range or start closer")
+        elif not np.isfinite(std[i]) or H[i, i] > -FLAT:
+            warnings.append(f"{name}: the likelihood barely changes with it near the optimum; the record does not "
+                            "identify it well (its fitted value is uncertain)")
+    return errors, warnings
+
+
+def _values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, kinds):
+    """The fitted values under the parameters' own names (see :class:`CalibrationResult`)."""
+    out = {}
+    if "stiffness_factor" in names:
+        out["stiffness_factor"] = multipliers["stiffness_factor"]
+    if "noise_cov" in names:
+        if isinstance(noise_cov, dict):
+            out["noise_cov"] = {k: float(v) * multipliers.get(f"noise_cov:{k}", 1.0) for k, v in noise_cov.items()}
+        else:
+            out["noise_cov"] = {k: multipliers[f"noise_cov:{k}"] for k in kinds}
+    for name, level in (("force_increment_cov", force_increment_cov), ("model_error_cov", model_error_cov)):
+        if name in names:
+            value = np.asarray(level, float) * multipliers[name]
+            out[name] = float(value) if value.ndim == 0 else value.tolist()
+    return out
