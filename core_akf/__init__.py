@@ -10,12 +10,13 @@ from .filter import Estimate, estimate, estimate_batch, run
 from .metrics import average_strain_error, rms_error
 from .sensors import Sensor
 from .simulate import Simulation, simulate
+from .smoother import SmoothResult, smooth
 from .statespace import detectability, state_space
 from .structure import Structure
 
 __version__ = "0.1.0"
 __all__ = [
-    "models", "loads", "Structure", "Sensor", "estimate", "estimate_batch", "run", "Estimate",
+    "models", "loads", "Structure", "Sensor", "estimate", "estimate_batch", "run", "smooth", "SmoothResult", "Estimate",
     "simulate", "Simulation", "detectability", "state_space", "rms_error", "average_strain_error",
     "AKFInputError", "ModelError", "UndetectableError",
 ]

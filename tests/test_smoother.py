@@ -1,0 +1,86 @@
+"""The RTS smoother (issue 21, item 3): smoothed states and covariances equal an independent RTS
+smoother (statsmodels' KalmanSmoother) on the same matrices, in the time-varying form (P0 = Q_a)
+and in the steady form (P0 = the steady prior covariance)."""
+import numpy as np
+import pytest
+
+from core_akf import simulate
+from core_akf.filter import FilterSetup, filter_states
+from core_akf.models import s17_truss
+from core_akf.sensors import as_layout, parse_force_locations
+from core_akf.smoother import smooth
+
+SENSORS = ["strain:13", "strain:26", "acc:8:y"]
+DT = 1e-3
+
+
+def _problem(n=300):
+    rng = np.random.default_rng(0)
+    loads = 200.0 * rng.standard_normal((n, 1)).cumsum(axis=0) / np.sqrt(n)
+    truss = s17_truss()
+    sim = simulate(truss, SENSORS, ["8:y"], loads, DT, relative_noise=0.02, seed=0)
+    setup = FilterSetup(truss.scaled(1.02), [as_layout(SENSORS)], parse_force_locations(truss, ["8:y"]), DT, 1e-16, 1e4,
+                        np.diag(sim.noise_std ** 2))
+    return setup.A_a, setup.G_a[0], setup.Q_a, setup.R[0], sim.measurements
+
+
+def _statsmodels(A, G, Q, R, Y, P0):
+    from statsmodels.tsa.statespace.kalman_smoother import KalmanSmoother
+
+    n, m = A.shape[0], G.shape[0]
+    ks = KalmanSmoother(k_endog=m, k_states=n, initialization="known", initial_state=np.zeros(n), initial_state_cov=P0)
+    ks.bind(np.asarray(Y))
+    ks["design"], ks["transition"], ks["selection"], ks["state_cov"], ks["obs_cov"] = G, A, np.eye(n), Q, R
+    res = ks.smooth()
+    return res.smoothed_state.T, np.moveaxis(res.smoothed_state_cov, -1, 0)
+
+
+def _close(ours, ref, rtol=1e-8):
+    """Equal to ``rtol`` of each component's largest magnitude over the record (components differ by
+    orders of magnitude: modal displacements against forces)."""
+    scale = np.maximum(np.abs(ref).max(axis=0, keepdims=True), 1e-300)
+    worst = float(np.max(np.abs(ours - ref) / scale))
+    assert worst <= rtol, f"largest relative difference {worst:.3g}"
+
+
+@pytest.mark.parametrize("steady", [False, True])
+def test_the_smoother_equals_an_independent_rts_smoother(steady):
+    A, G, Q, R, Y = _problem()
+    P0 = Q if not steady else filter_states(A, G, Q, R, Y, steady=True).P_prior
+    ref_x, ref_P = _statsmodels(A, G, Q, R, Y, P0)
+    res = smooth(A, G, Q, R, Y, steady=steady)
+    _close(res.states, ref_x)
+    _close(res.covariances, ref_P)
+    diag = smooth(A, G, Q, R, Y, steady=steady, covariances="diagonal")
+    np.testing.assert_allclose(diag.covariances, np.diagonal(res.covariances, axis1=1, axis2=2), rtol=0, atol=0)
+    np.testing.assert_allclose(diag.states, res.states, rtol=0, atol=0)
+
+
+def test_the_forward_pass_is_the_filter():
+    A, G, Q, R, Y = _problem()
+    for steady in (False, True):
+        filtered = filter_states(A, G, Q, R, Y, steady=steady, switch_tol=0 if not steady else 1e-14).states
+        res = smooth(A, G, Q, R, Y, steady=steady, covariances=None)
+        np.testing.assert_allclose(res.filtered, filtered, rtol=1e-8, atol=1e-10 * np.abs(filtered).max())
+        assert res.covariances is None
+
+
+def test_smoothing_is_surer_than_filtering_and_ends_where_the_filter_ends():
+    A, G, Q, R, Y = _problem()
+    res = smooth(A, G, Q, R, Y, steady=True)
+    assert np.all(res.std[:-1, -1] <= res.std[-1, -1] * (1 + 1e-12))      # the force's variance
+    np.testing.assert_allclose(res.states[-1], res.filtered[-1])
+
+
+@pytest.mark.parametrize("bad", ["shapes", "covariances", "R singular"])
+def test_the_smoother_refuses_bad_input(bad):
+    A, G, Q, R, Y = _problem(50)
+    kw = dict(A_a=A, G_a=G, Q_a=Q, R=R, Y=Y)
+    if bad == "shapes":
+        kw["Y"] = Y[:, :2]
+    elif bad == "covariances":
+        kw["covariances"] = "all"
+    else:
+        kw["R"] = np.zeros_like(R)
+    with pytest.raises(ValueError):
+        smooth(**kw)
