@@ -459,6 +459,10 @@ class Estimate:
     loglik_terms : ndarray (N, m)
         The log-likelihood of the innovations per step and channel
         (:func:`core_akf.likelihood.loglik_terms`); see :attr:`loglik`.
+    force_std : ndarray (N, n_p) or None
+        The standard deviation of every smoothed force (N); None for a filtered estimate.
+    strain_std : ndarray (N, n_strain) or None
+        The standard deviation of every smoothed strain output (m/m); None for a filtered estimate.
     """
 
     structure: object
@@ -475,6 +479,14 @@ class Estimate:
     filter_matrices: tuple = field(repr=False, default=None)
     t0: float = 0.0
     loglik_terms: np.ndarray = field(repr=False, default=None)
+    force_std: np.ndarray = field(repr=False, default=None)
+    strain_std: np.ndarray = field(repr=False, default=None)
+
+    @property
+    def smoothed(self):
+        """Whether the states are smoothed (:func:`estimate` with ``smooth=True``): then
+        :attr:`force_std` and :attr:`strain_std` hold their standard deviations."""
+        return self.force_std is not None
 
     @property
     def loglik(self):
@@ -569,7 +581,7 @@ class Estimate:
 def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forces, measurements: BatchMeasurements,
                    dt: float, *, model_error_cov: Covariance, force_increment_cov: Covariance,
                    noise_cov: NoiseCovariance, steady: bool | None = None, allow_undetectable: bool = False,
-                   x0: ArrayLike | None = None, P0: ArrayLike | None = None) -> list[Estimate]:
+                   x0: ArrayLike | None = None, P0: ArrayLike | None = None, smooth: bool = False) -> list[Estimate]:
     """AKF estimates for many sensor layouts of one structure in one batched filter call.
 
     Parameters
@@ -595,6 +607,8 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
         Run layouts that fail the PBH test.
     x0, P0 : optional
         Prior mean (n_a,) and covariance of the physical augmented state ``[u; u'; f]``.
+    smooth : bool
+        As in :func:`estimate`.
 
     Returns
     -------
@@ -643,7 +657,10 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
                             transition=transition, check=False)
     except RiccatiError as exc:
         raise setup.riccati_error(exc) from None
-    return setup.estimates(res.states, res.innovations, res.gain, res.P_prior, Y, reports, terms=res.loglik_terms)
+    estimates = setup.estimates(res.states, res.innovations, res.gain, res.P_prior, Y, reports, terms=res.loglik_terms)
+    if smooth:
+        estimates = [setup.smooth(est, b, Y[b], steady) for b, est in enumerate(estimates)]
+    return estimates
 
 
 class FilterSetup:
@@ -685,7 +702,7 @@ class FilterSetup:
         from .reduced import ModalFilterModel
 
         self.structure, self.layouts, self.locs, self.dt = structure, layouts, locs, float(dt)
-        fm = ModalFilterModel(structure, locs, dt)
+        self.filter_model = fm = ModalFilterModel(structure, locs, dt)
         T, T_inv, self.A_a = fm.T, fm.T_inv, fm.A_a
         self.nx, nf = fm.n_states, len(locs)
         self.Ta = scipy.linalg.block_diag(T, np.eye(nf))
@@ -753,11 +770,46 @@ class FilterSetup:
                          (self.A_a, self.G_a[b], gain[b]), t0=t0, loglik_terms=None if terms is None else terms[b])
                 for b, l in enumerate(self.layouts)]
 
+    def smooth(self, est, b, Y, steady):
+        """The smoothed estimate of layout ``b`` (:func:`core_akf.smoother.smooth` on the modal
+        matrices): the filtered ``est`` with its states and forces ``x_k|N``, and
+        :attr:`Estimate.force_std` and :attr:`Estimate.strain_std` their standard deviations; the
+        innovations, the gain and the likelihood stay those of the filter.
+
+        Parameters
+        ----------
+        est : Estimate
+            The filtered estimate of layout ``b``.
+        b : int
+            The layout's index.
+        Y : ndarray (N, m)
+            Its measurements.
+        steady : bool
+            The steady-state smoother.
+
+        Returns
+        -------
+        Estimate
+            A new estimate.
+        """
+        from dataclasses import replace
+
+        from .smoother import smooth
+
+        nx, n_a = self.nx, self.A_a.shape[0]
+        rows = np.vstack([np.eye(n_a)[nx:], self.filter_model.strain_rows()])     # forces, then every strain output
+        res = smooth(self.A_a, self.G_a[b], self.Q_a, self.R[b], Y, x0=self.z0, P0=self.Pz0, steady=steady,
+                     covariances=None, outputs=rows)
+        states = res.states @ self.Ta.T
+        n_p = n_a - nx
+        return replace(est, states=states[:, :nx], forces=states[:, nx:], force_std=res.output_std[:, :n_p],
+                       strain_std=res.output_std[:, n_p:])
+
 
 def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
              model_error_cov: Covariance, force_increment_cov: Covariance, noise_cov: NoiseCovariance,
              steady: bool | None = None, allow_undetectable: bool = False, x0: ArrayLike | None = None,
-             P0: ArrayLike | None = None) -> Estimate:
+             P0: ArrayLike | None = None, smooth: bool = False) -> Estimate:
     """Estimate unknown forces and the full response with the AKF.
 
     Parameters
@@ -790,6 +842,11 @@ def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements
     P0 : float or array_like, optional
         Prior covariance at step 0 (a level, variances or the matrix; default ``Q_a``); the
         steady-state filter does not use it.
+    smooth : bool
+        Smooth the states with the whole record (the RTS smoother, :func:`core_akf.smoother.smooth`):
+        forces and strains are then the smoothed ones, with their standard deviations
+        (:attr:`Estimate.force_std`, :attr:`Estimate.strain_std`).  Smoothing helps only a model
+        the data agree with: check the consistency first (calibrate).
 
     Returns
     -------
@@ -810,4 +867,4 @@ def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
     return estimate_batch(structure, [layout], forces, Y[None], dt, model_error_cov=model_error_cov,
                           force_increment_cov=force_increment_cov, noise_cov=noise_cov, steady=steady,
-                          allow_undetectable=allow_undetectable, x0=x0, P0=P0)[0]
+                          allow_undetectable=allow_undetectable, x0=x0, P0=P0, smooth=smooth)[0]

@@ -47,12 +47,16 @@ class SmoothResult:
         The filtered states ``x_k|k`` of the forward pass.
     gain : ndarray (n, n)
         The smoother gain ``C`` of the converged part (the last one of the backward pass).
+    output_std : ndarray (N, k) or None
+        The standard deviation of the outputs ``H x_k|N`` of the rows ``outputs`` given to
+        :func:`smooth` (None without them).
     """
 
     states: FloatArray
     covariances: FloatArray | None
     filtered: FloatArray
     gain: FloatArray
+    output_std: FloatArray | None = None
 
     @property
     def std(self):
@@ -65,7 +69,8 @@ class SmoothResult:
 
 
 def smooth(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements, x0: ArrayLike | None = None,
-           P0: Matrix | None = None, steady: bool = False, covariances: str | None = "full") -> SmoothResult:
+           P0: Matrix | None = None, steady: bool = False, covariances: str | None = "full",
+           outputs: ArrayLike | None = None) -> SmoothResult:
     """Smoothed states of the AKF (the RTS smoother), with their covariances.
 
     Parameters
@@ -87,6 +92,9 @@ def smooth(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements,
         The steady-state filter and smoother gains from the first step.
     covariances : "full", "diagonal" or None
         The smoothed covariances to return: every matrix (N, n, n), the variances (N, n), or none.
+    outputs : ndarray (k, n), optional
+        Output rows ``H``: the standard deviation of ``H x_k|N`` is computed in the backward pass
+        (:attr:`SmoothResult.output_std`), without holding the covariances.
 
     Returns
     -------
@@ -114,13 +122,16 @@ def smooth(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements,
     if covariances not in ("full", "diagonal", None):
         raise AKFInputError(f"covariances must be 'full', 'diagonal' or None, got {covariances!r}")
     x = np.zeros(n) if x0 is None else as_finite_array(x0, "x0", ndim=1, shape=(n,))
+    H = None if outputs is None else as_finite_array(outputs, "outputs", ndim=2)
+    if H is not None and H.shape[1] != n:
+        raise AKFInputError(f"outputs must have {n} columns (the states), got shape {H.shape}")
     if steady:
         P, L = steady_gain(A[None], G[None], Q[None], Rm[None])
         forward = _Forward.steady(A, G, Rm, Y, x, P[0], L[0])
     else:
         P = Q.copy() if P0 is None else check_covariance(P0, "P0")
         forward = _Forward.time_varying(A, G, Q, Rm, Y, x, P)
-    return forward.backward(A, covariances)
+    return forward.backward(A, covariances, H)
 
 
 class _Forward:
@@ -175,17 +186,20 @@ class _Forward:
     def prior(self, k):
         return self.priors[min(k, self.ks)]
 
-    def backward(self, A, covariances):
+    def backward(self, A, covariances, H=None):
         X, N, n = self.X, self.X.shape[0], self.X.shape[1]
         Xs = np.empty_like(X)
         Xs[-1] = X[-1]
         full = covariances == "full"
         Ps = None if covariances is None else (np.empty((N, n, n)) if full else np.empty((N, n)))
+        out_var = None if H is None else np.empty((N, H.shape[0]))
         P_s = self.post(N - 1)
 
         def store(k, P):
             if Ps is not None:
                 Ps[k] = P if full else np.diagonal(P)
+            if out_var is not None:
+                out_var[k] = np.einsum("ij,jk,ik->i", H, P, H)
         store(N - 1, P_s)
 
         def gain(k):                                   # P_k|k A^T P_k+1|k^-1 (both symmetric)
@@ -196,7 +210,7 @@ class _Forward:
             C = gain(self.ks)
             start = self.ks
             Xs[start:N - 1] = _backward_states(C, np.eye(n) - C @ A, X, start, N)
-            if Ps is not None:
+            if Ps is not None or out_var is not None:
                 post, prior = self.post(start), self.prior(start + 1)
                 converged = False
                 for k in range(N - 2, start - 1, -1):
@@ -216,7 +230,7 @@ class _Forward:
             P_s = 0.5 * (P_s + P_s.T)
             store(k, P_s)
             k -= 1
-        return SmoothResult(Xs, Ps, X, C)
+        return SmoothResult(Xs, Ps, X, C, None if out_var is None else np.sqrt(np.maximum(out_var, 0.0)))
 
 
 def _backward_states(C, I_CA, X, start, N):
