@@ -44,6 +44,10 @@ MAX_STRAIN_ROWS = 2_000_000
 #: points per channel kept for the figures (the record decimated to at most this)
 PLOT_POINTS = 20000
 CHECKPOINT = ".akf-resume.npz"
+#: above this innovation consistency (innovation RMS / predicted) on any channel, a smoothed
+#: estimate is reported as untrustworthy: the model disagrees with the data (S17 case 4 as shipped:
+#: 2.1-3.6 on the gauges, and the smoother makes its forces 24 % worse; calibrated: 0.99-1.01)
+SMOOTH_CONSISTENCY_LIMIT = 1.5
 
 #: units of the numbers in :attr:`EstimateResult.metrics` (and the CLI's JSON)
 METRIC_UNITS = {"rms_force": "N", "rms_strain": "m/m", "avg_strain_error": "m/m", "avg_strain_error_microstrain": "µε",
@@ -142,8 +146,9 @@ class EstimateResult:
 class TidyRows:
     """The tidy rows of a chunk: forces, then the strain outputs at ``strain_index`` (their rows of
     the model's strain operator, with the static correction of a reduced model), with the
-    reference of a simulated record.  Text columns are categoricals: the same rows, built and
-    written ten times faster than strings."""
+    reference of a simulated record and the standard deviation of a smoothed estimate
+    (``std``).  Text columns are categoricals: the same rows, built and written ten times faster
+    than strings."""
 
     def __init__(self, model, forces, strain_index):
         self.index = list(strain_index)
@@ -170,6 +175,10 @@ class TidyRows:
         else:
             reference = np.full(n * len(self.labels), np.nan)
         n_forces = len(est.force_locations)
+        if est.smoothed:
+            std = np.hstack([est.force_std] + ([est.strain_std[:, self.index]] if self.index else [])).T.reshape(-1)
+        else:
+            std = np.full(n * len(self.labels), np.nan)
         is_strain = np.repeat(np.arange(len(self.labels)) >= n_forces, n).astype(np.int8)
 
         def column(codes, categories):
@@ -178,7 +187,7 @@ class TidyRows:
                              "quantity": column(is_strain, ["force", "strain"]),
                              "channel": column(np.repeat(np.arange(len(self.labels)), n), self.labels),
                              "unit": column(is_strain, ["N", "m/m"]),
-                             "estimated": values.T.reshape(-1), "reference": reference})
+                             "estimated": values.T.reshape(-1), "reference": reference, "std": std})
 
 
 def strain_outputs(job, structure, n_steps, notes):
@@ -212,7 +221,7 @@ class _Writer:
         if self.fmt == "csv":
             if position == 0:
                 with open(self.path, "w") as fh:
-                    fh.write("time,quantity,channel,unit,estimated,reference\n")
+                    fh.write("time,quantity,channel,unit,estimated,reference,std\n")
                 position = os.path.getsize(self.path)
             else:
                 if not os.path.exists(self.path) or os.path.getsize(self.path) < position:
@@ -377,6 +386,10 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         chunk = max(1, int(round(spec.measurements.chunk / dt)))
     else:
         chunk = default_chunk(n_a, len(sensors), len(tidy.labels))
+    if job.smooth and chunk < n_total:
+        raise AKFInputError(f"[filter] smooth = true smooths a record held in one piece; this record of {n_total} steps "
+                            f"is filtered in chunks of {chunk}: set [measurements] chunk to at least its length "
+                            f"({n_total * dt:g} s), or leave smooth off (streamed records are not smoothed yet)")
     run = _Run(job, out, record, n_total, chunk, resume, overwrite) if out is not None else None
     start = run.start(estimator) if run is not None else 0
     diag = RunningDiagnostics(n_total)
@@ -393,6 +406,8 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         last = est
         done += 1
         progress_bar(Y.shape[0])
+        if job.smooth:                        # one piece: the smoothed estimate replaces the filtered one
+            est = last = estimator.setup.smooth(est, 0, Y, estimator.steady)
         if run is not None:
             run.write(est, tidy, sim, step)
             if step + Y.shape[0] < n_total:     # after the last chunk the summary follows: a resume redoes that one
@@ -405,6 +420,13 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     whole = last if done == 1 and start == 0 else None
     metrics = _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors, forces, noise_cov,
                        lambda: first_chunk if first_chunk is not None else next(iter(record.chunks(chunk)))[1])
+    if job.smooth:
+        metrics["smoothed"] = True
+        worst = max(d["consistency"] for d in metrics["sensors"])
+        if worst > SMOOTH_CONSISTENCY_LIMIT:
+            metrics["warnings"].insert(0, f"the estimate was smoothed although the data disagree with the model "
+                                          f"(consistency up to {worst:.3g}): smoothing a wrong model makes the forces "
+                                          "worse and its bands too narrow; calibrate first ([filter] calibrate)")
     if calibration is not None:
         metrics["calibration"] = calibration
         metrics["warnings"] = [f"calibration: {w}" for w in calibration["warnings"]] + metrics["warnings"]
@@ -507,6 +529,7 @@ class _Run:
         self.decimate = max(1, -(-n_total // PLOT_POINTS))
         self.kept = {"t": [], "f": [], "y": [], "p": []}
         self.reference = []           # the decimated true forces of a simulated record
+        self.force_std = []           # the decimated standard deviations of a smoothed record
         self.saved = None
 
     def start(self, estimator):
@@ -555,6 +578,8 @@ class _Run:
         self.kept["p"].append(est.predicted[sel])
         if sim is not None:
             self.reference.append(sim.loads[step + sel])
+        if est.smoothed:
+            self.force_std.append(est.force_std[sel])
 
     def checkpoint(self, estimator, diag, next_step):
         state = estimator.state() | diag.state() | {
@@ -584,6 +609,7 @@ class _Run:
                  [f"{n}:{d}" for n, d in forces], os.path.join(self.out, "estimate.png"),
                  f"{title}: estimated forces" + (" (streamed)" if whole is None else ""),
                  reference=np.vstack(self.reference) if self.reference else None, strain_errors=metrics.get("rms_strain"),
+                 force_std=np.vstack(self.force_std) if self.force_std else None,
                  consistency={d["channel"]: d["consistency"] for d in metrics["sensors"]}, note=step)
             draw(files, "sensors_figure", metrics["warnings"], plot_sensors, t, np.vstack(self.kept["y"]),
                  np.vstack(self.kept["p"]), sensors, os.path.join(self.out, "sensors.png"),

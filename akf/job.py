@@ -124,6 +124,8 @@ class Job:
         Run even if the PBH test fails.
     calibrate : list of str
         The ``[filter]`` keys to learn from the record (:mod:`core_akf.calibration`); empty: none.
+    smooth : bool
+        Smooth the estimate with the whole record (:mod:`core_akf.smoother`).
     calibrate_window : float or None
         Calibrate on the record's first this many seconds (None: the whole record, at most one
         chunk).
@@ -146,6 +148,7 @@ class Job:
         self.steady = f.steady
         self.allow_undetectable = bool(f.allow_undetectable)
         self.calibrate = list(f.calibrate or [])
+        self.smooth = bool(f.smooth)
         self.calibrate_window = f.calibrate_window
         section = {"place": spec.place, "locate": spec.locate}.get(command)
         if command == "estimate":

@@ -11,10 +11,11 @@ WORST = 25
 
 
 def plot_estimate(time, forces, force_labels, path, title, reference=None, strain_errors=None, consistency=None,
-                  note=""):
+                  note="", force_std=None):
     """Estimated forces (kN) against time, the reference (dashed, drawn on top) if given, the RMS
     strain error per output (µε; the worst :data:`WORST` ranked when there are many) and the
-    consistency per sensor (``{channel: innovation RMS / predicted}``) if given."""
+    consistency per sensor (``{channel: innovation RMS / predicted}``) if given; ``force_std``
+    (N, same shape as ``forces``) draws +-2 sigma bands around a smoothed estimate."""
     from core_akf.figures import save_figure, subplots
 
     nf = forces.shape[1]
@@ -23,7 +24,11 @@ def plot_estimate(time, forces, force_labels, path, title, reference=None, strai
                                                                  else 0)), squeeze=False)
     for j, label in enumerate(force_labels):
         ax = axes[j, 0]
-        ax.plot(time, forces[:, j] / 1e3, "-", color="tab:red", lw=0.9, label="AKF estimate", zorder=2)
+        if force_std is not None:
+            ax.fill_between(time, (forces[:, j] - 2 * force_std[:, j]) / 1e3, (forces[:, j] + 2 * force_std[:, j]) / 1e3,
+                            color="tab:red", alpha=0.2, lw=0, label="±2σ (smoothed)", zorder=1)
+        ax.plot(time, forces[:, j] / 1e3, "-", color="tab:red", lw=0.9,
+                label="AKF estimate" + (" (smoothed)" if force_std is not None else ""), zorder=2)
         if reference is not None:
             ax.plot(time, reference[:, j] / 1e3, "--", color="k", lw=0.9, label="reference", zorder=3)
         ax.set_ylabel(f"force {label}\n(kN)")

@@ -137,6 +137,11 @@ class Filter(Section):
         "learn these [filter] keys from the record by maximum likelihood before estimating (noise_cov: one factor per "
         "sensor kind); the JSON and summary report the fit, akf calibrate writes the job with the fitted values",
         used_by=ESTIMATE)
+    smooth: bool = key("true or false (a TOML boolean, not a string or a number)",
+                       "smooth the estimate with the whole record (RTS smoother): better forces and strains, with "
+                       "their standard deviations (the std column of timeseries.csv, bands in estimate.png); a record "
+                       "in one piece (simulated, or measured with [measurements] chunk at least its length); "
+                       "calibrate first where the model is off", used_by=ESTIMATE)
     calibrate_window: Positive = key("a positive number", "the first this many seconds of the record are used to "
                                      "calibrate (default the whole record, at most 65536 steps)",
                                      used_by=ESTIMATE, unit="s")
