@@ -20,20 +20,11 @@ from __future__ import annotations
 import argparse
 import csv
 import os
-import time
 
 import numpy as np
+from run_all import best_of  # noqa: E402  (bench/ is the script's folder)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-
-
-def best_of(fn, repeat=3):
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
 
 
 def _problem():

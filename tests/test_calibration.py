@@ -6,6 +6,7 @@ import os
 
 import numpy as np
 import pytest
+from helpers import write_record
 
 from akf.cli import main
 from akf.estimating import estimate_job
@@ -120,14 +121,11 @@ def test_akf_calibrate_writes_the_job_with_the_fitted_values(tmp_path, capsys):
 def test_a_measured_record_calibrates_on_its_first_seconds(tmp_path):
     """[filter] calibrate_window: the fit uses the first seconds of a streamed record; the whole
     record is then estimated with the fitted values."""
-    import pandas as pd
 
     data = example_job("s17-case4")
     data["simulation"]["duration"] = 1.0
     sim = Job.from_dict(data, "estimate").simulate()
-    frame = pd.DataFrame(sim.measurements, columns=data["sensors"])
-    frame.insert(0, "time", np.arange(len(frame)) * data["dt"])
-    frame.to_csv(tmp_path / "rec.csv", index=False, float_format="%.17g")
+    write_record(sim, data["sensors"], data["dt"], tmp_path / "rec.csv")
     measured = {k: v for k, v in data.items() if k != "simulation"}
     measured["measurements"] = {"file": str(tmp_path / "rec.csv"), "chunk": 0.25}
     measured["filter"] |= {"noise_cov": [float(v) ** 2 for v in sim.noise_std], "calibrate": ["stiffness_factor"],

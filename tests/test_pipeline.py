@@ -7,6 +7,7 @@ import os
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import write_record
 
 import akf.schema
 from akf.cli import main
@@ -62,9 +63,7 @@ def _simulated_and_measured(tmp_path, chunk_s):
     R = [float(v) ** 2 for v in sim.noise_std]
     data["filter"]["noise_cov"] = R
     simulated = Job.from_dict(data, "estimate")
-    frame = pd.DataFrame(sim.measurements, columns=data["sensors"])
-    frame.insert(0, "time", np.arange(len(frame)) * data["dt"])
-    frame.to_csv(tmp_path / "record.csv", index=False, float_format="%.17g")
+    write_record(sim, data["sensors"], data["dt"], tmp_path / "record.csv")
     measured = dict(data, measurements={"file": "record.csv", "chunk": chunk_s})
     del measured["simulation"]
     (tmp_path / "job.json").write_text(json.dumps(measured))

@@ -159,6 +159,7 @@ def test_a_streamed_record_is_not_smoothed_in_pieces(tmp_path):
     """A record filtered in chunks cannot be smoothed here yet: a clear error says how to smooth it
     in one piece; with a chunk as long as the record it is smoothed."""
     import pandas as pd
+    from helpers import write_record
 
     from akf.estimating import estimate_job
     from akf.examples import example_job
@@ -168,9 +169,7 @@ def test_a_streamed_record_is_not_smoothed_in_pieces(tmp_path):
     data = example_job("s17-case4")
     data["simulation"]["duration"] = 0.5
     sim = Job.from_dict(data, "estimate").simulate()
-    frame = pd.DataFrame(sim.measurements, columns=data["sensors"])
-    frame.insert(0, "time", np.arange(len(frame)) * data["dt"])
-    frame.to_csv(tmp_path / "rec.csv", index=False, float_format="%.17g")
+    write_record(sim, data["sensors"], data["dt"], tmp_path / "rec.csv")
     measured = {k: v for k, v in data.items() if k != "simulation"}
     measured["filter"] |= {"noise_cov": [float(v) ** 2 for v in sim.noise_std], "smooth": True, "stiffness_factor": 1.0}
     measured["measurements"] = {"file": str(tmp_path / "rec.csv"), "chunk": 0.1}

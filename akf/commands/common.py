@@ -59,3 +59,24 @@ def seed(text):
     if value < 0:
         raise argparse.ArgumentTypeError(f"a seed is a whole number >= 0, got {value}")
     return value
+
+
+def listing_or_template(args, command):
+    """``--list-examples`` or ``--print-job`` of ``command``: print it and return the exit code 0;
+    None when neither was asked for."""
+    if args.list_examples:
+        print_examples(command)
+        return 0
+    if args.print_job:
+        return print_job(args)
+    return None
+
+
+def job_data(args, command, kind="job file"):
+    """The job file or built-in example of ``args`` (exactly one of them) as read, a dict: the
+    command checks it once, with its overrides (:meth:`akf.job.Job.from_dict`)."""
+    from ..examples import load_example
+    from ..job import load_job_file
+
+    check_job_or_example(args, kind)
+    return load_example(args.example, command) if args.example else load_job_file(args.job)

@@ -8,22 +8,18 @@ import sys
 from core_akf.exceptions import AKFInputError
 
 from ..outputs import OutputFolder
-from .common import add_print_job, print_job, print_written, seed
+from .common import add_print_job, print_written, seed
 
 
 def _estimate(args):
     from ..estimating import estimate_job
-    from ..examples import load_example
-    from ..job import Job, load_job_file
-    from .common import check_job_or_example, print_examples
+    from ..job import Job
+    from .common import job_data, listing_or_template
 
-    if args.list_examples:
-        print_examples("estimate")
-        return 0
-    if args.print_job:
-        return print_job(args)
-    check_job_or_example(args)
-    data = load_example(args.example, "estimate") if args.example else load_job_file(args.job)
+    done = listing_or_template(args, "estimate")
+    if done is not None:
+        return done
+    data = job_data(args, "estimate")
     overrides = {}
     if args.duration is not None or args.seed is not None:
         if isinstance(data, dict) and "measurements" in data:

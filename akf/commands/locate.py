@@ -12,18 +12,16 @@ from core_akf.exceptions import AKFInputError
 from ..job import load_job
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler, workers
-from .common import add_print_job, print_job, seed
+from .common import add_print_job, seed
 
 
 def _locate(args):
     from ..locating import write_outputs
-    from .common import check_job_or_example, print_examples, print_written
+    from .common import check_job_or_example, listing_or_template, print_written
 
-    if args.list_examples:
-        print_examples("locate")
-        return 0
-    if args.print_job:
-        return print_job(args)
+    done = listing_or_template(args, "locate")
+    if done is not None:
+        return done
     check_job_or_example(args, "locate job file")
     if args.job is not None:
         job = load_job(args.job, "locate")

@@ -14,25 +14,21 @@ from core_akf.outputs import write_csv
 
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, check_scheduler
-from .common import add_print_job, print_job, print_written, seed
+from .common import add_print_job, print_written, seed
 
 
 def _place(args):
     from sensoropt.ga import THESIS
 
-    from ..examples import load_example
-    from ..job import Job, load_job_file
+    from ..job import Job
     from ..placement import problem_from_job, reference_layouts
-    from .common import check_job_or_example, print_examples
+    from .common import job_data, listing_or_template
 
-    if args.list_examples:
-        print_examples("place")
-        return 0
-    if args.print_job:
-        return print_job(args)
-    check_job_or_example(args, "place job file")
+    done = listing_or_template(args, "place")
+    if done is not None:
+        return done
+    data = job_data(args, "place", "place job file")
     check_scheduler(args.scheduler)          # before the problem is built
-    data = load_example(args.example, "place") if args.example else load_job_file(args.job)
     overrides = {f"place.{k}": getattr(args, k) for k in ("sensors", "window", "generations", "population", "operators")
                  if getattr(args, k) is not None}
     if args.sensors is not None and isinstance(data, dict) and "budget" in (data.get("place") or {}):
