@@ -499,6 +499,9 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     m = fit.multipliers
     if "stiffness_factor" in m:
         report["stiffness_factor"] = job.stiffness_factor * m["stiffness_factor"]
+    if "damping" in m:
+        ratio = np.asarray(fitted[0].damping, float)
+        report["damping"] = float(ratio) if ratio.ndim == 0 else ratio.tolist()
     if "noise_cov" in job.calibrate:
         given = job.spec.filter.noise_cov
         if isinstance(given, dict):

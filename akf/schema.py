@@ -131,11 +131,14 @@ class Filter(Section):
     allow_undetectable: bool = key("true or false (a TOML boolean, not a string or a number)",
                                              "run even if the PBH detectability test fails (the estimate drifts)",
                                              used_by=ESTIMATE)
-    calibrate: Annotated[list[Literal["stiffness_factor", "noise_cov", "force_increment_cov", "model_error_cov"]],
+    calibrate: Annotated[list[Literal["stiffness_factor", "damping", "noise_cov", "force_increment_cov",
+                                      "model_error_cov"]],
                          Field(min_length=1)] = key(
-        "a non-empty list of \"stiffness_factor\", \"noise_cov\", \"force_increment_cov\", \"model_error_cov\"",
-        "learn these [filter] keys from the record by maximum likelihood before estimating (noise_cov: one factor per "
-        "sensor kind); the JSON and summary report the fit, akf calibrate writes the job with the fitted values",
+        "a non-empty list of \"stiffness_factor\", \"damping\", \"noise_cov\", \"force_increment_cov\", "
+        "\"model_error_cov\"",
+        "learn these from the record by maximum likelihood before estimating: the [filter] keys, and damping (the "
+        "model's modal damping ratio; noise_cov: one factor per sensor kind); the JSON reports the fit, akf calibrate "
+        "writes the job with the fitted values",
         used_by=ESTIMATE)
     smooth: bool = key("true or false (a TOML boolean, not a string or a number)",
                        "smooth the estimate with the whole record (RTS smoother): better forces and strains, with "

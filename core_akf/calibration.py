@@ -10,8 +10,8 @@ run as one batch each.
 
 The parameters are searched in logarithms (a factor 2 up is as far as a factor 2 down):
 ``stiffness_factor`` multiplies the starting model's stiffness (every frequency by its square
-root); ``noise_cov`` multiplies R, one factor per sensor kind; ``force_increment_cov`` and
-``model_error_cov`` multiply S and Q.  The stiffness is scanned on a grid first (the likelihood
+root); ``damping`` multiplies its modal damping ratio; ``noise_cov`` multiplies R, one factor per
+sensor kind; ``force_increment_cov`` and ``model_error_cov`` multiply S and Q.  The stiffness is scanned on a grid first (the likelihood
 of a frequency can have several peaks); then L-BFGS-B refines all of them together.  Standard
 errors come from the curvature of the log-likelihood at the optimum (the observed information).
 """
@@ -35,7 +35,7 @@ from .statespace import check_detectable
 from .types import Covariance, Forces, Layout, Measurements, NoiseCovariance
 
 #: the parameters :func:`calibrate` can learn
-PARAMETERS = ("stiffness_factor", "noise_cov", "force_increment_cov", "model_error_cov")
+PARAMETERS = ("stiffness_factor", "damping", "noise_cov", "force_increment_cov", "model_error_cov")
 #: central-difference step of the gradient and the curvature, in natural-log units (a 1e-4 relative change)
 LOG_STEP = 1e-4
 #: a parameter whose log-likelihood changes by less than this over its whole search range is not
@@ -106,10 +106,10 @@ class CalibrationResult:
     Attributes
     ----------
     values : dict
-        The fitted values under the names of :data:`PARAMETERS`: ``stiffness_factor`` relative
-        to the structure given; ``noise_cov`` a dict of variances per sensor kind (SI^2) when R
-        was given per kind, else the fitted multiplier per kind; ``force_increment_cov`` and
-        ``model_error_cov`` levels.
+        The fitted values: ``stiffness_factor`` relative to the structure given;
+        ``damping_factor``, the factor on its modal damping ratio; ``noise_cov`` a dict of
+        variances per sensor kind (SI^2) when R was given per kind, else the fitted multiplier
+        per kind; ``force_increment_cov`` and ``model_error_cov`` levels.
     multipliers : dict
         The fitted factor of each parameter on its starting value (``noise_cov:acc``, ...).
     std_errors : dict
@@ -158,6 +158,8 @@ class CalibrationResult:
         """
         m = self.multipliers
         model = structure if "stiffness_factor" not in m else structure.scaled(m["stiffness_factor"])
+        if "damping" in m:
+            model = model.with_damping(np.asarray(structure.damping, float) * m["damping"])
         layout = as_layout(sensors)
         scale = np.array([np.sqrt(m.get(f"noise_cov:{s.kind}", 1.0)) for s in layout])
         R = noise_covariance(layout, noise_cov) * np.outer(scale, scale)
@@ -183,11 +185,14 @@ class _Problem:
         self._setups = {}
         self.evaluations = 0
 
-    def setup(self, log_f):
-        """The filter matrices of the stiffness factor ``exp(log_f)`` (kept per factor)."""
-        key = round(float(log_f), 12)
+    def setup(self, log_f, log_z):
+        """The filter matrices of the stiffness factor ``exp(log_f)`` and the damping factor
+        ``exp(log_z)`` (kept per pair)."""
+        key = (round(float(log_f), 12), round(float(log_z), 12))
         if key not in self._setups:
-            model = self.structure if key == 0.0 else self.structure.scaled(float(np.exp(key)))
+            model = self.structure if key[0] == 0.0 else self.structure.scaled(float(np.exp(key[0])))
+            if key[1] != 0.0:
+                model = model.with_damping(np.asarray(self.structure.damping, float) * np.exp(key[1]))
             self._setups[key] = FilterSetup(model, [self.layout], self.locs, self.dt, self.Q, self.S, self.R)
             if len(self._setups) > 64:
                 self._setups.pop(next(iter(self._setups)))
@@ -196,7 +201,7 @@ class _Problem:
     def matrices(self, u):
         """``(A_a, G_a, Q_a, R)`` of the log-factors ``u``."""
         p = dict(zip(self.names, u))
-        setup = self.setup(p.get("stiffness_factor", 0.0))
+        setup = self.setup(p.get("stiffness_factor", 0.0), p.get("damping", 0.0))
         nx = setup.nx
         Q_a = setup.Q_a.copy()             # blockdiag(Q, S) in modal coordinates: each block is linear in its level
         Q_a[:nx, :nx] *= np.exp(p.get("model_error_cov", 0.0))
@@ -249,8 +254,8 @@ def calibrate(structure, sensors: Layout, forces: Forces, measurements: Measurem
     ------
     AKFInputError
         For an unknown parameter, a parameter given twice, a record too short to identify
-        anything, a starting level of zero for a covariance to scale, or a likelihood that is
-        not finite at the start.
+        anything, a starting level of zero for a covariance to scale, damping to fit on a model
+        whose damping is not a modal ratio, or a likelihood that is not finite at the start.
 
     Examples
     --------
@@ -285,12 +290,17 @@ def calibrate(structure, sensors: Layout, forces: Forces, measurements: Measurem
     if Y.shape[0] < 10 * (len(names) + 1):
         raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(names)} parameter(s)")
     check_detectable(structure, layout, locs)
+    if "damping" in names and not _modal_ratio(structure.damping):
+        raise AKFInputError(f"damping is calibrated as a factor on the model's modal damping ratio; this model's damping "
+                            f"is {structure.damping!r} (give it a modal ratio, e.g. 0.01)")
     Q, S = _level(model_error_cov, "model_error_cov", "model_error_cov" in names), \
         _level(force_increment_cov, "force_increment_cov", "force_increment_cov" in names)
     problem = _Problem(structure, layout, locs, Y, dt, Q, S, noise_cov, names)
     lo_f, hi_f = default("calibration_stiffness_range", stiffness_range)
     width = np.log(10.0) * default("calibration_decades", decades)
-    bounds = [(np.log(lo_f), np.log(hi_f)) if n == "stiffness_factor" else (-width, width) for n in problem.names]
+    lo_z, hi_z = default("calibration_damping_range")
+    bounds = [(np.log(lo_f), np.log(hi_f)) if n == "stiffness_factor" else
+              (np.log(lo_z), np.log(hi_z)) if n == "damping" else (-width, width) for n in problem.names]
     u0 = np.zeros(len(problem.names))
     before = float(problem.logliks(u0)[0])
     if not np.isfinite(before):
@@ -325,6 +335,14 @@ def calibrate(structure, sensors: Layout, forces: Forces, measurements: Measurem
     return CalibrationResult(_values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, problem.kinds),
                              multipliers, errors, before, after, warnings, problem.evaluations,
                              time.perf_counter() - start_time)
+
+
+def _modal_ratio(damping):
+    """Whether a damping spec is a modal ratio (one, or one per mode) above zero."""
+    if damping is None or isinstance(damping, (tuple, list)) and damping and isinstance(damping[0], str):
+        return False
+    ratio = np.asarray(damping, float)
+    return bool(ratio.size and np.all(np.isfinite(ratio)) and np.all(ratio > 0))
 
 
 def _level(value, name, scaled):
@@ -382,6 +400,8 @@ def _values(multipliers, names, noise_cov, model_error_cov, force_increment_cov,
     out = {}
     if "stiffness_factor" in names:
         out["stiffness_factor"] = multipliers["stiffness_factor"]
+    if "damping" in names:
+        out["damping_factor"] = multipliers["damping"]
     if "noise_cov" in names:
         if isinstance(noise_cov, dict):
             out["noise_cov"] = {k: float(v) * multipliers.get(f"noise_cov:{k}", 1.0) for k, v in noise_cov.items()}

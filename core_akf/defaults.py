@@ -32,6 +32,8 @@ DEFAULTS = {
     "auto_modes_minimum": (4, "-", "auto rule: at least this many modes"),
     "calibration_stiffness_range": ((0.7, 1.4), "-", "calibration: the stiffness factor is searched in this range "
                                                      "of the starting model's (a grid scan, then a local fit)"),
+    "calibration_damping_range": ((0.1, 10.0), "-", "calibration: the modal damping ratio is searched in this range "
+                                                    "of the starting model's"),
     "calibration_decades": (3.0, "decades", "calibration: a covariance is searched this many decades either side "
                                             "of its starting level"),
 }

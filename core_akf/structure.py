@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from .checks import as_finite_array, check_positive_definite, check_square_symmetric
 from .exceptions import AKFInputError, ModelError
-from .types import FloatArray, ForceLocation
+from .types import Damping, FloatArray, ForceLocation
 
 STRAIN_COMPONENTS = ("ex", "ey", "gxy")
 
@@ -446,6 +446,27 @@ class Structure:
                       node_ids=self.node_ids, static=self.static)
         fields.update(changes)
         return Structure(**fields)
+
+    def with_damping(self, damping: Damping) -> Structure:
+        """A copy with another damping spec, its damping matrix built from it.
+
+        Parameters
+        ----------
+        damping : float, array, ('rayleigh', alpha, beta) or None
+            As the ``damping`` of :class:`Structure` (a modal ratio, one per mode, Rayleigh
+            coefficients, or none).
+
+        Returns
+        -------
+        Structure
+
+        Examples
+        --------
+        >>> from core_akf.models import s17_truss
+        >>> s17_truss().with_damping(0.02).damping
+        0.02
+        """
+        return self._replace(damping=damping)
 
     def scaled(self, stiffness_factor: float = 1.0, mass_factor: float = 1.0) -> Structure:
         """A copy with K (and M) multiplied by a factor; damping is rebuilt from the spec.

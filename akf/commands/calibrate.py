@@ -87,6 +87,12 @@ def write_calibrated(source, report, path):
     for key in WRITTEN:
         if key in report:
             table[key] = report[key]
+    if "damping" in report:            # the model's own damping: [structure] of a job on measured data
+        if "measurements" in doc and "structure" in doc:
+            doc["structure"]["damping"] = report["damping"]
+        else:
+            table.add(tomlkit.comment(f"fitted modal damping ratio {report['damping']}: not written into [structure], "
+                                      "which also makes the simulated truth"))
     table.add(tomlkit.comment(f"fitted by akf calibrate: log-likelihood {report['loglik_before']:.8g} -> "
                               f"{report['loglik_after']:.8g}"))
     with atomic_path(path) as tmp:
