@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +34,9 @@ from .riccati import RiccatiError, steady_gain
 from .sensors import as_layout, parse_force_locations
 from .statespace import check_detectable
 from .types import Covariance, Forces, Layout, Measurements, NoiseCovariance
+
+if TYPE_CHECKING:
+    from .structure import Structure
 
 #: the parameters :func:`calibrate` can learn
 PARAMETERS = ("stiffness_factor", "damping", "noise_cov", "force_increment_cov", "model_error_cov")
@@ -134,7 +138,7 @@ class CalibrationResult:
     evaluations: int = 0
     seconds: float = 0.0
 
-    def apply(self, structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
+    def apply(self, structure: Structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance) -> tuple:
         """The filter's model and covariances with the fitted factors.
 
@@ -217,7 +221,7 @@ class _Problem:
         return steady_logliks(A, G, Q, R, self.Y)
 
 
-def calibrate(structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
+def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
               parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
               decades: float | None = None) -> CalibrationResult:
