@@ -27,12 +27,13 @@ from .checks import as_finite_array
 from .covariances import noise_covariance
 from .defaults import default
 from .exceptions import AKFInputError
-from .filter import FilterSetup
+from .filter import FilterSetup, innovation_covariance
 from .likelihood import loglik_terms
 from .recursion import lti_response
-from .riccati import RiccatiError, steady_gain
+from .riccati import RiccatiError
 from .sensors import as_layout, parse_force_locations
 from .statespace import check_detectable
+from .steady import steady_filter
 from .types import Covariance, Forces, Layout, Measurements, NoiseCovariance
 
 if TYPE_CHECKING:
@@ -81,25 +82,21 @@ def steady_logliks(A, G, Q, R, Y):
     Y = np.asarray(Y, float)
     B = A.shape[0]
     out = np.full(B, -np.inf)
+    ok = np.arange(B)
+    Ys = np.broadcast_to(Y, (B,) + Y.shape)
     try:
-        P, L = steady_gain(A, G, Q, R)
-        ok = np.arange(B)
-    except RiccatiError as exc:
+        P, L, F, first = steady_filter(A, G, Q, R, Ys)
+    except RiccatiError as exc:                        # the filters that have a steady state
         ok = np.array([b for b in range(B) if b not in set(exc.problems)], int)
         if not ok.size:
             return out
-        P, L = steady_gain(A[ok], G[ok], Q[ok], R[ok])
-    A, G, R = A[ok], G[ok], R[ok]
-    n = A.shape[-1]
-    F = (np.eye(n) - L @ G) @ A
-    Ys = np.broadcast_to(Y, (ok.size,) + Y.shape)
-    first = np.einsum("bij,bj->bi", L, Ys[:, 0])
+        A, G, Q, R, Ys = A[ok], G[ok], Q[ok], R[ok], Ys[ok]
+        P, L, F, first = steady_filter(A, G, Q, R, Ys)
     predicted = lti_response(F, L, Ys, first, G @ A)            # G A X_k: the next step's predicted channels
     E = np.empty_like(Ys)
     E[:, 0] = Ys[:, 0]
     E[:, 1:] = Ys[:, 1:] - predicted[:, :-1]
-    S = G @ P @ np.swapaxes(G, -1, -2) + R
-    out[ok] = loglik_terms(E, 0.5 * (S + np.swapaxes(S, -1, -2))).sum(axis=(1, 2))
+    out[ok] = loglik_terms(E, innovation_covariance(G, P, R)).sum(axis=(1, 2))
     return out
 
 

@@ -764,9 +764,9 @@ class FilterSetup:
         nx = self.nx
         states = states @ self.Ta.T
         gains = self.Ta @ gain
-        S_innov = self.G_a @ P_prior @ np.swapaxes(self.G_a, -1, -2) + self.R
+        S_innov = innovation_covariance(self.G_a, P_prior, self.R)
         return [Estimate(self.structure, l, self.locs, self.dt, states[b, :, :nx], states[b, :, nx:],
-                         innovations[b], gains[b], reports[b], Y[b], 0.5 * (S_innov[b] + S_innov[b].T),
+                         innovations[b], gains[b], reports[b], Y[b], S_innov[b],
                          (self.A_a, self.G_a[b], gain[b]), t0=t0, loglik_terms=None if terms is None else terms[b])
                 for b, l in enumerate(self.layouts)]
 

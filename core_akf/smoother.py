@@ -25,7 +25,7 @@ import numpy as np
 from .checks import as_finite_array, check_covariance
 from .exceptions import AKFInputError
 from .recursion import lti_response
-from .riccati import steady_gain
+from .steady import steady_states
 from .types import ArrayLike, FloatArray, Matrix, Measurements
 
 #: a covariance counts as converged when it changes by less than this, relatively, over a step
@@ -126,8 +126,8 @@ def smooth(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements,
     if H is not None and H.shape[1] != n:
         raise AKFInputError(f"outputs must have {n} columns (the states), got shape {H.shape}")
     if steady:
-        P, L = steady_gain(A[None], G[None], Q[None], Rm[None])
-        forward = _Forward.steady(A, G, Rm, Y, x, P[0], L[0])
+        X, L, P = steady_states(A[None], G[None], Q[None], Rm[None], Y[None], x[None])
+        forward = _Forward.steady(A, G, Rm, x, X[0], P[0], L[0])
     else:
         P = Q.copy() if P0 is None else check_covariance(P0, "P0")
         forward = _Forward.time_varying(A, G, Q, Rm, Y, x, P)
@@ -142,11 +142,9 @@ class _Forward:
         self.X, self.X_prior, self.posts, self.priors, self.ks = X, X_prior, posts, priors, ks
 
     @classmethod
-    def steady(cls, A, G, R, Y, x, P, L):
-        n = A.shape[0]
-        I_LG = np.eye(n) - L @ G
-        first = L @ Y[0] + I_LG @ x
-        X = lti_response((I_LG @ A)[None], L[None], Y[None], first[None])[0]
+    def steady(cls, A, G, R, x, X, P, L):
+        """From the steady filter's states ``X``, prior covariance ``P`` and gain ``L``."""
+        I_LG = np.eye(A.shape[0]) - L @ G
         post = I_LG @ P @ I_LG.T + L @ R @ L.T                     # Joseph form: symmetric PSD
         X_prior = np.vstack([x, X[:-1] @ A.T])
         return cls(X, X_prior, [0.5 * (post + post.T)], [P], 0)
