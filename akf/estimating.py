@@ -489,7 +489,7 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
 
     Q, S = job.model_error_cov, job.force_increment_cov
     fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
-                    force_increment_cov=S, noise_cov=noise_cov)
+                    force_increment_cov=S, noise_cov=noise_cov, modes=job.calibrate_modes)
     fitted = fit.apply(model, sensors, Q, S, noise_cov)
 
     def consistency(m, q, s, r):
@@ -499,12 +499,18 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     m = fit.multipliers
     if "stiffness_factor" in m:
         report["stiffness_factor"] = job.stiffness_factor * m["stiffness_factor"]
+    if "frequencies" in job.calibrate:          # on top of the job's own factors
+        fitted_f = fit.values["frequency_factors"]
+        given = job.frequency_factors + [1.0] * (len(fitted_f) - len(job.frequency_factors))
+        report["frequency_factors"] = [float(g * (fitted_f[i] if i < len(fitted_f) else 1.0))
+                                       for i, g in enumerate(given)]
+        report["frequencies_hz"] = fitted[0].frequencies(len(report["frequency_factors"])).tolist()
     if "damping" in m:
         ratio = np.asarray(fitted[0].damping, float)
         report["damping"] = float(ratio) if ratio.ndim == 0 else ratio.tolist()
-    if "noise_cov" in job.calibrate:
+    if any(p.startswith("noise_cov") for p in job.calibrate):
         given = job.spec.filter.noise_cov
-        if isinstance(given, dict):
+        if isinstance(given, dict) and "noise_cov" in fit.values and isinstance(fit.values["noise_cov"], dict):
             report["noise_cov"] = fit.values["noise_cov"]
         else:
             report["noise_cov"] = [float(v) for v in np.diag(fitted[3])]

@@ -122,8 +122,12 @@ class Job:
         The filter form; None: the steady-state filter where the sensor set is detectable.
     allow_undetectable : bool
         Run even if the PBH test fails.
+    frequency_factors : list of float
+        Factors on the filter model's frequencies of modes 1..k (empty: none).
     calibrate : list of str
         The ``[filter]`` keys to learn from the record (:mod:`core_akf.calibration`); empty: none.
+    calibrate_modes : list of int or None
+        The modes whose frequencies ``calibrate = ["frequencies"]`` learns (None: the default).
     smooth : bool
         Smooth the estimate with the whole record (:mod:`core_akf.smoother`).
     calibrate_window : float or None
@@ -147,7 +151,9 @@ class Job:
         self.force_increment_cov = default("force_increment_cov", f.force_increment_cov)
         self.steady = f.steady
         self.allow_undetectable = bool(f.allow_undetectable)
+        self.frequency_factors = list(f.frequency_factors or [])
         self.calibrate = list(f.calibrate or [])
+        self.calibrate_modes = f.calibrate_modes
         self.smooth = bool(f.smooth)
         self.calibrate_window = f.calibrate_window
         section = {"place": spec.place, "locate": spec.locate}.get(command)
@@ -208,9 +214,12 @@ class Job:
         return parse_force_locations(self.structure, self.spec.forces)
 
     def filter_model(self):
-        """The filter's model: the structure with :attr:`stiffness_factor`, reduced to
+        """The filter's model: the structure with :attr:`stiffness_factor` and
+        :attr:`frequency_factors`, reduced to
         :attr:`n_modes` (an int) with a static correction."""
         model = self.structure.scaled(self.stiffness_factor)
+        if self.frequency_factors:
+            model = model.with_frequency_factors(self.frequency_factors)
         if isinstance(self.n_modes, int):
             model = model.reduce(self.n_modes, static_correction=True)
         return model

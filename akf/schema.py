@@ -104,6 +104,11 @@ class StructureSection(BaseModel):
         "further keys are the model's arguments (see the API reference of core_akf.models)")
 
 
+#: what ``[filter] calibrate`` may list (:data:`core_akf.calibration.PARAMETERS` and the noise of one kind or per channel)
+CALIBRATION_KEYS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "noise_cov:strain", "noise_cov:acc",
+                    "noise_cov:vel", "noise_cov:disp", "noise_cov:channels", "force_increment_cov", "model_error_cov")
+
+
 class Filter(Section):
     """``[filter]``: the filter's model and covariances."""
 
@@ -131,15 +136,21 @@ class Filter(Section):
     allow_undetectable: bool = key("true or false (a TOML boolean, not a string or a number)",
                                              "run even if the PBH detectability test fails (the estimate drifts)",
                                              used_by=ESTIMATE)
-    calibrate: Annotated[list[Literal["stiffness_factor", "damping", "noise_cov", "force_increment_cov",
-                                      "model_error_cov"]],
-                         Field(min_length=1)] = key(
-        "a non-empty list of \"stiffness_factor\", \"damping\", \"noise_cov\", \"force_increment_cov\", "
-        "\"model_error_cov\"",
-        "learn these from the record by maximum likelihood before estimating: the [filter] keys, and damping (the "
-        "model's modal damping ratio; noise_cov: one factor per sensor kind); the JSON reports the fit, akf calibrate "
-        "writes the job with the fitted values",
+    frequency_factors: Annotated[list[Positive], Field(min_length=1)] = key(
+        "a non-empty list of positive numbers", "factors on the filter model's natural frequencies of modes 1, 2, "
+        "... (mode shapes kept; the other modes keep theirs): a local stiffness change that a global factor cannot "
+        "express; akf calibrate writes it from calibrate = [\"frequencies\"]", used_by=ESTIMATE)
+    calibrate: Annotated[list[Literal[CALIBRATION_KEYS]], Field(min_length=1)] = key(
+        "a non-empty list of " + ", ".join(f'\"{k}\"' for k in CALIBRATION_KEYS),
+        "learn these from the record by maximum likelihood before estimating: the [filter] keys; frequencies (a "
+        "factor per mode of calibrate_modes); damping (the model's modal damping ratio); noise_cov (one factor per "
+        "sensor kind; noise_cov:<kind> one kind, noise_cov:channels one per channel); the JSON reports the fit, akf "
+        "calibrate writes the job with the fitted values",
         used_by=ESTIMATE)
+    calibrate_modes: Annotated[list[Count], Field(min_length=1)] = key(
+        "a non-empty list of mode numbers (1-based)", "the modes whose frequencies calibrate = [\"frequencies\"] "
+        "learns (default the lowest calibration_modes modes below a quarter of the sampling rate)",
+        used_by=ESTIMATE, registry="calibration_modes")
     smooth: bool = key("true or false (a TOML boolean, not a string or a number)",
                        "smooth the estimate with the whole record (RTS smoother): better forces and strains, with "
                        "their standard deviations (the std column of timeseries.csv, bands in estimate.png); a record "

@@ -18,6 +18,7 @@ errors come from the curvature of the log-likelihood at the optimum (the observe
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -40,7 +41,7 @@ if TYPE_CHECKING:
     from .structure import Structure
 
 #: the parameters :func:`calibrate` can learn
-PARAMETERS = ("stiffness_factor", "damping", "noise_cov", "force_increment_cov", "model_error_cov")
+PARAMETERS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "force_increment_cov", "model_error_cov")
 #: central-difference step of the gradient and the curvature, in natural-log units (a 1e-4 relative change)
 LOG_STEP = 1e-4
 #: a parameter whose log-likelihood changes by less than this over its whole search range is not
@@ -108,11 +109,13 @@ class CalibrationResult:
     ----------
     values : dict
         The fitted values: ``stiffness_factor`` relative to the structure given;
-        ``damping_factor``, the factor on its modal damping ratio; ``noise_cov`` a dict of
-        variances per sensor kind (SI^2) when R was given per kind, else the fitted multiplier
-        per kind; ``force_increment_cov`` and ``model_error_cov`` levels.
+        ``frequency_factors``, the factors on the frequencies of modes 1..k (1 for a mode not
+        fitted); ``damping_factor``, the factor on its modal damping ratio; ``noise_cov`` a dict
+        of variances per sensor kind (SI^2) when R was given per kind and learnt per kind, else
+        a list of variances per channel; ``force_increment_cov`` and ``model_error_cov`` levels.
     multipliers : dict
-        The fitted factor of each parameter on its starting value (``noise_cov:acc``, ...).
+        The fitted factor of each parameter on its starting value (``noise_cov:acc``,
+        ``noise_cov:strain:13``, ``frequencies:2``, ...).
     std_errors : dict
         The standard error of each factor, relative (the standard error of its natural log,
         from the observed information); NaN where the curvature is not negative.
@@ -159,21 +162,63 @@ class CalibrationResult:
         """
         m = self.multipliers
         model = structure if "stiffness_factor" not in m else structure.scaled(m["stiffness_factor"])
+        if frequency_factors(m).size:
+            model = model.with_frequency_factors(frequency_factors(m))
         if "damping" in m:
             model = model.with_damping(np.asarray(structure.damping, float) * m["damping"])
         layout = as_layout(sensors)
-        scale = np.array([np.sqrt(m.get(f"noise_cov:{s.kind}", 1.0)) for s in layout])
+        scale = noise_scale(layout, m)
         R = noise_covariance(layout, noise_cov) * np.outer(scale, scale)
         Q = np.asarray(model_error_cov, float) * m.get("model_error_cov", 1.0)
         S = np.asarray(force_increment_cov, float) * m.get("force_increment_cov", 1.0)
         return model, Q, S, R
 
 
+def noise_scale(layout: Layout, multipliers: dict) -> np.ndarray:
+    """The standard-deviation factor of each channel: the square root of its kind's factor
+    (``noise_cov:acc``) times its own (``noise_cov:acc:8:y``).
+
+    Parameters
+    ----------
+    layout : sequence of Sensor
+        m sensors.
+    multipliers : dict
+        Factors on the noise variances by name, as :attr:`CalibrationResult.multipliers`.
+
+    Returns
+    -------
+    ndarray (m,)
+    """
+    return np.array([np.sqrt(multipliers.get(f"noise_cov:{s.kind}", 1.0) * multipliers.get(f"noise_cov:{s.label}", 1.0))
+                     for s in layout])
+
+
+def frequency_factors(multipliers: dict) -> np.ndarray:
+    """The factors on the frequencies of modes 1..k (1 for a mode not fitted).
+
+    Parameters
+    ----------
+    multipliers : dict
+        Factors by name, as :attr:`CalibrationResult.multipliers` (``frequencies:<mode>``).
+
+    Returns
+    -------
+    ndarray (k,)
+        Empty without a ``frequencies:`` entry.
+    """
+    fitted = {int(n.split(":")[1]): v for n, v in multipliers.items() if n.startswith("frequencies:")}
+    factors = np.ones(max(fitted, default=0))
+    for k, v in fitted.items():
+        factors[k - 1] = v
+    return factors
+
+
 class _Problem:
     """The log-likelihood as a function of the log-factors ``u`` of the chosen parameters."""
 
-    def __init__(self, structure, layout, locs, Y, dt, Q, S, R, names):
+    def __init__(self, structure, layout, locs, Y, dt, Q, S, R, names, modes=()):
         self.structure, self.layout, self.locs, self.Y, self.dt = structure, layout, locs, Y, dt
+        self.modes = tuple(modes)
         self.Q, self.S = Q, S
         self.R = noise_covariance(layout, R)
         self.kinds = sorted({s.kind for s in layout})
@@ -181,17 +226,24 @@ class _Problem:
         for name in names:
             if name == "noise_cov":
                 self.names += [f"noise_cov:{k}" for k in self.kinds]
+            elif name == "noise_cov:channels":
+                self.names += [f"noise_cov:{s.label}" for s in layout]
+            elif name == "frequencies":
+                self.names += [f"frequencies:{k}" for k in self.modes]
             else:
                 self.names.append(name)
         self._setups = {}
         self.evaluations = 0
 
-    def setup(self, log_f, log_z):
-        """The filter matrices of the stiffness factor ``exp(log_f)`` and the damping factor
-        ``exp(log_z)`` (kept per pair)."""
-        key = (round(float(log_f), 12), round(float(log_z), 12))
+    def setup(self, p):
+        """The filter matrices of the model parameters in ``p`` (log-factors by name), kept per set."""
+        freq = tuple(round(float(p.get(f"frequencies:{k}", 0.0)), 12) for k in self.modes)
+        key = (round(float(p.get("stiffness_factor", 0.0)), 12), round(float(p.get("damping", 0.0)), 12), freq)
         if key not in self._setups:
             model = self.structure if key[0] == 0.0 else self.structure.scaled(float(np.exp(key[0])))
+            if any(freq):
+                model = model.with_frequency_factors(
+                    frequency_factors({f"frequencies:{k}": np.exp(x) for k, x in zip(self.modes, freq)}))
             if key[1] != 0.0:
                 model = model.with_damping(np.asarray(self.structure.damping, float) * np.exp(key[1]))
             self._setups[key] = FilterSetup(model, [self.layout], self.locs, self.dt, self.Q, self.S, self.R)
@@ -202,12 +254,12 @@ class _Problem:
     def matrices(self, u):
         """``(A_a, G_a, Q_a, R)`` of the log-factors ``u``."""
         p = dict(zip(self.names, u))
-        setup = self.setup(p.get("stiffness_factor", 0.0), p.get("damping", 0.0))
+        setup = self.setup(p)
         nx = setup.nx
         Q_a = setup.Q_a.copy()             # blockdiag(Q, S) in modal coordinates: each block is linear in its level
         Q_a[:nx, :nx] *= np.exp(p.get("model_error_cov", 0.0))
         Q_a[nx:, nx:] *= np.exp(p.get("force_increment_cov", 0.0))
-        scale = np.array([np.exp(0.5 * p.get(f"noise_cov:{s.kind}", 0.0)) for s in self.layout])
+        scale = noise_scale(self.layout, {n: np.exp(x) for n, x in p.items()})
         return setup.A_a, setup.G_a[0], Q_a, self.R * np.outer(scale, scale)
 
     def logliks(self, U):
@@ -221,7 +273,7 @@ class _Problem:
 def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
               parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
-              decades: float | None = None) -> CalibrationResult:
+              decades: float | None = None, modes: Sequence[int] | None = None) -> CalibrationResult:
     """Fit the filter's model and covariances to a record by maximum likelihood.
 
     Parameters
@@ -237,7 +289,10 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     dt : float
         Time step (s).
     parameters : list of str
-        What to learn, a subset of :data:`PARAMETERS`.
+        What to learn, a subset of :data:`PARAMETERS`: ``noise_cov`` learns one factor per sensor
+        kind of the layout; ``noise_cov:<kind>`` (``noise_cov:acc``) the factor of one kind only,
+        ``noise_cov:channels`` one factor per channel; ``frequencies`` a factor per mode of
+        ``modes``.
     model_error_cov, force_increment_cov, noise_cov
         The starting Q, S and R, as in :func:`core_akf.filter.estimate`.
     stiffness_range : (float, float), optional
@@ -246,6 +301,9 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     decades : float, optional
         The covariance factors are searched this many decades either side of 1 (default
         ``calibration_decades``).
+    modes : sequence of int, optional
+        The modes (1-based) whose frequencies ``frequencies`` learns (default
+        :func:`calibration_modes`).
 
     Returns
     -------
@@ -277,13 +335,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     from scipy.optimize import minimize
 
     start_time = time.perf_counter()
-    names = list(parameters)
-    unknown = [p for p in names if p not in PARAMETERS]
-    if unknown:
-        raise AKFInputError(f"cannot calibrate {unknown}; the parameters are {list(PARAMETERS)}")
-    if len(set(names)) != len(names) or not names:
-        raise AKFInputError(f"parameters must name each of {list(PARAMETERS)} at most once, and one at least; got {names}")
     layout = as_layout(sensors)
+    names = _check_parameters(parameters, layout)
     locs = parse_force_locations(structure, forces)
     Y = as_finite_array(measurements, "measurements", ndim=2)
     if Y.shape[1] != len(layout):
@@ -296,25 +349,34 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
                             f"is {structure.damping!r} (give it a modal ratio, e.g. 0.01)")
     Q, S = _level(model_error_cov, "model_error_cov", "model_error_cov" in names), \
         _level(force_increment_cov, "force_increment_cov", "force_increment_cov" in names)
-    problem = _Problem(structure, layout, locs, Y, dt, Q, S, noise_cov, names)
-    lo_f, hi_f = default("calibration_stiffness_range", stiffness_range)
+    modes = _check_modes(structure, dt, modes) if "frequencies" in names else ()
+    problem = _Problem(structure, layout, locs, Y, dt, Q, S, noise_cov, names, modes)
+    ranges = {"stiffness_factor": default("calibration_stiffness_range", stiffness_range),
+              "damping": default("calibration_damping_range"),
+              "frequencies": default("calibration_frequency_range")}
     width = np.log(10.0) * default("calibration_decades", decades)
-    lo_z, hi_z = default("calibration_damping_range")
-    bounds = [(np.log(lo_f), np.log(hi_f)) if n == "stiffness_factor" else
-              (np.log(lo_z), np.log(hi_z)) if n == "damping" else (-width, width) for n in problem.names]
+    bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else (-width, width)
+              for n in problem.names]
     u0 = np.zeros(len(problem.names))
     before = float(problem.logliks(u0)[0])
     if not np.isfinite(before):
         raise AKFInputError("the log-likelihood at the starting values is not finite (no steady-state filter): "
                             "check the covariances")
-    if "stiffness_factor" in problem.names:            # a grid first: the likelihood of a frequency may have several peaks
-        j = problem.names.index("stiffness_factor")
-        grid = np.linspace(*bounds[j], 25)
-        U = np.tile(u0, (grid.size, 1))
-        U[:, j] = grid
-        ll = problem.logliks(U)
-        if np.max(ll) > before:
-            u0 = U[int(np.argmax(ll))]
+    # a grid first for what sets a frequency, whose likelihood may have several peaks: the stiffness
+    # factor, or each mode's factor on its own (one batch; the modes' peaks barely interact)
+    scanned = [j for j, n in enumerate(problem.names) if n == "stiffness_factor" or n.startswith("frequencies:")]
+    if scanned:
+        grid = [np.linspace(*bounds[j], 25) for j in scanned]
+        U = np.tile(u0, (sum(g.size for g in grid), 1))
+        for i, (j, g) in enumerate(zip(scanned, grid)):
+            U[i * g.size:(i + 1) * g.size, j] = g
+        ll = problem.logliks(U).reshape(len(scanned), -1)
+        start = u0.copy()
+        for i, j in enumerate(scanned):
+            if np.max(ll[i]) > before:
+                start[j] = grid[i][int(np.argmax(ll[i]))]
+        if problem.logliks(start)[0] > before:
+            u0 = start
 
     def negative(u):
         k = len(u)
@@ -333,9 +395,83 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         u, after = np.zeros(len(u)), before
     errors, warnings = _curvature(problem, u, bounds, before)
     multipliers = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
-    return CalibrationResult(_values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, problem.kinds),
+    return CalibrationResult(_values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, layout),
                              multipliers, errors, before, after, warnings, problem.evaluations,
                              time.perf_counter() - start_time)
+
+
+def calibration_modes(structure: Structure, dt: float) -> list[int]:
+    """The modes whose frequencies ``frequencies`` calibrates by default.
+
+    The lowest ``calibration_modes`` (:data:`core_akf.defaults.DEFAULTS`) modes below a quarter
+    of the sampling rate (half the Nyquist frequency): the modes a record resolves well.  A mode
+    the sensors or the loads do not see is named in a warning of the fit (a flat likelihood).
+
+    Parameters
+    ----------
+    structure : Structure
+        The starting model.
+    dt : float
+        Time step (s).
+
+    Returns
+    -------
+    list of int
+        1-based mode numbers.
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss
+    >>> calibration_modes(s17_truss(), 1 / 4096)
+    [1, 2, 3, 4]
+    """
+    f = structure.frequencies()
+    below = np.flatnonzero(f < 0.25 / float(dt))
+    if not below.size:
+        raise AKFInputError(f"no mode lies below a quarter of the sampling rate ({0.25 / dt:.4g} Hz): the record cannot "
+                            "resolve a frequency; sample faster")
+    return [int(k) + 1 for k in below[:default("calibration_modes")]]
+
+
+def _check_parameters(parameters, layout):
+    """The parameter names, checked: known, each once, noise of kinds the layout has, and no two
+    that overlap (the stiffness factor is every frequency at once)."""
+    from .sensors import KINDS
+
+    names = list(parameters) if not isinstance(parameters, str) else [parameters]
+    if not names:
+        raise AKFInputError(f"parameters: name at least one of {list(PARAMETERS)}")
+    kinds = {s.kind for s in layout}
+    for name in names:
+        base, _, detail = str(name).partition(":")
+        if base not in PARAMETERS or (detail and base != "noise_cov"):
+            raise AKFInputError(f"cannot calibrate {name!r}; the parameters are {list(PARAMETERS)}, and noise_cov:<kind> "
+                                "or noise_cov:channels")
+        if detail and detail != "channels" and detail not in kinds:
+            what = "is not a sensor kind" if detail not in KINDS else "has no channel in this layout"
+            raise AKFInputError(f"cannot calibrate {name!r}: {detail!r} {what}; the layout's kinds are "
+                                f"{sorted(kinds)} (noise_cov:channels learns one factor per channel)")
+    if len(set(names)) != len(names):
+        raise AKFInputError(f"parameters name {sorted({n for n in names if names.count(n) > 1})} twice")
+    noise = [n for n in names if n.startswith("noise_cov")]
+    if len(noise) > 1 and ("noise_cov" in noise or "noise_cov:channels" in noise):
+        raise AKFInputError(f"parameters {noise} overlap: noise_cov learns every kind, noise_cov:channels every channel; "
+                            "give one of them, or kinds one by one")
+    if "stiffness_factor" in names and "frequencies" in names:
+        raise AKFInputError("stiffness_factor and frequencies overlap (a stiffness factor moves every frequency): "
+                            "calibrate one of them")
+    return names
+
+
+def _check_modes(structure, dt, modes):
+    """The 1-based modes of ``frequencies``, checked (default :func:`calibration_modes`)."""
+    if modes is None:
+        return calibration_modes(structure, dt)
+    out = [int(k) for k in np.atleast_1d(modes)]
+    if not out or len(set(out)) != len(out) or any(k != m for k, m in zip(out, np.atleast_1d(modes))) \
+            or not all(1 <= k <= structure.n for k in out):
+        raise AKFInputError(f"modes must be distinct mode numbers between 1 and {structure.n}, got {modes!r}")
+    return sorted(out)
 
 
 def _modal_ratio(damping):
@@ -396,18 +532,20 @@ def _curvature(problem, u, bounds, before):
     return errors, warnings
 
 
-def _values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, kinds):
+def _values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, layout):
     """The fitted values under the parameters' own names (see :class:`CalibrationResult`)."""
     out = {}
     if "stiffness_factor" in names:
         out["stiffness_factor"] = multipliers["stiffness_factor"]
+    if "frequencies" in names:
+        out["frequency_factors"] = frequency_factors(multipliers).tolist()
     if "damping" in names:
         out["damping_factor"] = multipliers["damping"]
-    if "noise_cov" in names:
-        if isinstance(noise_cov, dict):
+    if any(n.startswith("noise_cov") for n in names):
+        if isinstance(noise_cov, dict) and "noise_cov:channels" not in names:
             out["noise_cov"] = {k: float(v) * multipliers.get(f"noise_cov:{k}", 1.0) for k, v in noise_cov.items()}
         else:
-            out["noise_cov"] = {k: multipliers[f"noise_cov:{k}"] for k in kinds}
+            out["noise_cov"] = (np.diag(noise_covariance(layout, noise_cov)) * noise_scale(layout, multipliers) ** 2).tolist()
     for name, level in (("force_increment_cov", force_increment_cov), ("model_error_cov", model_error_cov)):
         if name in names:
             value = np.asarray(level, float) * multipliers[name]

@@ -34,6 +34,10 @@ DEFAULTS = {
                                                      "of the starting model's (a grid scan, then a local fit)"),
     "calibration_damping_range": ((0.1, 10.0), "-", "calibration: the modal damping ratio is searched in this range "
                                                     "of the starting model's"),
+    "calibration_frequency_range": ((0.85, 1.15), "-", "calibration: the factor on each mode's frequency is "
+                                                      "searched in this range (a scan per mode, then a joint fit)"),
+    "calibration_modes": (4, "-", "calibration of frequencies: the lowest this many modes below a quarter of the "
+                                  "sampling rate, unless the modes are given"),
     "calibration_decades": (3.0, "decades", "calibration: a covariance is searched this many decades either side "
                                             "of its starting level"),
 }

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 import scipy.sparse
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .checks import as_finite_array, check_positive_definite, check_square_symmetric
 from .exceptions import AKFInputError, ModelError
@@ -499,6 +499,59 @@ class Structure:
             changes["static"] = self.static.scaled(stiffness_factor, mass_factor)
         if self.damping is None and np.any(self.C):
             raise AKFInputError("cannot rescale a structure with an explicit C and no damping spec")
+        return self._replace(**changes)
+
+    def with_frequency_factors(self, factors: ArrayLike) -> Structure:
+        """A copy whose lowest natural frequencies are multiplied by ``factors``, mode shapes kept.
+
+        ``K' = K + M Phi diag((f^2 - 1) omega^2) Phi^T M`` over the modes changed (mass-normalised
+        ``Phi``): a change of one mode's stiffness that leaves the others and every mode shape as
+        they were.  A static correction (:attr:`static`) follows, so that the full model's
+        static response is that of ``K'``.  The damping is rebuilt from its spec (a modal ratio
+        stays the ratio of each mode).
+
+        Parameters
+        ----------
+        factors : array_like (k,)
+            Positive factors on the frequencies of modes 1..k (k <= n); the other modes keep theirs.
+
+        Returns
+        -------
+        Structure
+
+        Examples
+        --------
+        >>> from core_akf.models import s17_truss
+        >>> s = s17_truss()
+        >>> (s.with_frequency_factors([1.0, 0.9]).frequencies(3) / s.frequencies(3)).round(6).tolist()
+        [1.0, 0.9, 1.0]
+        """
+        f = np.atleast_1d(np.asarray(factors, dtype=float))
+        if f.ndim != 1 or not 1 <= f.size <= self.n:
+            raise AKFInputError(f"frequency factors: give one per mode for modes 1..k (k <= {self.n}), got shape {f.shape}")
+        if not np.all(np.isfinite(f)) or np.any(f <= 0):
+            raise AKFInputError(f"frequency factors must be positive numbers, got {f.tolist()}")
+        if self.damping is None and np.any(self.C):
+            raise AKFInputError("cannot change the frequencies of a structure with an explicit C and no damping spec")
+        omega, phi = self.eigen
+        k = f.size
+        change = (f ** 2 - 1.0) * omega[:k] ** 2                  # rad^2/s^2 added to each mode's eigenvalue
+        mphi = self.M @ phi[:, :k]
+        K = self.K + (mphi * change) @ mphi.T
+        changes = dict(K=0.5 * (K + K.T))
+        if self.static is not None:
+            # K'^-1 = K^-1 + Phi_k diag(1/omega'^2 - 1/omega^2) Phi_k^T: the residual of the kept modes is unchanged
+            st, modes = self.static, self.modes(k)
+            flex = (1.0 / (f * omega[:k]) ** 2 - 1.0 / omega[:k] ** 2) / st.flexibility_scale
+
+            def solve(B, s=st.solve):
+                return s(B) + (modes * flex) @ (modes.T @ B)
+            kept = st.omega.copy()
+            matched = np.argmin(np.abs(kept[:, None] - omega[None, :k]), axis=0)    # the kept modes changed
+            kept[matched] = kept[matched] * f
+            from .residual import StaticCorrection
+
+            changes["static"] = StaticCorrection(solve, st.phi, kept, st.flexibility_scale)
         return self._replace(**changes)
 
     def reduce(self, n_modes: int, static_correction: bool = False) -> Structure:

@@ -65,6 +65,32 @@ def test_scaling_and_further_reduction_keep_the_static_response(plates):
                                rtol=1e-8)
 
 
+def test_frequency_factors_keep_the_mode_shapes_and_the_static_response(plates):
+    """Modes 2 and 3 moved by -4 % and +3 %: the same on the dense plate and on the sparse model
+    reduced with a static correction, which keeps the static response of the changed K (also
+    once reduced further, the changed modes dropped into the residual)."""
+    dense, large = plates
+    factors = [1.0, 0.96, 1.03]
+    changed = dense.with_frequency_factors(factors)
+    ratio = changed.frequencies(6) / dense.frequencies(6)
+    np.testing.assert_allclose(ratio, [1.0, 0.96, 1.03, 1.0, 1.0, 1.0], rtol=1e-9)
+    np.testing.assert_allclose(np.abs(changed.modes(6)), np.abs(dense.modes(6)), atol=1e-8 * np.abs(dense.modes(6)).max())
+    full = _static_outputs(changed, SENSORS[:4], FORCES)
+    assert np.max(np.abs(full - _static_outputs(dense, SENSORS[:4], FORCES))) > 1e-3 * np.max(np.abs(full))
+    for model in (large.with_frequency_factors(factors), large.with_frequency_factors(factors).reduce(2),
+                  changed.reduce(10, static_correction=True)):
+        np.testing.assert_allclose(_static_outputs(model, SENSORS[:4], FORCES), full, rtol=1e-8,
+                                   atol=1e-12 * np.max(np.abs(full)))
+    np.testing.assert_allclose(large.with_frequency_factors(factors).frequencies(6), changed.frequencies(6), rtol=1e-8)
+
+
+@pytest.mark.parametrize("factors, message", [([], "one per mode"), ([1.0, -0.9], "positive"), ([np.nan], "positive"),
+                                              ([[1.0]], "one per mode"), ([1.0] * 400, "one per mode")])
+def test_frequency_factors_refuse_bad_input(plates, factors, message):
+    with pytest.raises(AKFInputError, match=message):
+        plates[1].with_frequency_factors(factors)
+
+
 def test_model_error_covariance_of_a_reduced_model_needs_no_physical_matrix(plates):
     _, large = plates
     P = large.projection

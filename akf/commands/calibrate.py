@@ -56,6 +56,9 @@ def _calibrate(args):
         print(f"    {name:22s} {factor:10.5g}   {report['std_errors'][name]:10.3g}")
     if "stiffness_factor" in report:
         print(f"  stiffness_factor = {report['stiffness_factor']:.6g} (relative to [structure])")
+    if "frequency_factors" in report:
+        print("  frequency_factors = [" + ", ".join(f"{f:.5g}" for f in report["frequency_factors"]) + "] ("
+              + ", ".join(f"{f:.4g}" for f in report["frequencies_hz"]) + " Hz)")
     print("  consistency (innovation / predicted; ~1 is good):      before     after")
     for channel, before in report["consistency_before"].items():
         print(f"    {channel:>14s}                                  {before:8.3g}  {report['consistency_after'][channel]:8.3g}")
@@ -66,12 +69,13 @@ def _calibrate(args):
 
 
 #: the [filter] keys akf calibrate writes (and the ones it removes: the fit is done)
-WRITTEN = ("stiffness_factor", "noise_cov", "force_increment_cov", "model_error_cov")
+WRITTEN = ("stiffness_factor", "frequency_factors", "noise_cov", "force_increment_cov", "model_error_cov")
 
 
 def write_calibrated(source, report, path):
     """Write the job file ``source`` with the fitted ``[filter]`` values of ``report`` (and without
-    ``calibrate`` and ``calibrate_window``) to ``path``; comments and layout are kept (tomlkit)."""
+    ``calibrate``, ``calibrate_window`` and ``calibrate_modes``) to ``path``; comments and layout
+    are kept (tomlkit)."""
     import tomlkit
 
     from core_akf.outputs import atomic_path
@@ -81,7 +85,7 @@ def write_calibrated(source, report, path):
     if "filter" not in doc:
         doc["filter"] = tomlkit.table()
     table = doc["filter"]
-    for key in ("calibrate", "calibrate_window"):
+    for key in ("calibrate", "calibrate_window", "calibrate_modes"):
         if key in table:
             del table[key]
     for key in WRITTEN:
@@ -109,7 +113,8 @@ def register(sub):
     p.add_argument("--example", help="built-in estimate example, e.g. s17-case4 (see --list-examples)")
     p.add_argument("--list-examples", action="store_true", help="list the built-in examples")
     p.add_argument("--parameters", nargs="+", metavar="KEY", help="the [filter] keys to learn (instead of [filter] "
-                   "calibrate): stiffness_factor, noise_cov, force_increment_cov, model_error_cov")
+                   "calibrate): stiffness_factor, frequencies, damping, noise_cov (noise_cov:<kind>, noise_cov:channels), "
+                   "force_increment_cov, model_error_cov")
     p.add_argument("--out", help="output folder (default akf-out/NAME)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     add_print_job(p)
