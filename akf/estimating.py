@@ -376,8 +376,6 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     if job.calibrate:        # learn the model and the covariances from the record first
         Y_cal = sim.measurements if sim is not None else calibration_record(job, record)
         model, Q, S, noise_cov, calibration = calibrate_job(job, model, sensors, forces, Y_cal, noise_cov)
-    estimator = Estimator(model, sensors, forces, dt, steady=job.steady, allow_undetectable=job.allow_undetectable,
-                          model_error_cov=Q, force_increment_cov=S, noise_cov=noise_cov, t0=t0)
     notes = []
     tidy = TidyRows(model, forces, strain_outputs(job, structure, n_total, notes) if out is not None else [])
     if record is None or out is None:
@@ -386,10 +384,12 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         chunk = max(1, int(round(spec.measurements.chunk / dt)))
     else:
         chunk = default_chunk(n_a, len(sensors), len(tidy.labels))
-    if job.smooth and chunk < n_total:
-        raise AKFInputError(f"[filter] smooth = true smooths a record held in one piece; this record of {n_total} steps "
-                            f"is filtered in chunks of {chunk}: set [measurements] chunk to at least its length "
-                            f"({n_total * dt:g} s), or leave smooth off (streamed records are not smoothed yet)")
+    # smoothing: with the whole record when it is one piece, else (or when asked) with a fixed lag
+    lag = None
+    if job.smooth and (job.smooth_lag is not None or chunk < n_total):
+        lag = "auto" if job.smooth_lag in (None, "auto") else max(1, int(round(job.smooth_lag / dt)))
+    estimator = Estimator(model, sensors, forces, dt, steady=job.steady, allow_undetectable=job.allow_undetectable,
+                          model_error_cov=Q, force_increment_cov=S, noise_cov=noise_cov, t0=t0, smooth_lag=lag)
     run = _Run(job, out, record, n_total, chunk, resume, overwrite) if out is not None else None
     start = run.start(estimator) if run is not None else 0
     diag = RunningDiagnostics(n_total)
@@ -397,26 +397,40 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     chunks = record.chunks(chunk, start) if record is not None else [(0, sim.measurements)]
     first_chunk = last = None
     done = 0
+    parts = []                                # a record in one piece smoothed with a lag: its estimate in two parts
+    restored = run is not None and start > 0
+
+    def take(est):
+        nonlocal last, restored
+        if restored:
+            run.restore_diagnostics(diag, est)
+            restored = False
+        diag.update(est)
+        last = est
+        if run is not None:
+            run.write(est, tidy, sim, estimator.n_returned - est.forces.shape[0])
+        if lag is not None and chunk >= n_total:
+            parts.append(est)
     for step, Y in chunks:
         est = estimator.update(Y)
-        if run is not None and last is None and start:
-            run.restore_diagnostics(diag, est)
-        diag.update(est)
         first_chunk = Y if first_chunk is None and step == 0 else first_chunk
-        last = est
         done += 1
         progress_bar(Y.shape[0])
-        if job.smooth:                        # one piece: the smoothed estimate replaces the filtered one
-            est = last = estimator.setup.smooth(est, 0, Y, estimator.steady)
-        if run is not None:
-            run.write(est, tidy, sim, step)
-            if step + Y.shape[0] < n_total:     # after the last chunk the summary follows: a resume redoes that one
-                run.checkpoint(estimator, diag, step + Y.shape[0])
-                if stop_after is not None and done >= stop_after:
-                    notes.append(f"stopped after {done} chunk(s) at step {step + Y.shape[0]} of {n_total}; continue "
-                                 "with --resume")
-                    return EstimateResult(job, {}, run.partial_files(), record.describe(), notes, start,
-                                          complete=False)
+        if job.smooth and lag is None:        # one piece: the smoothed estimate replaces the filtered one
+            est = estimator.setup.smooth(est, 0, Y, estimator.steady)
+        take(est)
+        if run is not None and step + Y.shape[0] < n_total:     # after the last chunk the summary follows
+            run.checkpoint(estimator, diag, step + Y.shape[0])
+            if stop_after is not None and done >= stop_after:
+                notes.append(f"stopped after {done} chunk(s) at step {step + Y.shape[0]} of {n_total}; continue "
+                             "with --resume")
+                return EstimateResult(job, {}, run.partial_files(), record.describe(), notes, start, complete=False)
+    if lag is not None:                        # the steps the fixed-lag smoother still holds
+        take(estimator.finish())
+        notes.append(f"smoothed with a fixed lag of {estimator.lagged.lag} steps ({estimator.lagged.lag * dt:.6g} s)")
+    if parts:
+        last = _joined(parts)
+        done = 1
     whole = last if done == 1 and start == 0 else None
     metrics = _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors, forces, noise_cov,
                        lambda: first_chunk if first_chunk is not None else next(iter(record.chunks(chunk)))[1])
@@ -439,6 +453,16 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     if run is not None:
         run.finish(result.files, metrics, plot, whole, forces, sensors)
     return result
+
+
+def _joined(parts):
+    """One estimate of consecutive ones (a record smoothed with a lag comes in parts)."""
+    from dataclasses import replace
+
+    parts = [p for p in parts if p.forces.shape[0]] or parts[:1]
+    cat = {name: np.concatenate([getattr(p, name) for p in parts]) for name in
+           ("states", "forces", "innovations", "measurements", "loglik_terms", "force_std", "strain_std")}
+    return replace(parts[0], **cat)
 
 
 def _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors, forces, noise_cov, first_chunk):
@@ -538,7 +562,6 @@ class _Run:
         self.decimate = max(1, -(-n_total // PLOT_POINTS))
         self.kept = {"t": [], "f": [], "y": [], "p": []}
         self.reference = []           # the decimated true forces of a simulated record
-        self.force_std = []           # the decimated standard deviations of a smoothed record
         self.saved = None
 
     def start(self, estimator):
@@ -566,7 +589,7 @@ class _Run:
             raise CheckpointError("the checkpoint was written with another chunk length; start anew with --overwrite")
         estimator.restore(saved)
         self.writer.start(int(saved["position"]))
-        self.kept = {k: [saved[f"plot_{k}"]] for k in self.kept}
+        self.kept = {k: [saved[f"plot_{k}"]] for k in ("t", "f", "y", "p", "s") if f"plot_{k}" in saved}
         self.saved = saved
         return int(saved["next_step"])
 
@@ -588,7 +611,7 @@ class _Run:
         if sim is not None:
             self.reference.append(sim.loads[step + sel])
         if est.smoothed:
-            self.force_std.append(est.force_std[sel])
+            self.kept.setdefault("s", []).append(est.force_std[sel])
 
     def checkpoint(self, estimator, diag, next_step):
         state = estimator.state() | diag.state() | {
@@ -618,7 +641,7 @@ class _Run:
                  [f"{n}:{d}" for n, d in forces], os.path.join(self.out, "estimate.png"),
                  f"{title}: estimated forces" + (" (streamed)" if whole is None else ""),
                  reference=np.vstack(self.reference) if self.reference else None, strain_errors=metrics.get("rms_strain"),
-                 force_std=np.vstack(self.force_std) if self.force_std else None,
+                 force_std=np.vstack(self.kept["s"]) if "s" in self.kept else None,
                  consistency={d["channel"]: d["consistency"] for d in metrics["sensors"]}, note=step)
             draw(files, "sensors_figure", metrics["warnings"], plot_sensors, t, np.vstack(self.kept["y"]),
                  np.vstack(self.kept["p"]), sensors, os.path.join(self.out, "sensors.png"),

@@ -129,7 +129,10 @@ class Job:
     calibrate_modes : list of int or None
         The modes whose frequencies ``calibrate = ["frequencies"]`` learns (None: the default).
     smooth : bool
-        Smooth the estimate with the whole record (:mod:`core_akf.smoother`).
+        Smooth the estimate (:mod:`core_akf.smoother`).
+    smooth_lag : float, "auto" or None
+        The smoother's lag (s); None: the whole record when it is held in one piece, "auto" when
+        it is filtered in chunks.
     calibrate_window : float or None
         Calibrate on the record's first this many seconds (None: the whole record, at most one
         chunk).
@@ -155,6 +158,9 @@ class Job:
         self.calibrate = list(f.calibrate or [])
         self.calibrate_modes = f.calibrate_modes
         self.smooth = bool(f.smooth)
+        self.smooth_lag = f.smooth_lag
+        if self.smooth_lag is not None and not self.smooth:
+            raise AKFInputError("[filter] smooth_lag is the lag of the smoother: set smooth = true as well, or remove it")
         self.calibrate_window = f.calibrate_window
         section = {"place": spec.place, "locate": spec.locate}.get(command)
         if command == "estimate":

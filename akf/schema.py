@@ -152,10 +152,15 @@ class Filter(Section):
         "learns (default the lowest calibration_modes modes below a quarter of the sampling rate)",
         used_by=ESTIMATE, registry="calibration_modes")
     smooth: bool = key("true or false (a TOML boolean, not a string or a number)",
-                       "smooth the estimate with the whole record (RTS smoother): better forces and strains, with "
-                       "their standard deviations (the std column of timeseries.csv, bands in estimate.png); a record "
-                       "in one piece (simulated, or measured with [measurements] chunk at least its length); "
+                       "smooth the estimate with the record after each step (RTS smoother): better forces and "
+                       "strains, with their standard deviations (the std column of timeseries.csv, bands in "
+                       "estimate.png); the whole record when it is held in one piece, else a fixed lag (smooth_lag); "
                        "calibrate first where the model is off", used_by=ESTIMATE)
+    smooth_lag: Positive | Literal["auto"] = key(
+        "a positive number or \"auto\"", "with smooth = true: smooth each step with this many seconds of the record "
+        "after it (fixed-lag smoothing, constant memory: a streamed record of any length); \"auto\": the shortest lag "
+        "after which the record barely changes the estimate (smooth_lag_tolerance); default: the whole record for a "
+        "record in one piece, \"auto\" for a record filtered in chunks", used_by=ESTIMATE, unit="s")
     calibrate_window: Positive = key("a positive number", "the first this many seconds of the record are used to "
                                      "calibrate (default the whole record, at most 65536 steps)",
                                      used_by=ESTIMATE, unit="s")

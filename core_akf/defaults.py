@@ -38,6 +38,9 @@ DEFAULTS = {
                                                       "searched in this range (a scan per mode, then a joint fit)"),
     "calibration_modes": (4, "-", "calibration of frequencies: the lowest this many modes below a quarter of the "
                                   "sampling rate, unless the modes are given"),
+    "smooth_lag_tolerance": (1e-3, "-", "fixed-lag smoothing, lag \"auto\": the shortest lag after which an "
+                                        "innovation weighs less than this fraction of the next step's"),
+    "smooth_lag_longest": (65536, "steps", "fixed-lag smoothing: the longest automatic lag"),
     "calibration_decades": (3.0, "decades", "calibration: a covariance is searched this many decades either side "
                                             "of its starting level"),
 }

@@ -792,18 +792,45 @@ class FilterSetup:
         Estimate
             A new estimate.
         """
-        from dataclasses import replace
-
         from .smoother import smooth
 
-        nx, n_a = self.nx, self.A_a.shape[0]
-        rows = np.vstack([np.eye(n_a)[nx:], self.filter_model.strain_rows()])     # forces, then every strain output
         res = smooth(self.A_a, self.G_a[b], self.Q_a, self.R[b], Y, x0=self.z0, P0=self.Pz0, steady=steady,
-                     covariances=None, outputs=rows)
-        states = res.states @ self.Ta.T
-        n_p = n_a - nx
-        return replace(est, states=states[:, :nx], forces=states[:, nx:], force_std=res.output_std[:, :n_p],
-                       strain_std=res.output_std[:, n_p:])
+                     covariances=None, outputs=self.std_rows())
+        return self.with_std(est, res.states, res.output_std)
+
+    def std_rows(self):
+        """The rows whose standard deviations a smoothed estimate carries.
+
+        Returns
+        -------
+        ndarray (n_p + n_strain, n_a)
+            The forces, then every strain output, on the modal state.
+        """
+        nx, n_a = self.nx, self.A_a.shape[0]
+        return np.vstack([np.eye(n_a)[nx:], self.filter_model.strain_rows()])
+
+    def with_std(self, est, states, std):
+        """A smoothed estimate.
+
+        Parameters
+        ----------
+        est : Estimate
+            The filtered estimate of the same steps (its innovations and likelihood are kept).
+        states : ndarray (N, n_a)
+            The smoothed modal states.
+        std : ndarray (N, n_p + n_strain)
+            The standard deviations of :meth:`std_rows`.
+
+        Returns
+        -------
+        Estimate
+        """
+        from dataclasses import replace
+
+        states = states @ self.Ta.T
+        n_p = self.A_a.shape[0] - self.nx
+        return replace(est, states=states[:, :self.nx], forces=states[:, self.nx:], force_std=std[:, :n_p],
+                       strain_std=std[:, n_p:])
 
 
 def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,

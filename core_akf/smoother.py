@@ -144,10 +144,8 @@ class _Forward:
     @classmethod
     def steady(cls, A, G, R, x, X, P, L):
         """From the steady filter's states ``X``, prior covariance ``P`` and gain ``L``."""
-        I_LG = np.eye(A.shape[0]) - L @ G
-        post = I_LG @ P @ I_LG.T + L @ R @ L.T                     # Joseph form: symmetric PSD
         X_prior = np.vstack([x, X[:-1] @ A.T])
-        return cls(X, X_prior, [0.5 * (post + post.T)], [P], 0)
+        return cls(X, X_prior, [_posterior(P, L, G, R)], [P], 0)
 
     @classmethod
     def time_varying(cls, A, G, Q, R, Y, x, P):
@@ -229,6 +227,214 @@ class _Forward:
             store(k, P_s)
             k -= 1
         return SmoothResult(Xs, Ps, X, C, None if out_var is None else np.sqrt(np.maximum(out_var, 0.0)))
+
+
+def _posterior(P, L, G, R):
+    """The filtered covariance ``(I - L G) P (I - L G)^T + L R L^T`` (Joseph form: symmetric PSD)."""
+    I_LG = np.eye(P.shape[0]) - L @ G
+    post = I_LG @ P @ I_LG.T + L @ R @ L.T
+    return 0.5 * (post + post.T)
+
+
+class FixedLagSmoother:
+    """The states ``x_k|k+lag`` of a steady-state filter, chunk by chunk, in constant memory.
+
+    With constant gains the RTS correction of step k is a finite sum over the innovations after
+    it (``C`` the smoother gain, ``L`` the filter gain)::
+
+        x_k|k+lag = x_k|k + sum_{i=1..lag} C^i L e_k+i
+
+    :meth:`update` takes the filter's states and innovations of the next chunk and returns the
+    smoothed states of the steps whose ``lag`` following steps have arrived: the output runs
+    ``lag`` steps behind the input, and only those ``lag`` steps are held between chunks.  Each
+    is exactly the RTS smoother's estimate on the record up to ``k + lag``, wherever the chunks
+    end.  :meth:`finish` returns the last ``lag`` steps (smoothed with what follows them: the RTS
+    smoother of the whole record there).  Their standard deviations come with them for the rows
+    ``outputs``.
+
+    Parameters
+    ----------
+    A, G : ndarray (n, n), (m, n)
+        Transition and observation of the filter.
+    R : ndarray (m, m)
+        Measurement-noise covariance.
+    P : ndarray (n, n)
+        The steady prior covariance ``P_k+1|k``.
+    L : ndarray (n, m)
+        The steady filter gain.
+    lag : int or "auto"
+        Steps of the record after each step that smooth it (>= 1); "auto": :meth:`auto_lag`.
+    outputs : ndarray (k, n), optional
+        Rows ``H`` whose standard deviation is returned (None: none).
+
+    Examples
+    --------
+    A random walk in noise, in chunks of 70 steps with a lag of 40: the steady RTS smoother of
+    the record up to each step + 40.
+
+    >>> import numpy as np
+    >>> from core_akf.steady import steady_states
+    >>> y = np.cumsum(np.random.default_rng(0).normal(size=300))[:, None]
+    >>> A = G = Q = R = np.eye(1)
+    >>> X, L, P = steady_states(A[None], G[None], Q[None], R[None], y[None], np.zeros((1, 1)))
+    >>> E = y - np.vstack([np.zeros((1, 1)), X[0, :-1]])                    # the innovations
+    >>> lagged = FixedLagSmoother(A, G, R, P[0], L[0], lag=40)
+    >>> parts = [lagged.update(X[0, i:i + 70], E[i:i + 70])[0] for i in range(0, 300, 70)]
+    >>> x = np.vstack(parts + [lagged.finish()[0]])
+    >>> x.shape, bool(np.allclose(x[100], smooth(A, G, Q, R, y[:141], steady=True).states[100]))
+    ((300, 1), True)
+    """
+
+    def __init__(self, A, G, R, P, L, lag, outputs=None):
+        A, G, R, P, L = (np.asarray(a, float) for a in (A, G, R, P, L))
+        post = _posterior(P, L, G, R)
+        self.C = C = np.linalg.solve(P, A @ post).T                  # P_k|k A^T P_k+1|k^-1
+        self.CL = C @ L
+        if isinstance(lag, str) and lag == "auto":
+            lag = self.auto_lag()
+        if isinstance(lag, (bool, str)) or not np.isscalar(lag) or int(lag) != lag or lag < 1:
+            raise AKFInputError(f"the lag must be a whole number of steps >= 1 or \"auto\", got {lag!r}")
+        self.lag = int(lag)
+        self.far = -np.linalg.matrix_power(C, self.lag) @ self.CL     # the term that leaves the window
+        self.n, self.m = A.shape[0], G.shape[0]
+        self.output_var = None
+        if outputs is not None:
+            H = np.asarray(outputs, float)
+            var, P_l = [np.einsum("ij,jk,ik->i", H, post, H)], post
+            for _ in range(self.lag):                                # P^(l) = P_post + C (P^(l-1) - P) C^T
+                P_l = post + C @ (P_l - P) @ C.T
+                P_l = 0.5 * (P_l + P_l.T)
+                var.append(np.einsum("ij,jk,ik->i", H, P_l, H))
+            self.output_var = np.maximum(np.array(var), 0.0)          # (lag + 1, k): by lag
+        self.held = [np.empty((0, self.n)), np.empty((0, self.m))]   # filtered states, innovations, carried rows
+
+    def auto_lag(self, tolerance: float | None = None, longest: int | None = None) -> int:
+        """The shortest lag whose smoothing misses little: the smallest ``l`` with
+        ``||C^l L|| <= tolerance ||C L||`` (the weight of the innovation ``l`` steps ahead, against
+        the next one's).
+
+        Parameters
+        ----------
+        tolerance : float, optional
+            Default ``smooth_lag_tolerance`` (:data:`core_akf.defaults.DEFAULTS`).
+        longest : int, optional
+            The longest lag tried (default ``smooth_lag_longest``); reached, it is returned.
+
+        Returns
+        -------
+        int
+        """
+        from .defaults import default
+
+        tolerance, longest = default("smooth_lag_tolerance", tolerance), default("smooth_lag_longest", longest)
+        W, first = self.CL, np.linalg.norm(self.CL)
+        lag = 1
+        while lag < longest and np.linalg.norm(W) > tolerance * first:
+            W = self.C @ W
+            lag += 1
+        return lag
+
+    @property
+    def n_held(self):
+        """Steps received and not yet returned (at most ``lag``)."""
+        return self.held[0].shape[0]
+
+    def update(self, X: ArrayLike, E: ArrayLike, *carried: ArrayLike) -> tuple:
+        """Take the next chunk of the filter's output; return the steps now smoothed.
+
+        Parameters
+        ----------
+        X : ndarray (K, n)
+            Filtered states ``x_k|k`` of the chunk.
+        E : ndarray (K, m)
+            Its innovations ``e_k = y_k - G x_k|k-1``.
+        *carried : ndarray (K, ...)
+            Rows of the same steps to return with them (measurements, ...), delayed alike.
+
+        Returns
+        -------
+        tuple
+            ``(states, output_std, *carried)`` of the steps returned (``max(0, held + K - lag)``
+            rows, the oldest first); ``output_std`` is None without ``outputs``.
+        """
+        X, E = np.asarray(X, float), np.asarray(E, float)
+        if X.ndim != 2 or E.ndim != 2 or X.shape[1] != self.n or E.shape != (X.shape[0], self.m) \
+                or any(np.shape(c)[0] != X.shape[0] for c in carried):
+            raise AKFInputError(f"a chunk must have states (K, {self.n}), innovations (K, {self.m}) and K rows of "
+                                f"everything carried; got {X.shape}, {E.shape}")
+        if len(self.held) == 2 and carried:
+            self.held += [np.empty((0,) + np.shape(c)[1:]) for c in carried]
+        rows = [np.concatenate([h, c]) for h, c in zip(self.held, (X, E) + carried)]
+        K = max(0, rows[0].shape[0] - self.lag)
+        self.held = [r[K:] for r in rows]
+        if K == 0:
+            return self._out(np.empty((0, self.n)), np.empty(0, int), [r[:0] for r in rows[2:]])
+        Xb, Eb = rows[0], rows[1]
+        delta = np.empty((K, self.n))
+        delta[K - 1] = self._tail_sum(Eb[K:K + self.lag])
+        if K > 1:                     # backwards: delta_j = C delta_j+1 + C L e_j+1 - C^(lag+1) L e_j+1+lag
+            U = np.hstack([Eb[1:K], Eb[1 + self.lag:K + self.lag]])[::-1]
+            U = np.vstack([np.zeros((1, 2 * self.m)), U])
+            back = lti_response(self.C[None], np.hstack([self.CL, self.far])[None], U[None], delta[K - 1][None])[0]
+            delta[:K - 1] = back[1:][::-1]
+        return self._out(Xb[:K] + delta, np.full(K, self.lag), [r[:K] for r in rows[2:]])
+
+    def finish(self) -> tuple:
+        """The steps still held, smoothed with the steps after them (the end of the record).
+
+        Returns
+        -------
+        tuple
+            As :meth:`update`.
+        """
+        Xb, Eb = self.held[0], self.held[1]
+        K = Xb.shape[0]
+        delta = np.zeros((K, self.n))
+        for j in range(K - 2, -1, -1):            # the RTS smoother's backward pass: delta_j = C (delta_j+1 + L e_j+1)
+            delta[j] = self.C @ delta[j + 1] + self.CL @ Eb[j + 1]
+        out = self._out(Xb + delta, np.arange(K - 1, -1, -1), self.held[2:])
+        self.held = [h[:0] for h in self.held]
+        return out
+
+    def _tail_sum(self, E):
+        """``sum_i C^i L e_i`` over the rows of ``E`` (i = 1..len(E)), by Horner's rule."""
+        t = np.zeros(self.n)
+        for e in E[::-1]:
+            t = self.C @ t + self.CL @ e
+        return t
+
+    def _out(self, states, lags, carried):
+        std = None if self.output_var is None else np.sqrt(self.output_var[lags])
+        return (states, std, *carried)
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The steps held (to save with a checkpoint; :meth:`restore` takes it back).
+
+        Returns
+        -------
+        dict of str to ndarray
+        """
+        return {f"lag_held_{i}": h for i, h in enumerate(self.held)}
+
+    def restore(self, state: dict) -> FixedLagSmoother:
+        """Continue from a :meth:`state`.
+
+        Parameters
+        ----------
+        state : mapping of str to ndarray
+            What :meth:`state` returned.
+
+        Returns
+        -------
+        FixedLagSmoother
+            ``self``.
+        """
+        held = [np.asarray(state[f"lag_held_{i}"], float) for i in range(sum(k.startswith("lag_held_") for k in state))]
+        if len(held) < 2 or held[0].shape[1:] != (self.n,) or held[1].shape[1:] != (self.m,) \
+                or held[0].shape[0] > self.lag or any(h.shape[0] != held[0].shape[0] for h in held):
+            raise AKFInputError("not the held steps of this fixed-lag smoother")
+        self.held = held
+        return self
 
 
 def _backward_states(C, I_CA, X, start, N):

@@ -74,6 +74,12 @@ class Estimator:
     switch_tol : float
         The time-varying filter continues with its (then constant) gain once its covariance
         changes by less than this, relatively (as :func:`core_akf.filter.filter_states`).
+    smooth_lag : int or "auto", optional
+        Smooth with this many steps of the record after each step
+        (:class:`core_akf.smoother.FixedLagSmoother`, steady filter only): :meth:`update` then
+        returns the smoothed estimate of the steps ``smooth_lag`` behind the input, with
+        :attr:`~core_akf.filter.Estimate.force_std` and ``strain_std``, and :meth:`finish` the
+        last ones.
 
     Examples
     --------
@@ -97,7 +103,7 @@ class Estimator:
     def __init__(self, structure: Structure, sensors: Layout, forces: Forces, dt: float, *, model_error_cov: Covariance,
                  force_increment_cov: Covariance, noise_cov: NoiseCovariance, steady: bool | None = None,
                  allow_undetectable: bool = False, x0: ArrayLike | None = None, P0: Covariance | None = None,
-                 t0: float = 0.0, switch_tol: float = 1e-14):
+                 t0: float = 0.0, switch_tol: float = 1e-14, smooth_lag: int | str | None = None):
         if not np.isfinite(dt) or dt <= 0:
             raise AKFInputError(f"dt must be a positive time step in seconds, got {dt!r}")
         self.layout = as_layout(sensors)
@@ -130,6 +136,15 @@ class Estimator:
             self._P = s.Q_a.copy() if s.Pz0 is None else 0.5 * (s.Pz0 + s.Pz0.T)
             self._L = None
         self._switched = steady            # True: the fixed-gain recursion runs
+        self.lagged = None
+        if smooth_lag is not None:
+            from .smoother import FixedLagSmoother
+
+            if not steady:
+                raise AKFInputError("fixed-lag smoothing runs on the steady-state filter (steady=True); the "
+                                    "time-varying filter has no constant smoother gain")
+            self.lagged = FixedLagSmoother(s.A_a, s.G_a[0], s.R[0], self._P, self._L, smooth_lag, s.std_rows())
+        self.n_returned = 0                # steps returned (behind n_steps by the steps the smoother holds)
         self._fingerprint = self._digest()
 
     @property
@@ -166,6 +181,8 @@ class Estimator:
                                 f"starting at step {self.n_steps}; first at step {self.n_steps + r} "
                                 f"(t = {self.t0 + (self.n_steps + r) * self.dt:.9g} s), channel {self.layout[c].label!r}")
         t0 = self.t0 + self.n_steps * self.dt
+        if Y.shape[0] == 0 and self.lagged is not None:
+            return self._smoothed(*self.lagged.update(np.empty((0, self.setup.A_a.shape[0])), Y, Y, Y, Y))
         if Y.shape[0] == 0:
             return self.setup.estimates(np.zeros((1, 0, self.setup.A_a.shape[0])), Y[None], self._gain()[None],
                                         self._P[None], Y[None], [self.report], t0=t0,
@@ -190,8 +207,32 @@ class Estimator:
                 self._switched, self._L = True, np.ascontiguousarray(L)
         self._z = X[-1].copy()
         self.n_steps += Y.shape[0]
+        if self.lagged is not None:
+            return self._smoothed(*self.lagged.update(X, innov, innov, Y, terms))
+        self.n_returned = self.n_steps
         return s.estimates(X[None], innov[None], L[None], self._P[None], Y[None], [self.report], t0=t0,
                            terms=terms[None])[0]
+
+    def finish(self) -> Estimate:
+        """The steps a fixed-lag smoother still holds, smoothed with the rest of the record (the
+        end of the record); an estimate of no steps without ``smooth_lag``.
+
+        Returns
+        -------
+        Estimate
+        """
+        if self.lagged is None:
+            return self.update(np.empty((0, self.n_channels)))
+        return self._smoothed(*self.lagged.finish())
+
+    def _smoothed(self, X, std, innov, Y, terms):
+        """The estimate of steps the fixed-lag smoother returned."""
+        s = self.setup
+        t0 = self.t0 + self.n_returned * self.dt
+        self.n_returned += X.shape[0]
+        est = s.estimates(X[None], innov[None], self._L[None], self._P[None], Y[None], [self.report], t0=t0,
+                          terms=terms[None])[0]
+        return s.with_std(est, X, std)
 
     def _gain(self):
         return self._L if self._L is not None else np.zeros((self.setup.A_a.shape[0], self.n_channels))
@@ -205,6 +246,8 @@ class Estimator:
         for a in (s.A_a, s.G_a, s.Q_a, s.R):
             h.update(np.ascontiguousarray(a).tobytes())
         h.update(repr((self.dt, self.t0, self.steady, [x.label for x in self.layout], self.locs)).encode())
+        if self.lagged is not None:
+            h.update(f"smooth_lag {self.lagged.lag}".encode())
         return h.hexdigest()
 
     def state(self) -> dict[str, np.ndarray]:
@@ -218,7 +261,8 @@ class Estimator:
         n = self.setup.A_a.shape[0]
         return {"n_steps": np.array(self.n_steps), "z": np.full(n, np.nan) if self._z is None else self._z.copy(),
                 "P": self._P.copy(), "L": self._gain().copy(), "switched": np.array(self._switched),
-                "started": np.array(self._z is not None), "fingerprint": np.array(self._fingerprint)}
+                "started": np.array(self._z is not None), "fingerprint": np.array(self._fingerprint),
+                "n_returned": np.array(self.n_returned)} | ({} if self.lagged is None else self.lagged.state())
 
     def restore(self, state: Mapping[str, np.ndarray]) -> Estimator:
         """Continue from a :meth:`state` saved by this filter (the same job).
@@ -248,6 +292,12 @@ class Estimator:
         if fingerprint != self._fingerprint:
             raise CheckpointError("the saved filter state belongs to another filter (structure, sensors, forces, dt, "
                                   "covariances or filter form differ); start the run anew")
+        if self.lagged is not None:
+            try:
+                self.lagged.restore(state)
+            except (KeyError, AKFInputError) as exc:
+                raise CheckpointError(f"the saved state lacks the steps the fixed-lag smoother held ({exc})") from None
+        self.n_returned = int(state["n_returned"]) if "n_returned" in state else n_steps
         self.n_steps, self._P, self._switched = n_steps, np.ascontiguousarray(P), switched
         self._L = np.ascontiguousarray(L) if switched else None
         self._z = z.copy() if started else None
