@@ -15,7 +15,7 @@ A locate job (TOML)::
     direction = "y"                 # force direction at the candidates
     candidates = [2, 3, 4]          # optional: node ids (default every free node)
     max_splits = 50                 # optional cap (seeded sample)
-    tune = true                     # GA covariance tuning
+    tune = true                     # covariance tuning: true or "ga" (the paper's GA), "ml" (maximum likelihood), false
     n_modes = "auto"                # filter reduction for scan/tuning ("auto", an int, or "full")
 
     [locate.covariances]            # optional assumed levels (default: from the data)
@@ -48,7 +48,7 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
 
     ``simulation``: for a job with ``[simulation]``, the :class:`~core_akf.simulate.Simulation`
     already run from it (the truth a built-in example shows beside the result), so that it is not
-    simulated twice; ``tune`` overrides ``[locate] tune`` (``--no-tune``)."""
+    simulated twice; ``tune`` overrides ``[locate] tune`` (``--no-tune``: False, ``--tune``: "ga" or "ml")."""
     from impactloc.locate import locate
     from impactloc.scan import Covariances
 

@@ -320,8 +320,10 @@ class Locate(Section):
     candidates: Annotated[list[int], Field(min_length=1)] = key(
         "a non-empty list of integers", "candidate node ids (default every free node)", used_by=LOCATE)
     max_splits: Count = key("an integer >= 1", "cap on the role splits (a seeded sample)", used_by=LOCATE)
-    tune: bool = key("true or false (a TOML boolean, not a string or a number)",
-                               "tune the covariances with a GA (default true)", used_by=LOCATE)
+    tune: bool | Literal["ga", "ml"] = key(
+        "true, false, \"ga\" or \"ml\"", "tune the covariances at the identified location: with the paper's GA "
+        "(true or \"ga\", the default; the tuned levels are kept where they lower the AD error) or by maximum "
+        "likelihood of the record (\"ml\"; faster, every level fitted); false: not at all", used_by=LOCATE)
     n_modes: Modes = key("an integer >= 1, \"auto\" or \"full\"", "filter modes for the scan and the "
                                    "tuning", used_by=LOCATE)
     skip: NonNegative = key("a number >= 0", "seconds at the start left out of the AD error",

@@ -17,8 +17,9 @@ from .reconstruct import ForceSummary, Reconstruction, force_summary, reconstruc
 from .roles import RoleSplit, role_splits
 from .scan import Covariances, ImpactModel, ScanResult, candidate_locations, default_covariances, scan
 from .simulation import simulate_impact
-from .tuning import TuningResult, tune_covariances
+from .tuning import TuningResult, tune_covariances, tune_covariances_ml
 
 __all__ = ["LocateResult", "locate", "plot_locate", "ForceSummary", "Reconstruction",
            "force_summary", "reconstruct", "RoleSplit", "role_splits", "Covariances", "ImpactModel", "ScanResult",
-           "candidate_locations", "default_covariances", "scan", "simulate_impact", "TuningResult", "tune_covariances"]
+           "candidate_locations", "default_covariances", "scan", "simulate_impact", "TuningResult", "tune_covariances",
+           "tune_covariances_ml"]

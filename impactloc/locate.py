@@ -16,12 +16,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core_akf.exceptions import AKFInputError
 from core_akf.sensors import as_layout
 
 from .reconstruct import reconstruct
 from .roles import role_splits
 from .scan import ImpactModel, candidate_locations, default_covariances, scan
-from .tuning import tune_covariances
+from .tuning import tune_covariances, tune_covariances_ml
 
 #: units of the numbers in :meth:`LocateResult.to_dict` (and ``akf locate --json``)
 LOCATE_UNITS = {"confidence": "share of role splits (0-1)", "margin": "runner-up distance in pooled spreads",
@@ -78,6 +79,7 @@ class LocateResult:
                "ranking": self.scan.ranking(), "warnings": self.warnings, "seconds": self.seconds,
                "units": LOCATE_UNITS}
         if self.tuning is not None:
+            out["tuning"] = self.tuning.method
             out["ad_error_before_tuning"] = self.tuning.initial_error
             out["ad_error_after_tuning"] = self.tuning.tuned_error
         return out
@@ -85,7 +87,7 @@ class LocateResult:
 
 def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: float, *, n_ad: int, direction: str,
            ad_kinds: tuple[str, ...] = ("strain",), candidates: list[int] | None = None,
-           covariances: Covariances | None = None, tune: bool = True, max_splits: int | None = None,
+           covariances: Covariances | None = None, tune: bool | str = True, max_splits: int | None = None,
            n_modes: int | str | None = "auto", skip: float = 0.0, n_jobs: int = 1, seed: int = 0,
            progress: bool = False, tuning: dict | None = None) -> LocateResult:
     """Locate an impact and reconstruct its force history.
@@ -110,8 +112,10 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
         Candidate node ids, 1-based (default: every free node in ``direction``).
     covariances : Covariances, optional
         The assumed levels (default :func:`default_covariances`).
-    tune : bool
-        Run the covariance GA.
+    tune : bool, "ga" or "ml"
+        Tune the covariances at the identified location: True or "ga" with the paper's GA
+        (:func:`tune_covariances`; its levels are kept if they lower the AD error), "ml" by maximum
+        likelihood (:func:`tune_covariances_ml`; its levels are kept), False not at all.
     max_splits : int, optional
         Cap on the role splits (a seeded sample).
     n_modes : int, "auto" or None
@@ -126,7 +130,7 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
         Progress bars.
     tuning : dict, optional
         Options of :func:`tune_covariances` (population, generations, n_splits, decades,
-        crossover, mutation).
+        crossover, mutation); with ``tune="ml"`` only n_splits and decades apply.
 
     Returns
     -------
@@ -146,6 +150,9 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
     >>> res.scan.identified, res.scan.confidence
     ((14, 'y'), 1.0)
     """
+    method = {True: "ga", False: None, "ga": "ga", "ml": "ml"}.get(tune, "?") if isinstance(tune, (bool, str)) else "?"
+    if method == "?":
+        raise AKFInputError(f"tune must be True, False, \"ga\" or \"ml\", got {tune!r}")
     layout = as_layout(sensors)
     Y = np.asarray(measurements, dtype=float)
     splits = role_splits(layout, n_ad, ad_kinds, max_splits=max_splits, seed=seed)
@@ -159,13 +166,20 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
     seconds["scan"] = time.perf_counter() - t
     tuned = None
     best_cov = cov
-    if tune:
+    if method is not None:
         t = time.perf_counter()
         opts = dict(tuning or {})
-        tuned = tune_covariances(structure, layout, Y, dt, res.identified, splits, start=cov, seed=seed, skip=skip,
-                                 n_jobs=n_jobs, progress=progress, model=model, **opts)
+        if method == "ga":
+            tuned = tune_covariances(structure, layout, Y, dt, res.identified, splits, start=cov, seed=seed, skip=skip,
+                                     n_jobs=n_jobs, progress=progress, model=model, **opts)
+        else:
+            unused = sorted(set(opts) - {"n_splits", "decades"})
+            if unused:
+                raise AKFInputError(f"tune = \"ml\" fits by maximum likelihood: the GA settings {unused} do not apply")
+            tuned = tune_covariances_ml(structure, layout, Y, dt, res.identified, splits, start=cov, seed=seed,
+                                        skip=skip, model=model, **opts)
         seconds["tuning"] = time.perf_counter() - t
-        if tuned.tuned_error < tuned.initial_error:
+        if method == "ml" or tuned.tuned_error < tuned.initial_error:
             best_cov = tuned.covariances
     t = time.perf_counter()
     initial = reconstruct(structure, layout, Y, dt, res.identified, cov, n_modes)

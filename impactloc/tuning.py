@@ -1,10 +1,14 @@
-"""Covariance tuning (IMP §3): a genetic algorithm (on the engine of :mod:`core_akf.evolution`) over the log10 levels of ``Q`` (model
-error), ``S`` (force increment) and ``R`` (noise per sensor kind) that minimises the AD error at
-the identified location, averaged over role splits.
+"""Covariance tuning at the identified location, two ways.
 
-The Kalman gain does not change when ``Q``, ``S`` and ``R`` are all scaled by one factor, so one
-noise level (the first sensor kind's) stays at its starting value and the GA searches the others
-relative to it: one gene fewer, no flat direction.
+* The paper's (IMP §3, :func:`tune_covariances`): a genetic algorithm (on the engine of
+  :mod:`core_akf.evolution`) over the log10 levels of ``Q`` (model error), ``S`` (force increment)
+  and ``R`` (noise per sensor kind) that minimises the AD error, averaged over role splits.  The
+  Kalman gain does not change when ``Q``, ``S`` and ``R`` are all scaled by one factor, so one
+  noise level (the first sensor kind's) stays at its starting value and the GA searches the others
+  relative to it: one gene fewer, no flat direction.
+* Maximum likelihood (:func:`tune_covariances_ml`): the levels under which the whole record, all
+  sensors together, is most probable (:func:`core_akf.calibration.calibrate`); the likelihood sees
+  the absolute levels, so every level is fitted.
 """
 from __future__ import annotations
 
@@ -50,6 +54,10 @@ class TuningResult:
     settled : {gene: "lower"|"upper"} for levels on a bound beyond which the error no longer
         changes (within :data:`BOUND_INSENSITIVE`): e.g. no model error at all when the filter's
         model is exact.  Not a warning: any level past the bound gives the same estimate.
+    method : "ga" or "ml"
+        How the levels were tuned.
+    messages : list of str
+        Further warnings of the fit (maximum likelihood: a level the record does not identify).
     """
 
     covariances: Covariances
@@ -59,6 +67,8 @@ class TuningResult:
     genes: list = field(default_factory=list)
     at_bound: dict = field(default_factory=dict)
     settled: dict = field(default_factory=dict)
+    method: str = "ga"
+    messages: list = field(default_factory=list)
 
     @property
     def warnings(self):
@@ -69,7 +79,7 @@ class TuningResult:
 
         return [f"covariance tuning stopped at the {side} search bound of {gene} ({level(gene):.3g}); the best "
                 "level may lie beyond it: widen tuning.decades or start from other levels"
-                for gene, side in self.at_bound.items()]
+                for gene, side in self.at_bound.items()] + [f"covariance tuning: {m}" for m in self.messages]
 
 
 def _to_covariances(x, names, start):
@@ -244,3 +254,100 @@ def tune_covariances(structure: Structure, sensors: Layout, measurements: Measur
             del at_bound[g]
     return TuningResult(_to_covariances(list(best_x), names, start), float(initial_error), float(best_f),
                         res.logbook, names, at_bound, settled)
+
+
+#: the names of :func:`core_akf.calibration.calibrate` for the genes of :class:`TuningResult`
+_ML_GENES = {"model_error_cov": "model_error", "force_increment_cov": "force_increment"}
+
+
+def tune_covariances_ml(structure: Structure, sensors: Layout, measurements: Measurements, dt: float,
+                        location: ForceLocation, splits: Sequence[RoleSplit], *, start: Covariances,
+                        decades: float = 3.0, n_splits: int = 8, seed: int = 0, skip: float = 0.0,
+                        n_modes: int | str | None = "auto", model: ImpactModel | None = None) -> TuningResult:
+    """Tune the AKF covariance levels by maximum likelihood at a known force location.
+
+    The levels of ``S``, ``R`` per sensor kind and (when it starts above zero) ``Q`` that make the
+    record most probable under the steady-state AKF fed by every sensor
+    (:func:`core_akf.calibration.calibrate` on the filter model of the scan).  The AD errors before
+    and after are those of :func:`tune_covariances` (the same split sample), to compare the two.
+
+    Parameters
+    ----------
+    structure : Structure
+        The filter's model.
+    sensors : sequence of sensor specs
+        The installed layout.
+    measurements : array_like (N, m)
+        The record (SI).
+    dt : float
+        Time step (s).
+    location : (int, str)
+        The identified impact location ``(node, direction)``.
+    splits : list of RoleSplit
+        Role splits; ``n_splits`` of them (a seeded sample, as the GA's) give the AD errors.
+    start : Covariances
+        The assumed levels; the search spans +-``decades`` around them.
+    decades : float
+        Half-width of the search (decades of each level).
+    n_splits : int
+        Role splits of the AD errors.
+    seed : int
+        The split sample.
+    skip : float
+        Seconds at the start left out of the AD errors.
+    n_modes : int, "auto" or None
+        Filter model reduction (see :class:`ImpactModel`).
+    model : ImpactModel, optional
+        A prepared model to reuse.
+
+    Returns
+    -------
+    TuningResult
+        ``method = "ml"``; ``logbook`` one row (log-likelihood before and after, filters run,
+        seconds); ``messages`` the warnings of the fit.
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss
+    >>> from impactloc import default_covariances, role_splits, simulate_impact
+    >>> sensors = ["strain:5", "strain:9", "strain:13", "strain:22", "strain:26", "acc:6:y", "acc:10:y"]
+    >>> Y = simulate_impact(s17_truss(), sensors, "14:y").measurements
+    >>> res = tune_covariances_ml(s17_truss(), sensors, Y, 1e-3, (14, "y"), role_splits(sensors, 2),
+    ...                           start=default_covariances(sensors, Y))
+    >>> res.method, sorted(res.genes)
+    ('ml', ['force_increment', 'model_error', 'noise_acc', 'noise_strain'])
+    """
+    import time
+
+    import pandas as pd
+
+    from core_akf.calibration import calibrate
+
+    if not decades > 0:
+        raise AKFInputError(f"decades must be > 0, got {decades}")
+    if not splits:
+        raise AKFInputError("no role splits given")
+    t0 = time.perf_counter()
+    model = model or ImpactModel(structure, sensors, dt, n_modes)
+    Y = check_measurements(model.layout, measurements)
+    k = model.n_modes
+    filter_structure = structure if k is None else structure.memo(
+        ("reduced with static correction", int(k)), lambda: structure.reduce(int(k), static_correction=True))
+    parameters = ["noise_cov", "force_increment_cov"] + (["model_error_cov"] if start.model_error > 0 else [])
+    fit = calibrate(filter_structure, model.layout, [location], Y, dt, parameters=parameters,
+                    model_error_cov=start.model_error, force_increment_cov=start.force_increment,
+                    noise_cov=dict(start.noise), decades=decades)
+    v = fit.values
+    tuned = Covariances(v.get("model_error_cov", start.model_error), v["force_increment_cov"],
+                        {kind: v["noise_cov"].get(kind, level) for kind, level in start.noise.items()})
+    rng = np.random.default_rng(seed)
+    picked = sorted(rng.choice(len(splits), size=min(n_splits, len(splits)), replace=False).tolist())
+    _, rel = location_errors(model, location, [splits[i] for i in picked], Y, [start, tuned], int(round(skip / dt)))
+    with np.errstate(all="ignore"):
+        initial_error, tuned_error = (float(e) for e in np.nanmean(rel, axis=(1, 2)))
+    genes = [_ML_GENES.get(n, n.replace("noise_cov:", "noise_")) for n in fit.multipliers]
+    logbook = pd.DataFrame([{"loglik_before": fit.loglik_before, "loglik_after": fit.loglik_after,
+                             "evaluations": fit.evaluations, "seconds": time.perf_counter() - t0}])
+    messages = [w.replace("noise_cov:", "noise_").replace("force_increment_cov", "force_increment")
+                .replace("model_error_cov", "model_error") for w in fit.warnings]
+    return TuningResult(tuned, initial_error, tuned_error, logbook, genes, method="ml", messages=messages)

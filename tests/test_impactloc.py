@@ -21,6 +21,7 @@ from impactloc import (
     role_splits,
     scan,
     tune_covariances,
+    tune_covariances_ml,
 )
 from impactloc.scan import ImpactModel, location_errors
 
@@ -119,6 +120,34 @@ def test_tuning_lowers_ad_error_and_force_error(truss1):
     assert strain_after < strain_before
 
 
+def test_maximum_likelihood_tuning_fits_every_level_and_helps_the_force(truss1):
+    """tune="ml": the levels that make the record likeliest (every one fitted: the likelihood sees
+    the absolute levels), the likelihood up, the force history closer to the truth than with the
+    assumed levels, and the AD errors of the same split sample as the GA's reported."""
+    sc = truss1
+    res = locate(sc.structure, sc.sensors, sc.measurements, sc.dt, n_ad=4, direction="y", tune="ml")
+    t = res.tuning
+    assert t.method == "ml" and res.to_dict()["tuning"] == "ml"
+    assert sorted(t.genes) == ["force_increment", "model_error", "noise_acc", "noise_strain"]
+    assert t.logbook["loglik_after"].iloc[0] > t.logbook["loglik_before"].iloc[0]
+    assert res.reconstruction.estimate is not res.initial.estimate          # the fitted levels are used
+    assert rms_error(res.reconstruction.force, sc.true_force) < 0.5 * rms_error(res.initial.force, sc.true_force)
+    assert t.tuned_error < t.initial_error
+    splits = role_splits(sc.sensors, 4, "strain")
+    again = tune_covariances_ml(sc.structure, sc.sensors, sc.measurements, sc.dt, (14, "y"), splits,
+                                start=default_covariances(sc.sensors, sc.measurements))
+    assert again.covariances == t.covariances and again.initial_error == t.initial_error
+
+
+@pytest.mark.parametrize("tune, tuning, message", [("fast", None, "tune must be"), (1, None, "tune must be"),
+                                                   ("ml", {"population": 8}, "do not apply")])
+def test_a_tuning_method_that_does_not_exist_is_named(truss1, tune, tuning, message):
+    sc = truss1
+    with pytest.raises(AKFInputError, match=message):
+        locate(sc.structure, sc.sensors, sc.measurements, sc.dt, n_ad=4, direction="y", tune=tune, tuning=tuning,
+               max_splits=4)
+
+
 def test_tuning_is_reproducible_whatever_the_number_of_workers(truss1):
     sc = truss1
     splits = role_splits(sc.sensors, 4, "strain")
@@ -182,6 +211,14 @@ def test_cli_locate_job_from_csv_and_json(tmp_path, truss1, capsys):
     assert d["identified"] == 14 and 0 <= d["confidence"] <= 1
     assert d["peak_force"] == pytest.approx(1e4, rel=0.25)
     assert [r["node"] for r in d["ranking"]][0] == 14 and {"node", "mean", "std"} <= set(d["ranking"][0])
+
+
+def test_cli_locate_tunes_by_maximum_likelihood(tmp_path, capsys):
+    assert main(["locate", "--example", "imp-truss-case1", "--tune", "ml", "--no-plot", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "covariance tuning (maximum likelihood): AD error" in out and "identified: node 14" in out
+    assert main(["locate", "--example", "imp-truss-case1", "--tune", "ml", "--no-tune", "--out", str(tmp_path)]) == 2
+    assert "give one of them" in capsys.readouterr().err
 
 
 def test_cli_locate_example_json(tmp_path, capsys):

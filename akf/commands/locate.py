@@ -58,7 +58,9 @@ def _locate(args):
     print(f"  force: peak {d['peak_force'] / 1e3:.3f} kN at {d['time_of_peak']:.4f} s, duration {d['duration'] * 1e3:.1f} ms, "
           f"impulse {d['impulse']:.2f} N s")
     if result.tuning is not None:
-        print(f"  covariance tuning: AD error {d['ad_error_before_tuning']:.4f} -> {d['ad_error_after_tuning']:.4f}")
+        how = "maximum likelihood" if result.tuning.method == "ml" else "GA"
+        print(f"  covariance tuning ({how}): AD error {d['ad_error_before_tuning']:.4f} -> "
+              f"{d['ad_error_after_tuning']:.4f}")
         for gene, side in result.tuning.settled.items():
             print(f"    {gene} tuned to its {side} search bound, beyond which the error no longer changes "
                   f"({'the data need no more of it' if side == 'lower' else 'any larger level does the same'})")
@@ -82,7 +84,7 @@ def _locate_events(args, job):
         if not args.json:
             print(f"{name}: locating the impact of every file of {job.spec.measurements.file}")
         frame, files = locate_events(job, out, n_jobs=workers(args), seed=args.seed, progress=not args.json,
-                                     tune=False if args.no_tune else None, plot=not args.no_plot)
+                                     tune=_tune(args), plot=not args.no_plot)
     located = frame["node"].notna().sum()
     if args.json:
         print(json.dumps({"name": name, "events": json.loads(frame.to_json(orient="records")), "files": files}))
@@ -96,6 +98,13 @@ def _locate_events(args, job):
     return 0
 
 
+def _tune(args):
+    """The tuning the command line asks for: False (--no-tune), "ga" or "ml" (--tune), None (the job's)."""
+    if args.no_tune and args.tune:
+        raise AKFInputError("--no-tune skips the tuning and --tune chooses how to tune: give one of them")
+    return False if args.no_tune else args.tune
+
+
 def _prepare_locate(args, progress):
     """What ``akf locate`` runs: ``(run, scenario or None, output name)``; ``run()`` does the
     identification and returns the :class:`~impactloc.locate.LocateResult`."""
@@ -107,7 +116,7 @@ def _prepare_locate(args, progress):
 
         def run():
             return run_locate_job(scenario.job, n_jobs=workers(args), seed=args.seed, progress=progress,
-                                  tune=False if args.no_tune else None, simulation=scenario.simulation)
+                                  tune=_tune(args), simulation=scenario.simulation)
         return run, scenario, f"{args.example}-node{scenario.impact[0]}-{args.noise}"
     if args.impact_node is not None:
         raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")
@@ -115,7 +124,7 @@ def _prepare_locate(args, progress):
 
     def run():
         return run_locate_job(job, n_jobs=workers(args), seed=args.seed, progress=progress,
-                              tune=False if args.no_tune else None)
+                              tune=_tune(args))
     return run, None, job.name
 
 
@@ -132,7 +141,9 @@ def register(sub):
     p.add_argument("--seed", type=seed, default=0, help="noise, role-split sample and GA seed")
     p.add_argument("--n-jobs", type=int, help="joblib workers (-1: all cores; default 1, every worker with --scheduler)")
     add_scheduler_option(p)
-    p.add_argument("--no-tune", action="store_true", help="skip the covariance GA")
+    p.add_argument("--no-tune", action="store_true", help="skip the covariance tuning")
+    p.add_argument("--tune", choices=("ga", "ml"), help="tune the covariances with the paper's GA or by maximum "
+                   "likelihood (instead of [locate] tune; default the GA)")
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bars)")
     p.add_argument("--out", help="output folder (default akf-out/locate/NAME)")
     p.add_argument("--no-plot", action="store_true", help="do not write PNG figures")
