@@ -16,12 +16,13 @@ def _write(path, text):
 
 
 def gallery(out):
-    """The gallery figures (PNG) in ``out``: the built-in structures, an estimate, a placement and
-    an impact localisation, each from a short run of a built-in example."""
+    """The gallery figures (PNG) in ``out``: the built-in structures, an estimate, a placement, an
+    impact localisation and the learning study, each from a short run of a built-in example."""
     from akf.cli import main
 
     wanted = {"s17_truss.png", "th_plate.png", "imp_plate.png", "estimate.png", "sensors.png", "layout.png",
-              "convergence.png", "error_vs_location.png", "force.png", "strain_errors.png"}
+              "convergence.png", "error_vs_location.png", "force.png", "strain_errors.png", "likelihood.png",
+              "smoothed.png"}
     if all(os.path.exists(os.path.join(out, w)) for w in wanted):
         return
     with tempfile.TemporaryDirectory() as tmp, open(os.devnull, "w") as quiet, \
@@ -32,6 +33,7 @@ def gallery(out):
         main(["place", "--example", "th-case5", "--generations", "10", "--population", "20", "--json",
               "--out", os.path.join(tmp, "place")])
         main(["locate", "--example", "imp-truss-case1", "--json", "--out", os.path.join(tmp, "locate")])
+        main(["study", "learning", "--quick", "-q", "--out", os.path.join(tmp, "learning")])
         for root, _, files in os.walk(tmp):
             for f in files:
                 if f in wanted:

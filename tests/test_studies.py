@@ -133,3 +133,20 @@ def test_cli_study_list_and_unknown(capsys):
     assert "s17_truss" in out and "th_plate" in out
     assert main(["study", "no-such-study"]) == 2
     assert "available" in capsys.readouterr().err
+
+
+def test_the_learning_study_is_the_worked_example_of_the_guide(tmp_path):
+    """akf study learning (quick): the likelihood peaks at the truss, the calibration finds it, and
+    smoothing helps the calibrated model only, with bands that fit its errors (the numbers of
+    docs/guide/learning.md, on 1 s of record)."""
+    res = run_study("learning", out=str(tmp_path), quick=True)
+    scan = res.table.set_index("stiffness_factor")["loglik"]
+    assert scan.idxmax() == 1.0 and scan[1.05] < scan[1.0] and scan[0.95] < scan[1.0]
+    s = res.summary.set_index(["model", "estimator"])
+    assert s.loc[("calibrated", "filtered"), "stiffness_factor"] == pytest.approx(1.0, abs=0.005)
+    err = s["force_rms_error_N"]
+    assert err["calibrated", "smoothed"] < err["calibrated", "filtered"] < 40 < 100 < err["as given", "filtered"] \
+        < err["as given", "smoothed"]
+    assert 0.8 < s.loc[("calibrated", "smoothed"), "error_over_std_rms"] < 1.2 < 5 < s.loc[("as given", "smoothed"),
+                                                                                          "error_over_std_rms"]
+    assert os.path.exists(res.files["likelihood_figure"]) and os.path.exists(res.files["smoothed_figure"])

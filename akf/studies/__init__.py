@@ -22,6 +22,7 @@ STUDIES = {
     "th_placement": "akf.studies.th_placement",
     "imp_cases": "akf.studies.imp:cases",
     "imp_hit_rate": "akf.studies.imp:hit_rate",
+    "learning": "akf.studies.learning",
 }
 
 
