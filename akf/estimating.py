@@ -390,8 +390,15 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         lag = "auto" if job.smooth_lag in (None, "auto") else max(1, int(round(job.smooth_lag / dt)))
     estimator = Estimator(model, sensors, forces, dt, steady=job.steady, allow_undetectable=job.allow_undetectable,
                           model_error_cov=Q, force_increment_cov=S, noise_cov=noise_cov, t0=t0, smooth_lag=lag)
+    fatigue = None
+    if spec.output is not None and spec.output.fatigue is not None:
+        from .fatigue import FatigueRun
+
+        fatigue = FatigueRun(job, simulated=sim is not None)
     run = _Run(job, out, record, n_total, chunk, resume, overwrite) if out is not None else None
     start = run.start(estimator) if run is not None else 0
+    if fatigue is not None and start:
+        fatigue.restore(run.saved)
     diag = RunningDiagnostics(n_total)
     progress_bar = _progress(progress, n_total, start)
     chunks = record.chunks(chunk, start) if record is not None else [(0, sim.measurements)]
@@ -407,6 +414,8 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
             restored = False
         diag.update(est)
         last = est
+        if fatigue is not None:
+            fatigue.update(est, sim, estimator.n_returned - est.forces.shape[0])
         if run is not None:
             run.write(est, tidy, sim, estimator.n_returned - est.forces.shape[0])
         if lag is not None and chunk >= n_total:
@@ -420,7 +429,7 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
             est = estimator.setup.smooth(est, 0, Y, estimator.steady)
         take(est)
         if run is not None and step + Y.shape[0] < n_total:     # after the last chunk the summary follows
-            run.checkpoint(estimator, diag, step + Y.shape[0])
+            run.checkpoint(estimator, diag, step + Y.shape[0], {} if fatigue is None else fatigue.state())
             if stop_after is not None and done >= stop_after:
                 notes.append(f"stopped after {done} chunk(s) at step {step + Y.shape[0]} of {n_total}; continue "
                              "with --resume")
@@ -441,13 +450,15 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
             metrics["warnings"].insert(0, f"the estimate was smoothed although the data disagree with the model "
                                           f"(consistency up to {worst:.3g}): smoothing a wrong model makes the forces "
                                           "worse and its bands too narrow; calibrate first ([filter] calibrate)")
+    if fatigue is not None:
+        metrics["fatigue"] = fatigue.metrics(dt)
     if calibration is not None:
         metrics["calibration"] = calibration
         metrics["warnings"] = [f"calibration: {w}" for w in calibration["warnings"]] + metrics["warnings"]
     result = EstimateResult(job, metrics, {}, record.describe() if record is not None else [], notes, start,
                             estimate=whole, simulation=sim)
     if run is not None:
-        result.files = run.write_summary(metrics)
+        result.files = run.write_summary(metrics, fatigue)
     if on_result is not None:
         on_result(result)
     if run is not None:
@@ -613,8 +624,8 @@ class _Run:
         if est.smoothed:
             self.kept.setdefault("s", []).append(est.force_std[sel])
 
-    def checkpoint(self, estimator, diag, next_step):
-        state = estimator.state() | diag.state() | {
+    def checkpoint(self, estimator, diag, next_step, extra):
+        state = estimator.state() | diag.state() | extra | {
             "next_step": np.array(next_step), "position": np.array(self.writer.position),
             "job": np.array(self.spec), "files": np.array(self.data_files), "chunk": np.array(self.chunk)} | {
             f"plot_{k}": np.concatenate(v) if k == "t" else np.vstack(v) for k, v in self.kept.items()}
@@ -625,10 +636,14 @@ class _Run:
     def partial_files(self):
         return {"timeseries": self.writer.path, "checkpoint": self.path}
 
-    def write_summary(self, metrics):
-        """Write ``summary.csv``; returns the files written."""
+    def write_summary(self, metrics, fatigue=None):
+        """Write ``summary.csv`` (and ``fatigue.csv``); returns the files written."""
         files = {"timeseries": self.writer.path, "summary": os.path.join(self.out, "summary.csv")}
         write_csv(summary_frame(metrics), files["summary"])
+        if fatigue is not None:
+            files["fatigue"] = os.path.join(self.out, "fatigue.csv")
+            write_csv(fatigue.frame(self.job.dt), files["fatigue"])
+        self.fatigue = fatigue
         return files
 
     def finish(self, files, metrics, plot, whole, forces, sensors):
@@ -646,6 +661,13 @@ class _Run:
             draw(files, "sensors_figure", metrics["warnings"], plot_sensors, t, np.vstack(self.kept["y"]),
                  np.vstack(self.kept["p"]), sensors, os.path.join(self.out, "sensors.png"),
                  f"{title}: measured vs. predicted at the sensors")
+            if getattr(self, "fatigue", None) is not None:
+                from .plots import plot_fatigue
+
+                frame = self.fatigue.frame(self.job.dt)
+                draw(files, "fatigue_figure", metrics["warnings"], plot_fatigue, self.job.structure, frame["channel"],
+                     frame["damage"].to_numpy(), os.path.join(self.out, "fatigue.png"),
+                     f"{title}: Miner damage of the estimated stresses ({self.fatigue.curve.name})", sensors)
         if os.path.exists(self.path):
             os.remove(self.path)        # a link is removed, never what it points to
 

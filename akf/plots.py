@@ -87,3 +87,72 @@ def plot_sensors(time, measured, predicted, sensors, path, title):
         axes[nrows - 1, c].set_xlabel("time (s)")
     fig.suptitle(title)
     return save_figure(fig, path)
+
+
+def plot_fatigue(structure, channels, damage, path, title, sensors=()):
+    """The damage map on the structure (members or nodes coloured by Miner's sum, log scale; a
+    3-D structure in 3-D) beside the ten most damaged outputs, ranked.  The sensors are marked:
+    the outputs no gauge sees are the point of estimating them."""
+    import matplotlib as mpl
+    import numpy as np
+
+    from core_akf.figures import figure, save_figure
+    from core_akf.sensors import as_layout, strain_ends
+
+    channels, damage = list(channels), np.asarray(damage, float)
+    positive = damage[damage > 0]
+    lo, hi = (positive.min(), positive.max()) if positive.size else (1e-12, 1.0)
+    norm = mpl.colors.LogNorm(vmin=lo, vmax=max(hi, lo * 10))
+    cmap = mpl.colormaps["inferno_r"]
+    xyz = structure.nodes
+    three_d = xyz.shape[1] == 3
+    fig = figure(figsize=(10, 7.5))
+    grid = fig.add_gridspec(2, 1, height_ratios=[1.3, 1.0])
+    ax = fig.add_subplot(grid[0], projection="3d") if three_d else fig.add_subplot(grid[0])
+    dims = 3 if three_d else 2
+
+    def colour(d):
+        return "0.8" if d <= 0 else cmap(norm(d))
+    if structure.members is not None:
+        for a, b in structure.node_rows(structure.members.ravel()).reshape(-1, 2):
+            ax.plot(*xyz[[a, b], :dims].T, "-", color="0.85", lw=0.8)
+    per_node = {}
+    for label, d in zip(channels, damage):
+        parts = label.split(":")
+        ends = strain_ends(structure, int(parts[1])) if len(parts) == 2 else None
+        if ends is not None:
+            a, b = structure.node_rows(list(ends))
+            ax.plot(*xyz[[a, b], :dims].T, "-", color=colour(d), lw=3)
+        elif len(parts) == 3:
+            row = structure.node_rows([int(parts[1])])[0]
+            per_node[row] = max(per_node.get(row, 0.0), d)
+    if per_node:
+        rows = np.array(list(per_node))
+        values = np.array([per_node[r] for r in rows])
+        ax.scatter(*xyz[rows, :dims].T, c=[colour(v) for v in values], s=40, edgecolors="none")
+    gauges = [s for s in as_layout(list(sensors)) if s.kind == "strain"] if len(sensors) else []
+    for s in gauges:
+        ends = strain_ends(structure, s.member) if s.member is not None else None
+        point = (xyz[structure.node_rows(list(ends))].mean(axis=0) if ends is not None else
+                 xyz[structure.node_rows([s.node])[0]] if s.node is not None else None)
+        if point is not None:
+            ax.scatter(*point[:dims], marker="s", s=60, facecolors="none", edgecolors="tab:blue", linewidths=1.5)
+    if gauges:
+        ax.scatter([], [], marker="s", facecolors="none", edgecolors="tab:blue", label="strain gauge")
+        ax.legend(fontsize=7, loc="upper left")
+    if not three_d:
+        ax.set_aspect("equal")
+    ax.set_title("damage map (grey: no damage)", fontsize=9)
+    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.8, label="Miner's damage")
+    ax2 = fig.add_subplot(grid[1])
+    top = np.argsort(-damage, kind="stable")[:10]
+    ax2.barh(range(len(top)), damage[top], color=[colour(d) for d in damage[top]])
+    ax2.set_yticks(range(len(top)), [channels[i] for i in top], fontsize=8)
+    ax2.invert_yaxis()
+    if np.any(damage[top] > 0):
+        ax2.set_xscale("log")
+    ax2.set_xlabel("Miner's damage over the record")
+    ax2.set_title("the ten most damaged outputs", fontsize=9)
+    fig.suptitle(title, fontsize=10)
+    save_figure(fig, path)
+    return fig

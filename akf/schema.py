@@ -23,6 +23,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, PlainValidator, ValidationError, WithJsonSchema
 
 from core_akf.defaults import DEFAULTS
+from core_akf.fatigue import EC3_CATEGORIES
 from core_akf.exceptions import AKFInputError
 
 #: the commands that read job files
@@ -246,6 +247,33 @@ class Measurements(Section):
                           "memory)", used_by=ESTIMATE, unit="s", default_text="65536 steps (fewer for a large model)")
 
 
+class Fatigue(Section):
+    """``[output.fatigue]``: fatigue of the estimated strains (fatigue.csv, fatigue.png)."""
+
+    detail_category: Literal[EC3_CATEGORIES] = key(
+        "one of " + ", ".join(str(c) for c in EC3_CATEGORIES),
+        "the EN 1993-1-9 detail category: Δσ_C at 2e6 cycles; slope 3 to Δσ_D = 0.737 Δσ_C at 5e6, slope 5 to the "
+        "cut-off Δσ_L = 0.549 Δσ_D at 1e8, no damage below (give this or sn_curve)", used_by=ESTIMATE, unit="MPa")
+    sn_curve: Annotated[list[Annotated[list[Positive], Field(min_length=2, max_length=2)]], Field(min_length=2)] = key(
+        "a list of at least two [N, range] pairs", "an S-N curve of one's own through these points (N increasing, "
+        "range in MPa decreasing), power law between them, the first slope above the first point, no damage below "
+        "the last (instead of detail_category)", used_by=ESTIMATE)
+    youngs_modulus: Positive = key("a positive number", "E for the stress of every strain output (default the "
+                                   "model's own, where it has one)", used_by=ESTIMATE, unit="Pa")
+    gamma_mf: Annotated[float, Field(ge=1, allow_inf_nan=False)] = key(
+        "a number >= 1", "partial factor for fatigue strength: the curve's ranges are divided by it (default 1)",
+        used_by=ESTIMATE)
+    del_slope: Positive = key("a positive number", "slope m of the damage-equivalent stress range "
+                              "DEL = (Σ n_i Δσ_i^m / N_eq)^(1/m) (default 3)", used_by=ESTIMATE)
+    del_cycles: Positive = key("a positive number", "N_eq of the damage-equivalent range (default 2e6)",
+                               used_by=ESTIMATE)
+    outputs: Annotated[list[Text], Field(min_length=1)] = key(
+        "a non-empty list of strain output labels", "the strain outputs assessed, e.g. [\"strain:13\", "
+        "\"strain:70:ex\"] (default every strain output)", used_by=ESTIMATE)
+    members: Annotated[list[Count], Field(min_length=1)] = key(
+        "a non-empty list of member numbers", "the truss members assessed (instead of outputs)", used_by=ESTIMATE)
+
+
 class Output(Section):
     """``[output]``: what to write."""
 
@@ -254,6 +282,8 @@ class Output(Section):
         "\"strain:70:ex\")", used_by=ESTIMATE)
     format: Literal["csv", "parquet"] = key("\"csv\" or \"parquet\"", "file format of the time series "
                                             "(timeseries.csv or timeseries.parquet)", used_by=ESTIMATE)
+    fatigue: Fatigue = key("a table", "rainflow counting, Miner damage and damage-equivalent ranges of the "
+                           "estimated strains ([output.fatigue])", used_by=ESTIMATE)
 
 
 class Place(Section):
@@ -611,6 +641,8 @@ def reference_markdown():
     sections.insert(sections.index(next(s for s in sections if s[2] == "locate")) + 1,
                     ("[locate.covariances]", CovariancesSection, "locate.covariances"))
     sections.append(("[locate.tuning]", Tuning, "locate.tuning"))
+    sections.insert(sections.index(next(s for s in sections if s[2] == "output")) + 1,
+                    ("[output.fatigue]", Fatigue, "output.fatigue"))
     sections.append(("[[simulation.loads]] components", LoadComponent, "loads"))
     for title, model, _ in sections:
         lines += [f"## {title}", "", (model.__doc__ or "").strip().splitlines()[0], "",
