@@ -178,11 +178,23 @@ class Cycles:
     n_outputs: int
 
     def total(self) -> FloatArray:
-        """Cycles per output (half cycles count 0.5), shape (n_outputs,)."""
+        """Cycles per output.
+
+        Returns
+        -------
+        ndarray (n_outputs,)
+            Full cycles plus half the half cycles.
+        """
         return np.bincount(self.output, weights=self.counts, minlength=self.n_outputs)
 
     def max_range(self) -> FloatArray:
-        """The largest range per output (0 without cycles), shape (n_outputs,)."""
+        """The largest range per output.
+
+        Returns
+        -------
+        ndarray (n_outputs,)
+            In the unit of the ranges; 0 for an output without cycles.
+        """
         out = np.zeros(self.n_outputs)
         np.maximum.at(out, self.output, self.ranges)
         return out
