@@ -219,14 +219,16 @@ def _reversals(X):
         keep = np.ones((N, k), bool)
     else:
         s = np.sign(np.diff(X, axis=0))                        # (N-1, k)
-        filled = s.copy()                                      # the last non-zero slope so far
-        idx = np.where(s != 0, np.arange(N - 1)[:, None], 0)
-        np.maximum.accumulate(idx, axis=0, out=idx)
-        filled = np.take_along_axis(s, idx, axis=0)
-        keep = np.zeros((N, k), bool)
+        keep = np.empty((N, k), bool)
         keep[0] = keep[-1] = True
-        # point i (1..N-2) turns where the slope into it (the last non-zero one) and out of it differ
-        keep[1:-1] = (s[1:] != 0) & (filled[:-1] != 0) & (s[1:] != filled[:-1])
+        if np.all(s):                                          # no plateau: a turn is a change of slope
+            np.not_equal(s[1:], s[:-1], out=keep[1:-1])
+        else:
+            # point i (1..N-2) turns where the slope into it (the last non-zero one) and out of it differ
+            idx = np.where(s != 0, np.arange(N - 1)[:, None], 0)
+            np.maximum.accumulate(idx, axis=0, out=idx)
+            filled = np.take_along_axis(s, idx, axis=0)
+            keep[1:-1] = (s[1:] != 0) & (filled[:-1] != 0) & (s[1:] != filled[:-1])
     col, row = np.nonzero(keep.T)
     return X[row, col], col
 
