@@ -665,9 +665,13 @@ class _Run:
                 from .plots import plot_fatigue
 
                 frame = self.fatigue.frame(self.job.dt)
+                damaged = bool((frame["damage"] > 0).any())       # else every range is below the cut-off: the DEL
                 draw(files, "fatigue_figure", metrics["warnings"], plot_fatigue, self.job.structure, frame["channel"],
-                     frame["damage"].to_numpy(), os.path.join(self.out, "fatigue.png"),
-                     f"{title}: Miner damage of the estimated stresses ({self.fatigue.curve.name})", sensors)
+                     (frame["damage"] if damaged else frame["del"] / 1e6).to_numpy(),
+                     os.path.join(self.out, "fatigue.png"),
+                     f"{title}: fatigue of the estimated stresses ({self.fatigue.curve.name}"
+                     + ("" if damaged else "; every range below its cut-off: no damage") + ")", sensors,
+                     "Miner's damage" if damaged else f"DEL (MPa, m = {self.fatigue.m:g})")
         if os.path.exists(self.path):
             os.remove(self.path)        # a link is removed, never what it points to
 

@@ -89,10 +89,11 @@ def plot_sensors(time, measured, predicted, sensors, path, title):
     return save_figure(fig, path)
 
 
-def plot_fatigue(structure, channels, damage, path, title, sensors=()):
-    """The damage map on the structure (members or nodes coloured by Miner's sum, log scale; a
-    3-D structure in 3-D) beside the ten most damaged outputs, ranked.  The sensors are marked:
-    the outputs no gauge sees are the point of estimating them."""
+def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity="Miner's damage"):
+    """The damage map on the structure (members or nodes coloured by ``damage``, log scale; a
+    3-D structure in 3-D) above the ten most damaged outputs, ranked.  The strain gauges are
+    marked: the outputs no gauge sees are the point of estimating them.  ``quantity`` names what
+    is drawn (the damage-equivalent range when no cycle reaches the curve's cut-off)."""
     import matplotlib as mpl
     import numpy as np
 
@@ -106,6 +107,10 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=()):
     cmap = mpl.colormaps["inferno_r"]
     xyz = structure.nodes
     three_d = xyz.shape[1] == 3
+    if three_d:                  # a slender structure's cross-section drawn larger, as plot_layout_3d does
+        lo, span = xyz.min(axis=0), np.maximum(np.ptp(xyz, axis=0), 1e-12)
+        scale = np.array([1.0, *[float(np.clip(span.max() / (4 * max(span[1], span[2])), 1.0, 5.0))] * 2])
+        xyz = (xyz - lo) * scale
     fig = figure(figsize=(10, 7.5))
     grid = fig.add_gridspec(2, 1, height_ratios=[1.3, 1.0])
     ax = fig.add_subplot(grid[0], projection="3d") if three_d else fig.add_subplot(grid[0])
@@ -140,10 +145,18 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=()):
     if gauges:
         ax.scatter([], [], marker="s", facecolors="none", edgecolors="tab:blue", label="strain gauge")
         ax.legend(fontsize=7, loc="upper left")
-    if not three_d:
+    if three_d:
+        ax.set_box_aspect(np.maximum(np.ptp(xyz, axis=0), 0.02 * np.ptp(xyz, axis=0).max()), zoom=1.2)
+        ax.view_init(elev=24, azim=-68)
+        ax.set_xlabel("x (m)")
+        if scale[1] > 1:
+            ax.set_ylabel(f"y (m, x{scale[1]:.3g})")
+            ax.set_zlabel(f"z (m, x{scale[1]:.3g})")
+    else:
         ax.set_aspect("equal")
-    ax.set_title("damage map (grey: no damage)", fontsize=9)
-    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.8, label="Miner's damage")
+    ax.set_title(f"{quantity} (grey: none)", fontsize=9)
+    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.8, label=quantity,
+                 pad=0.12 if three_d else 0.05)
     ax2 = fig.add_subplot(grid[1])
     top = np.argsort(-damage, kind="stable")[:10]
     ax2.barh(range(len(top)), damage[top], color=[colour(d) for d in damage[top]])
@@ -151,8 +164,8 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=()):
     ax2.invert_yaxis()
     if np.any(damage[top] > 0):
         ax2.set_xscale("log")
-    ax2.set_xlabel("Miner's damage over the record")
-    ax2.set_title("the ten most damaged outputs", fontsize=9)
+    ax2.set_xlabel(f"{quantity} over the record")
+    ax2.set_title(f"the ten outputs of the largest {quantity}", fontsize=9)
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path)
     return fig

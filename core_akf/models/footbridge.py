@@ -159,7 +159,8 @@ def footbridge_matrices(**overrides: float) -> dict:
 def footbridge(damping: Damping = 0.005, n_modes: int | None = None, **overrides: float) -> Structure:
     """The 3-D truss footbridge, read through :func:`~core_akf.models.from_matrices`.
 
-    340 nodes, 1011 free DOFs, 1097 members as strain outputs ``strain:1..1097``.
+    340 nodes, 1011 free DOFs, 1097 members as strain outputs ``strain:1..1097``; ``meta["E"]``
+    is the members' Young's modulus (for their stresses, :mod:`core_akf.fatigue`).
 
     Parameters
     ----------
@@ -183,5 +184,7 @@ def footbridge(damping: Damping = 0.005, n_modes: int | None = None, **overrides
     from .matrices import from_matrices
 
     parts = footbridge_matrices(**overrides)
-    return from_matrices(parts["K"], parts["M"], parts["dofs"], parts["nodes"], fixed=parts["fixed"], damping=damping,
-                         extensometers=parts["members"], name="footbridge", n_modes=n_modes)
+    bridge = from_matrices(parts["K"], parts["M"], parts["dofs"], parts["nodes"], fixed=parts["fixed"], damping=damping,
+                           extensometers=parts["members"], name="footbridge", n_modes=n_modes)
+    bridge.meta["E"] = float(dict(FOOTBRIDGE, **overrides)["E"])       # the members' steel: their stress is E strain
+    return bridge
