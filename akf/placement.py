@@ -58,7 +58,8 @@ def problem_from_job(job: Job):
                                window=default("window", p.window), stiffness_factor=job.stiffness_factor,
                                relative_noise=default("relative_noise", sim.relative_noise),
                                model_error_cov=job.model_error_cov, force_increment_cov=job.force_increment_cov,
-                               n_modes=job.n_modes, seed=sim.seed or 0)
+                               n_modes=job.n_modes, seed=sim.seed or 0, objective_kind=p.objective or "strain",
+                               del_slope=3.0 if p.del_slope is None else float(p.del_slope))
     if f.force_increment_cov is None:
         problem.notes = force_increment_notes(loads)
     return problem, ga_settings(job)

@@ -314,6 +314,12 @@ class Place(Section):
                                                         "thesis' intermediate crossover", used_by=PLACE)
     n_modes: Modes = key("an integer >= 1, \"auto\" or \"full\"", "filter modes (with static "
                                    "correction); \"auto\": core_akf.defaults.auto_modes", used_by=PLACE)
+    objective: Literal["strain", "fatigue"] = key(
+        "\"strain\" or \"fatigue\"", "what the GA minimises: the average strain error of the targets (the "
+        "thesis' fitness, default) or the mean relative error of their damage-equivalent stress range (fatigue)",
+        used_by=PLACE)
+    del_slope: Positive = key("a positive number", "objective = \"fatigue\": the slope m of the damage-equivalent "
+                              "range (default 3)", used_by=PLACE)
 
 
 class CovariancesSection(Section):

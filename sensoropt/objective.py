@@ -166,6 +166,7 @@ class StrainErrorObjective:
         rows = None if targets is None else structure.strain_label_index(targets)
         if rows is not None and not rows:
             raise AKFInputError("targets is empty: name the strain outputs whose error to average")
+        self.true_strains = sim.strains                # (n, n_strain)
         self.reference = sim.strains if rows is None else sim.strains[:, rows]    # (n, n_targets)
         self.model = ModalFilterModel(structure.scaled(stiffness_factor), forces, dt, n_modes)
         self.G = self.model.observation(self.labels)   # (n_candidates, n_a)
@@ -224,6 +225,74 @@ class StrainErrorObjective:
             for j, k in enumerate(ks):   # isolate the failing layout(s)
                 self._batch([idx[j]], [k], out)
             return
-        err = np.sqrt(np.mean((est - self.reference[None]) ** 2, axis=1)).mean(axis=1) * 1e6
-        for k, e in zip(ks, err):
+        for k, e in zip(ks, self._score(est)):
             out[k] = float(e) if np.isfinite(e) else math.inf
+
+    def _score(self, est):
+        """The average RMS error (µε) of each layout's estimated outputs ``est`` (B, n, targets)."""
+        return np.sqrt(np.mean((est - self.reference[None]) ** 2, axis=1)).mean(axis=1) * 1e6
+
+
+class FatigueErrorObjective(StrainErrorObjective):
+    """The error of the estimated fatigue: the mean relative error (%) of the damage-equivalent
+    stress range (DEL) over the target outputs, on the same window, filter and noise as
+    :class:`StrainErrorObjective`.
+
+    The filter estimates the stresses of the targets directly (``σ = W ε`` on the state,
+    :func:`core_akf.fatigue.stress_operator`); the stress histories of all layouts of a batch are
+    rainflow-counted together (:func:`core_akf.fatigue.rainflow`) and their DEL
+    ``(Σ n_i Δσ_i^m / N)^(1/m)`` compared with the truth's.  A target with no cycle in the window is
+    left out of the mean.  The DEL rather than Miner's sum: it has no cut-off, so it is defined for
+    the short windows a GA can afford, and its error is the damage's error to the power 1/m.
+
+    Parameters
+    ----------
+    structure, forces, loads, dt, encoding
+        As :class:`StrainErrorObjective`.
+    m : float
+        The slope of the DEL (3 for steel details).
+    youngs_modulus : float, optional
+        E (Pa) for the stresses (default the model's own).
+    **settings
+        The other settings of :class:`StrainErrorObjective` (window, stiffness_factor,
+        relative_noise, model_error_cov, force_increment_cov, n_modes, seed, targets).
+
+    Examples
+    --------
+    >>> from core_akf.loads import band_limited_white_noise
+    >>> from core_akf.models import s17_truss
+    >>> from sensoropt.encoding import CandidateSet
+    >>> loads = band_limited_white_noise(2000, 1e-3, 2e3, 0.0, 50.0, seed=1)[:, None]
+    >>> enc = CandidateSet(s17_truss(), candidates=["strain:13", "strain:26", "acc:8:y", "acc:4:y"], n_sensors=2)
+    >>> fat = FatigueErrorObjective(s17_truss(), ["8:y"], loads, 1e-3, enc, window=1.0, force_increment_cov=1e4)
+    >>> errors = fat.evaluate([["strain:13", "acc:8:y"], ["acc:4:y", "acc:8:y"]])
+    >>> bool(errors[0] < 10), errors[1]       # % of the DEL; accelerometers alone are undetectable
+    (True, inf)
+    """
+
+    def __init__(self, structure: Structure, forces: Forces, loads: ForceHistories, dt: float, encoding: CandidateSet, *,
+                 m: float = 3.0, youngs_modulus: float | None = None, **settings):
+        from core_akf.fatigue import _check_equivalence, equivalent_range, rainflow, stress_operator
+
+        _check_equivalence(m, 1.0)
+        super().__init__(structure, forces, loads, dt, encoding, **settings)
+        targets = settings.get("targets")
+        rows = list(range(structure.n_strain)) if targets is None else structure.strain_label_index(targets)
+        W = stress_operator(structure, rows, youngs_modulus)          # (k, n_strain)
+        self.m = float(m)
+        self.H = W @ self.model.strain_rows()                         # the targets' stresses on the filter state
+        self.reference = self.true_strains @ W.T                      # (n, k) Pa
+        self.reference_del = equivalent_range(rainflow(self.reference), self.m, 1.0)
+        self.counted = self.reference_del > 0
+        if not self.counted.any():
+            raise AKFInputError("no target output has a stress cycle in the window: lengthen the window or choose "
+                                "targets the loads reach")
+
+    def _score(self, est):
+        """The mean relative DEL error (%) of each layout's estimated stresses ``est`` (B, n, k)."""
+        from core_akf.fatigue import equivalent_range, rainflow
+
+        B, n, k = est.shape
+        dels = equivalent_range(rainflow(np.swapaxes(est, 0, 1).reshape(n, B * k)), self.m, 1.0).reshape(B, k)
+        rel = np.abs(dels[:, self.counted] / self.reference_del[self.counted] - 1.0)
+        return 100.0 * rel.mean(axis=1)

@@ -8,12 +8,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core_akf.defaults import auto_modes, default
+from core_akf.exceptions import AKFInputError
 from core_akf.metrics import average_strain_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.simulate import simulate
 
 from .encoding import CandidateSet, make_encoding
-from .objective import StrainErrorObjective
+from .objective import FatigueErrorObjective, StrainErrorObjective
 
 
 @dataclass
@@ -59,6 +60,13 @@ class PlacementProblem:
         The candidate set itself (instead of ``kinds``).
     targets : list of str, optional
         Strain output labels whose error is averaged (default all).
+    objective_kind : {"strain", "fatigue"}
+        What the GA minimises: the average strain error (the thesis' fitness,
+        :class:`~sensoropt.objective.StrainErrorObjective`) or the mean relative error of the
+        damage-equivalent stress range of the targets
+        (:class:`~sensoropt.objective.FatigueErrorObjective`).
+    del_slope : float
+        The slope m of that damage-equivalent range.
     notes : list of str
         Notes for the user (a default S far from the loads' increments).
 
@@ -94,6 +102,8 @@ class PlacementProblem:
     reference_layouts: dict = field(default_factory=dict)
     candidates: list = None
     targets: list = None
+    objective_kind: str = "strain"
+    del_slope: float = 3.0
     #: what a user should know about the settings (shown with the result)
     notes: list = field(default_factory=list)
 
@@ -118,7 +128,8 @@ class PlacementProblem:
         return None if self.targets is None else self.structure.strain_label_index(self.targets)
 
     def objective(self, encoding: CandidateSet | None = None) -> StrainErrorObjective:
-        """The GA fitness: :class:`~sensoropt.objective.StrainErrorObjective` on the first ``window`` seconds.
+        """The GA fitness on the first ``window`` seconds: :class:`~sensoropt.objective.StrainErrorObjective`,
+        or :class:`~sensoropt.objective.FatigueErrorObjective` for ``objective_kind = "fatigue"``.
 
         Parameters
         ----------
@@ -129,11 +140,16 @@ class PlacementProblem:
         -------
         StrainErrorObjective
         """
+        settings = dict(window=self.window, stiffness_factor=self.stiffness_factor, relative_noise=self.relative_noise,
+                        model_error_cov=self.model_error_cov, force_increment_cov=self.force_increment_cov,
+                        n_modes=self.n_modes, seed=self.seed, targets=self.targets)
+        if self.objective_kind == "fatigue":
+            return FatigueErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding or self.encoding(),
+                                         m=self.del_slope, **settings)
+        if self.objective_kind != "strain":
+            raise AKFInputError(f"objective_kind must be \"strain\" or \"fatigue\", got {self.objective_kind!r}")
         return StrainErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding or self.encoding(),
-                                    window=self.window, stiffness_factor=self.stiffness_factor,
-                                    relative_noise=self.relative_noise, model_error_cov=self.model_error_cov,
-                                    force_increment_cov=self.force_increment_cov, n_modes=self.n_modes,
-                                    seed=self.seed, targets=self.targets)
+                                    **settings)
 
     def full_record_error(self, sensors: Sequence[str], seed: int | None = None) -> float:
         """Average strain error over the whole record of a layout.
@@ -152,6 +168,37 @@ class PlacementProblem:
         float
             µε.
         """
+        rows = self.target_rows()
+        est, sim = self._full_record(sensors, seed, lambda fm: fm.strain_rows() if rows is None else fm.strain_rows()[rows])
+        return float(average_strain_error(est, sim.strains if rows is None else sim.strains[:, rows])) * 1e6
+
+    def full_record_fatigue_error(self, sensors: Sequence[str], seed: int | None = None) -> float:
+        """Mean relative error of the damage-equivalent stress range of the targets over the whole
+        record of a layout (as :class:`~sensoropt.objective.FatigueErrorObjective` on the window).
+
+        Parameters
+        ----------
+        sensors : sequence of str
+        seed : int, optional
+            The noise draw (default the problem's).
+
+        Returns
+        -------
+        float
+            %.
+        """
+        from core_akf.fatigue import equivalent_range, rainflow, stress_operator
+
+        rows = self.target_rows() or list(range(self.structure.n_strain))
+        W = stress_operator(self.structure, rows)
+        est, sim = self._full_record(sensors, seed, lambda fm: W @ fm.strain_rows())
+        true = equivalent_range(rainflow(sim.strains @ W.T), self.del_slope, 1.0)
+        got = equivalent_range(rainflow(est), self.del_slope, 1.0)
+        counted = true > 0
+        return float(100.0 * np.mean(np.abs(got[counted] / true[counted] - 1.0)))
+
+    def _full_record(self, sensors, seed, rows_of):
+        """The steady AKF's outputs ``rows_of(filter model)`` over the whole record, and the simulation."""
         sim = simulate(self.structure, sensors, self.forces, self.loads, self.dt, relative_noise=self.relative_noise,
                        seed=self.seed if seed is None else seed)
         n_modes = self.n_modes
@@ -160,8 +207,6 @@ class PlacementProblem:
         fm = ModalFilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt,
                               None if n_modes is None else min(int(n_modes), self.structure.n))
         R = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2)
-        rows = self.target_rows()
-        H = fm.strain_rows() if rows is None else fm.strain_rows()[rows]
         est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov, self.force_increment_cov),
-                             R[None], sim.measurements[None], H)[0]
-        return float(average_strain_error(est, sim.strains if rows is None else sim.strains[:, rows])) * 1e6
+                             R[None], sim.measurements[None], rows_of(fm))[0]
+        return est, sim

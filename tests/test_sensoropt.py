@@ -227,3 +227,67 @@ def test_more_gauges_lower_error_with_shrinking_returns():
     e3, e5, e8 = errors
     assert e3 > e5 > e8
     assert (e3 - e5) / 2 > (e5 - e8) / 3
+
+
+# ----------------------------------------------------------------------------- placement for fatigue
+def _truss_fatigue_problem(kind="fatigue"):
+    from core_akf.loads import band_limited_white_noise
+    from core_akf.models import s17_truss
+
+    loads = np.column_stack([band_limited_white_noise(3000, 1e-3, 2e3, 0.0, 50.0, seed=s) for s in (1, 2)])
+    return PlacementProblem("truss", s17_truss(), ["8:y", "4:y"], loads, 1e-3, candidates=[
+        "strain:5", "strain:9", "strain:13", "strain:22", "strain:26", "acc:4:y", "acc:8:y"], n_sensors=3, window=1.0,
+        force_increment_cov=1e4, n_modes=None, stiffness_factor=1.0, targets=["strain:1", "strain:17", "strain:30"],
+        objective_kind=kind, del_slope=4.0)
+
+
+def test_the_fatigue_objective_is_the_del_error_of_an_independent_count():
+    """FatigueErrorObjective of a layout equals the relative DEL error computed from the layout's
+    own estimate (core_akf.estimate on the same window, noise and filter) with the rainflow
+    package's cycles."""
+    import rainflow as reference_rainflow
+
+    from core_akf import estimate, simulate
+    from core_akf.fatigue import stress_operator
+
+    problem = _truss_fatigue_problem()
+    objective = problem.objective()
+    layout = ["strain:13", "strain:26", "acc:8:y"]
+    got = objective.evaluate([layout])[0]
+    enc = problem.encoding()
+    window = int(round(problem.window / problem.dt))
+    sim = simulate(problem.structure, enc.sensors(range(len(enc.candidates))), problem.forces,
+                   problem.loads[:window], problem.dt, relative_noise=problem.relative_noise, seed=0)
+    cols = [enc.sensors(range(len(enc.candidates))).index(s) for s in layout]
+    est = estimate(problem.structure, layout, problem.forces, sim.measurements[:, cols], problem.dt, steady=True,
+                   model_error_cov=problem.model_error_cov, force_increment_cov=problem.force_increment_cov,
+                   noise_cov=np.diag(sim.noise_std[cols] ** 2))
+    rows = problem.structure.strain_label_index(problem.targets)
+    W = stress_operator(problem.structure, rows)
+
+    def dels(stress):
+        return np.array([sum(n * r ** 4 for r, n in reference_rainflow.count_cycles(stress[:, j])) ** 0.25
+                         for j in range(stress.shape[1])])
+    want = 100 * np.mean(np.abs(dels(est.strains @ W.T) / dels(sim.strains @ W.T) - 1))
+    assert got == pytest.approx(want, rel=1e-6)
+
+
+def test_place_for_fatigue_from_a_job(tmp_path, capsys):
+    """[place] objective = "fatigue": the GA minimises the DEL error; the JSON reports it beside
+    the strain error of the same layout."""
+    data = {"name": "truss-fatigue", "dt": 1e-3, "forces": ["8:y"], "structure": {"model": "s17_truss"},
+            "place": {"candidates": ["strain:5", "strain:13", "strain:26", "acc:4:y", "acc:8:y"], "sensors": 2,
+                      "window": 0.5, "objective": "fatigue", "targets": ["strain:1", "strain:17"], "population": 6,
+                      "generations": 2, "n_modes": "full"},
+            "filter": {"force_increment_cov": 1e4, "stiffness_factor": 1.0},
+            "simulation": {"duration": 1.0, "relative_noise": 0.02, "seed": 0,
+                           "loads": [{"components": [{"type": "band_noise", "rms": 2000.0, "f_high": 50.0, "seed": 1}]}]}}
+    import tomlkit
+
+    (tmp_path / "job.toml").write_text(tomlkit.dumps(data))
+    assert main(["place", str(tmp_path / "job.toml"), "--json", "--no-plot", "--out", str(tmp_path / "o")]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["objective"] == "fatigue" and 0 <= d["fatigue_error"] < 50 and d["error"] > 0
+    assert d["units"]["window_error"].startswith("%")
+    with pytest.raises(AKFInputError, match="objective_kind"):
+        _truss_fatigue_problem("damage").objective()

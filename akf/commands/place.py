@@ -75,6 +75,8 @@ def _run_place(args, problem, settings, out):
     error = problem.full_record_error(res.sensors)
     refs = {name: problem.full_record_error(s) for name, s in problem.reference_layouts.items()
             if len(s) == enc.n_sensors and not problem.budget}
+    fatigue = problem.objective_kind == "fatigue"
+    window_unit = "% (mean relative DEL error of the targets)" if fatigue else "µε"
     # the results first: the layout table and the logbook, then the printout, then the figures
     positions = sensor_positions(problem.structure, res.sensors)
     files = {"layout_table": write_csv(positions, os.path.join(out, "layout.csv")),
@@ -85,8 +87,12 @@ def _run_place(args, problem, settings, out):
                "generations": int(lb["generation"].iloc[-1]), "evaluations": res.evaluations,
                "cache_hits": res.cache_hits, "infeasible": res.infeasible, "stopped": res.stopped,
                "seconds": float(lb["seconds"].iloc[-1]), "reference_errors": refs, "files": files, "notes": notes,
-               "units": {"error": "µε (average RMS strain error, full record)", "window_error": "µε",
+               "objective": problem.objective_kind,
+               "units": {"error": "µε (average RMS strain error, full record)", "window_error": window_unit,
                          "reference_errors": "µε", "seconds": "s", "positions": "m"}}
+    if fatigue:
+        summary["fatigue_error"] = problem.full_record_fatigue_error(res.sensors)
+        summary["units"]["fatigue_error"] = "% (mean relative DEL error of the targets, full record)"
     if not args.json:
         print(f"{problem.name}: {enc.n_sensors} sensors from {len(enc.candidates)} admissible positions "
               f"({', '.join(enc.kinds)}), seed {args.seed}")
@@ -95,8 +101,13 @@ def _run_place(args, problem, settings, out):
             where = f"node {r.node}" if pd.isna(r.node_b) else f"nodes {r.node}-{r.node_b}"
             print(f"    {r.sensor:>16s}  {r.source:<14s} " + ("(no place: a strain operator row)" if pd.isna(r.node)
                   else f"{where} at x {r.x:.4g}, y {r.y:.4g}, z {r.z:.4g} m"))
-        print(f"  average strain error: {error:.4f} µε over the {problem.loads.shape[0] * problem.dt:.3g} s record "
-              f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
+        if fatigue:
+            print(f"  DEL error (m = {problem.del_slope:g}): {summary['fatigue_error']:.3f} % over the "
+                  f"{problem.loads.shape[0] * problem.dt:.3g} s record ({res.best_error:.3f} % on the {problem.window:g} s "
+                  f"fitness window); average strain error {error:.4f} µε")
+        else:
+            print(f"  average strain error: {error:.4f} µε over the {problem.loads.shape[0] * problem.dt:.3g} s record "
+                  f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
         for name, e in refs.items():
             print(f"  {name}: {e:.4f} µε")
         print(f"  {int(lb['generation'].iloc[-1])} generations ({res.stopped}), {res.evaluations} evaluations, "
@@ -107,7 +118,8 @@ def _run_place(args, problem, settings, out):
         draw(files, "convergence", figure_notes, plot_convergence, res.logbook, os.path.join(out, "convergence.png"),
              f"{problem.name}: {enc.n_sensors} sensors, seed {args.seed}")
         draw(files, "layout", figure_notes, plot_layout, enc, res.best, os.path.join(out, "layout.png"),
-             f"best layout: window error {res.best_error:.3f} µε, full record {error:.3f} µε", forces=obj.model.forces)
+             f"best layout: window error {res.best_error:.3f} {'%' if fatigue else 'µε'}, full record {error:.3f} µε",
+             forces=obj.model.forces)
     for note in figure_notes:
         print(f"akf: warning: {note}", file=sys.stderr)
     if args.json:
