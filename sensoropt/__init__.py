@@ -8,11 +8,12 @@
 """
 from .encoding import KINDS, STRAIN_KINDS, CandidateSet, Encoding, PlateGrid, make_encoding
 from .ga import THESIS, PlacementResult, independent_runs, place
-from .objective import FunctionObjective, Objective, StrainErrorObjective
+from .objective import FatigueErrorObjective, FunctionObjective, Objective, StrainErrorObjective
 from .pareto import ParetoResult, pareto
 from .plots import plot_convergence, plot_layout, plot_pareto
 from .problem import PlacementProblem
 
 __all__ = ["KINDS", "STRAIN_KINDS", "CandidateSet", "PlateGrid", "Encoding", "make_encoding", "THESIS",
            "PlacementResult", "independent_runs", "place", "Objective", "FunctionObjective", "StrainErrorObjective",
+           "FatigueErrorObjective",
            "ParetoResult", "pareto", "plot_convergence", "plot_layout", "plot_pareto", "PlacementProblem"]
