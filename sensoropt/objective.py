@@ -271,7 +271,7 @@ class FatigueErrorObjective(StrainErrorObjective):
     """
 
     def __init__(self, structure: Structure, forces: Forces, loads: ForceHistories, dt: float, encoding: CandidateSet, *,
-                 m: float = 3.0, youngs_modulus: float | None = None, **settings):
+                 m: float = 3.0, youngs_modulus: float | None = None, **settings: object):
         from core_akf.fatigue import _check_equivalence, equivalent_range, rainflow, stress_operator
 
         _check_equivalence(m, 1.0)
