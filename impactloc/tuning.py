@@ -91,6 +91,12 @@ def _to_covariances(x, names, start):
     return Covariances(vals["model_error"], vals["force_increment"], noise)
 
 
+def _split_sample(splits, n_splits, rng):
+    """The role splits of the tuning: ``n_splits`` of them drawn with ``rng`` (all if fewer), in order."""
+    picked = sorted(rng.choice(len(splits), size=min(n_splits, len(splits)), replace=False).tolist())
+    return [splits[i] for i in picked]
+
+
 class _TuningFitness:
     """Fitness of a batch of log10 covariance levels: the mean relative AD error over the tuning
     splits at the known location (``inf`` where a filter fails)."""
@@ -225,8 +231,7 @@ def tune_covariances(structure: Structure, sensors: Layout, measurements: Measur
     rng = np.random.default_rng(seed)
     if not splits:
         raise AKFInputError("no role splits given")
-    picked = sorted(rng.choice(len(splits), size=min(n_splits, len(splits)), replace=False).tolist())
-    tune_splits = [splits[i] for i in picked]
+    tune_splits = _split_sample(splits, n_splits, rng)
     kinds = list(dict.fromkeys(s.kind for s in model.layout))
     names = ["model_error", "force_increment"] + [f"noise_{k}" for k in kinds[1:]]
     x0 = np.log10([start.model_error if start.model_error > 0 else 1e-20, start.force_increment]
@@ -340,9 +345,8 @@ def tune_covariances_ml(structure: Structure, sensors: Layout, measurements: Mea
     v = fit.values
     tuned = Covariances(v.get("model_error_cov", start.model_error), v["force_increment_cov"],
                         {kind: v["noise_cov"].get(kind, level) for kind, level in start.noise.items()})
-    rng = np.random.default_rng(seed)
-    picked = sorted(rng.choice(len(splits), size=min(n_splits, len(splits)), replace=False).tolist())
-    _, rel = location_errors(model, location, [splits[i] for i in picked], Y, [start, tuned], int(round(skip / dt)))
+    sample = _split_sample(splits, n_splits, np.random.default_rng(seed))
+    _, rel = location_errors(model, location, sample, Y, [start, tuned], int(round(skip / dt)))
     with np.errstate(all="ignore"):
         initial_error, tuned_error = (float(e) for e in np.nanmean(rel, axis=(1, 2)))
     genes = [_ML_GENES.get(n, n.replace("noise_cov:", "noise_")) for n in fit.multipliers]
