@@ -233,6 +233,24 @@ def _reversals(X):
     return X[row, col], col
 
 
+def _flat_reversals(values, seg):
+    """The reversals of flat sequences (each output's points in order, ``seg`` sorted): repeated
+    values merged, the points where the slope keeps its sign dropped, each output's first and last
+    point kept."""
+    same = seg[1:] == seg[:-1]
+    keep = np.ones(values.size, bool)
+    keep[1:] = ~(same & (values[1:] == values[:-1]))          # a plateau counts once
+    values, seg = values[keep], seg[keep]
+    if values.size < 3:
+        return values, seg
+    d = np.sign(np.diff(values))
+    same = seg[1:] == seg[:-1]
+    inner = same[:-1] & same[1:]                              # point i with both neighbours in its output
+    keep = np.ones(values.size, bool)
+    keep[1:-1] = ~inner | (d[:-1] != d[1:])
+    return values[keep], seg[keep]
+
+
 def _take_cycles(values, seg):
     """Take out every full cycle of the flat reversal sequences (ASTM E1049-85: a range no larger
     than its neighbours), pass after pass.  Returns the residue ``(values, seg)`` and the full
@@ -430,8 +448,11 @@ class FatigueAccumulator:
             values, seg = np.concatenate([head_v, values]), np.concatenate([head_s, seg])
             order = np.argsort(seg, kind="stable")
             values, seg = values[order], seg[order]
-        values, seg, full, owner = _take_cycles(values, seg)
-        self.residue, self.residue_output = values, seg
+        self.residue, self.residue_output, full, owner = _take_cycles(values, seg)
+        self._count(full, owner)
+
+    def _count(self, full, owner):
+        """Add full cycles (ranges, outputs) to the sums."""
         if full.size:
             self.full_cycles += np.bincount(owner, minlength=self.k)
             np.maximum.at(self.full_max, owner, full)
@@ -451,6 +472,40 @@ class FatigueAccumulator:
         position = np.arange(self.residue.size) - np.repeat(ends - counts, counts)
         head = position < np.repeat(counts - 2, counts)
         return self.residue[head], self.residue_output[head], np.vstack([before, last])
+
+    def merge(self, later: FatigueAccumulator) -> FatigueAccumulator:
+        """Join the counts of the piece of record that follows this one (counted on its own, from its
+        first sample): the cycles of the two pieces in one, exactly as if counted together.
+
+        The cycles each piece closed on its own are cycles of the whole (the criterion only grows
+        stricter nowhere when a piece's first sample turns out to be no reversal); the residues are
+        joined and counted again.
+
+        Parameters
+        ----------
+        later : FatigueAccumulator
+            The counts of the next piece (same outputs, curve, slope and N_eq).
+
+        Returns
+        -------
+        FatigueAccumulator
+            ``self``, now holding both.
+        """
+        if later.k != self.k or later.m != self.m or later.n_eq != self.n_eq or \
+                not np.array_equal(later.curve.ranges, self.curve.ranges) or \
+                not np.array_equal(later.curve.cycles, self.curve.cycles):
+            raise AKFInputError("only counts of the same outputs, S-N curve, slope and N_eq merge")
+        self.full_cycles = self.full_cycles + later.full_cycles
+        self.full_max = np.maximum(self.full_max, later.full_max)
+        self.full_damage = self.full_damage + later.full_damage
+        self.full_sum_m = self.full_sum_m + later.full_sum_m
+        values = np.concatenate([self.residue, later.residue])
+        seg = np.concatenate([self.residue_output, later.residue_output])
+        order = np.argsort(seg, kind="stable")
+        values, seg = _flat_reversals(values[order], seg[order])
+        self.residue, self.residue_output, full, owner = _take_cycles(values, seg)
+        self._count(full, owner)
+        return self
 
     def summary(self) -> FatigueSummary:
         """The fatigue of the record so far: the full cycles and the residue's half cycles.

@@ -222,3 +222,20 @@ def test_a_model_of_ones_own_without_e_or_strain_outputs_is_named():
         SNCurve.from_points([1e4, 300])
     with pytest.raises(AKFInputError, match="unknown detail category"):
         SNCurve.ec3(72)
+
+
+def test_pieces_counted_apart_merge_into_the_one_piece_counts():
+    """Each piece counted on its own from its first sample, then merged in order: the one-piece
+    cycles exactly (rounded random walks: plateaus and ties at the joins)."""
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        X = np.round(np.cumsum(rng.normal(size=(int(rng.integers(5, 3000)), 4)), axis=0), 1) * 1e6
+        cuts = np.sort(rng.choice(np.arange(1, X.shape[0]), size=min(6, X.shape[0] - 1), replace=False))
+        accs = []
+        for part in np.split(X, cuts):
+            accs.append(FatigueAccumulator(4, SNCurve.ec3(36)))
+            accs[-1].update(part)
+        for acc in accs[1:]:
+            accs[0].merge(acc)
+        np.testing.assert_array_equal(accs[0].summary().cycles, rainflow(X).total())
+        np.testing.assert_array_equal(accs[0].summary().max_range, rainflow(X).max_range())
