@@ -574,6 +574,7 @@ class _Run:
         self.kept = {"t": [], "f": [], "y": [], "p": []}
         self.reference = []           # the decimated true forces of a simulated record
         self.saved = None
+        self.fatigue = None           # the FatigueRun whose figure finish() draws
 
     def start(self, estimator):
         """The step the run starts from: 0, or a checkpoint's (its state restored into ``estimator``)."""
@@ -661,7 +662,7 @@ class _Run:
             draw(files, "sensors_figure", metrics["warnings"], plot_sensors, t, np.vstack(self.kept["y"]),
                  np.vstack(self.kept["p"]), sensors, os.path.join(self.out, "sensors.png"),
                  f"{title}: measured vs. predicted at the sensors")
-            if getattr(self, "fatigue", None) is not None:
+            if self.fatigue is not None:
                 from .plots import plot_fatigue
 
                 frame = self.fatigue.frame(self.job.dt)

@@ -341,8 +341,6 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     Y = as_finite_array(measurements, "measurements", ndim=2)
     if Y.shape[1] != len(layout):
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
-    if Y.shape[0] < 10 * (len(names) + 1):
-        raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(names)} parameter(s)")
     check_detectable(structure, layout, locs)
     if "damping" in names and not _modal_ratio(structure.damping):
         raise AKFInputError(f"damping is calibrated as a factor on the model's modal damping ratio; this model's damping "
@@ -351,6 +349,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         _level(force_increment_cov, "force_increment_cov", "force_increment_cov" in names)
     modes = _check_modes(structure, dt, modes) if "frequencies" in names else ()
     problem = _Problem(structure, layout, locs, Y, dt, Q, S, noise_cov, names, modes)
+    if Y.shape[0] < 10 * (len(problem.names) + 1):
+        raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(problem.names)} parameter(s)")
     ranges = {"stiffness_factor": default("calibration_stiffness_range", stiffness_range),
               "damping": default("calibration_damping_range"),
               "frequencies": default("calibration_frequency_range")}
