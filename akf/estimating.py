@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -239,6 +240,18 @@ class _Writer:
                 raise CheckpointError(f"{self.path} lacks parts the checkpoint says were written: start the run anew")
         self.position = position
 
+    def append_part(self, part, index):
+        """Move a part written elsewhere (a task of a time-parallel run) to the end of the output."""
+        confined(self.path)
+        if self.fmt == "csv":
+            with open(self.path, "ab") as fh, open(part, "rb") as src:
+                shutil.copyfileobj(src, fh)
+            os.remove(part)
+            self.position = os.path.getsize(self.path)
+        else:
+            os.replace(part, os.path.join(self.path, f"part-{self.position:05d}.parquet"))
+            self.position += 1
+
     def write(self, frame):
         confined(self.path)
         if self.fmt == "csv":
@@ -308,7 +321,7 @@ def _load_checkpoint(path):
 
 def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool = False, overwrite: bool = False,
                  plot: bool = True, progress: bool = False, stop_after: int | None = None,
-                 on_result=None) -> EstimateResult:
+                 on_result=None, n_jobs: int | None = None) -> EstimateResult:
     """Estimate the forces and strains of an estimate :class:`~akf.job.Job`: its simulated record
     (``[simulation]``, one chunk, with the truth) or its measured one (``[measurements]``, in
     chunks of ``[measurements] chunk`` when written to ``out``).
@@ -337,6 +350,12 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     on_result : callable or None
         Called with the :class:`EstimateResult` once its files are written and before the figures
         are drawn (to print the results first: a figure that fails loses nothing).
+    n_jobs : int or None
+        Filter a measured record of many files time-parallel, a file per task on this many joblib
+        workers (-1: all; a dask cluster inside :func:`akf.parallel.scheduler`): the steady-state
+        filter's pieces at the same time (:func:`core_akf.streaming.estimate_in_parallel`), each
+        worker reading, filtering and writing its file.  The results equal the sequential run's
+        (forces to round-off, fatigue counts exactly).  None: sequential.
 
     Returns
     -------
@@ -384,6 +403,10 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         chunk = max(1, int(round(spec.measurements.chunk / dt)))
     else:
         chunk = default_chunk(n_a, len(sensors), len(tidy.labels))
+    if n_jobs is not None and record is not None and len(record.files) > 1:
+        return _estimate_in_pieces(job, out, record, model, Q, S, noise_cov, tidy, calibration, notes, n_jobs,
+                                   dict(resume=resume, overwrite=overwrite, plot=plot, stop_after=stop_after,
+                                        on_result=on_result, n_total=n_total, t0=t0))
     # smoothing: with the whole record when it is one piece, else (or when asked) with a fixed lag
     lag = None
     if job.smooth and (job.smooth_lag is not None or chunk < n_total):
@@ -464,6 +487,115 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     if run is not None:
         run.finish(result.files, metrics, plot, whole, forces, sensors)
     return result
+
+
+def _estimate_in_pieces(job, out, record, model, Q, S, noise_cov, tidy, calibration, notes, n_jobs, opts):
+    """:func:`estimate_job` of a measured record of many files, time-parallel: a file per task."""
+    import joblib
+
+    from core_akf.streaming import estimate_in_parallel
+
+    if out is None:
+        raise AKFInputError("a time-parallel run writes each file's results where it is filtered: give an output folder")
+    if job.smooth:
+        raise AKFInputError("the time-parallel run filters; smoothing needs the record after each step in the same "
+                            "task: leave smooth off, or run without n_jobs (--n-jobs, --scheduler)")
+    if job.steady is False:
+        raise AKFInputError("the time-parallel run needs the steady-state filter ([filter] steady = true or unset)")
+    if opts["resume"] or opts["stop_after"] is not None:
+        raise AKFInputError("a time-parallel run is not resumed: its files run at once; run it again")
+    estimator = Estimator(model, job.sensors, job.forces, job.dt, steady=True, allow_undetectable=job.allow_undetectable,
+                          model_error_cov=Q, force_increment_cov=S, noise_cov=noise_cov, t0=opts["t0"])
+    fatigue = None
+    if job.spec.output is not None and job.spec.output.fatigue is not None:
+        from .fatigue import FatigueRun
+
+        fatigue = FatigueRun(job, simulated=False)
+    n_total = opts["n_total"]
+    run = _Run(job, out, record, n_total, n_total, False, opts["overwrite"])
+    run.start(estimator)
+    record.channel_offsets()                           # once, here: every worker subtracts the same offsets
+    firsts = np.cumsum([0] + [t.n_steps for t in record.timings])[:-1]
+    folder = os.path.join(run.out, ".pieces")
+    os.makedirs(confined(folder), exist_ok=True)
+    piece = _PieceOutputs(tidy, fatigue, n_total, folder, run.writer.fmt, [int(f) for f in firsts], run.decimate)
+
+    def map_pieces(f, items):
+        return joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(f)(x) for x in items)
+    results = estimate_in_parallel(estimator, [_FilePiece(record, i) for i in range(len(record.files))], map_pieces,
+                                   piece)
+    diag = None
+    for i, r in enumerate(results):                   # in record order: the outputs, the counts, the figures' samples
+        run.writer.append_part(r["part"], i)
+        diag = r["diag"] if diag is None else diag.merge(r["diag"])
+        if fatigue is not None:
+            fatigue.estimated = r["fatigue"] if i == 0 else fatigue.estimated.merge(r["fatigue"])
+            fatigue.steps += r["steps"]
+        for k in ("t", "f", "y", "p"):
+            run.kept[k].append(r["kept"][k])
+    os.rmdir(folder)
+    notes.append(f"filtered time-parallel: {len(results)} files as one task each")
+    metrics = _metrics(job, estimator, diag, diag.last, n_total, opts["t0"], None, None, model, job.sensors, job.forces,
+                       noise_cov, lambda: next(iter(record.chunks(DEFAULT_CHUNK_STEPS)))[1])
+    if fatigue is not None:
+        metrics["fatigue"] = fatigue.metrics(job.dt)
+    if calibration is not None:
+        metrics["calibration"] = calibration
+        metrics["warnings"] = [f"calibration: {w}" for w in calibration["warnings"]] + metrics["warnings"]
+    result = EstimateResult(job, metrics, {}, record.describe(), notes, 0)
+    result.files = run.write_summary(metrics, fatigue)
+    if opts["on_result"] is not None:
+        opts["on_result"](result)
+    run.finish(result.files, metrics, opts["plot"], None, job.forces, job.sensors)
+    return result
+
+
+class _FilePiece:
+    """A file of a record, read where its task runs."""
+
+    def __init__(self, record, index):
+        self.record, self.index = record, index
+
+    def __call__(self):
+        return self.record.read_file(self.index)
+
+
+class _PieceOutputs:
+    """What a task of a time-parallel run makes of its file's estimate, where it runs: the tidy rows
+    (a part file), its diagnostics and fatigue counts, the samples the figures draw.  Only those
+    travel back."""
+
+    def __init__(self, tidy, fatigue, n_total, folder, fmt, firsts, decimate):
+        self.tidy, self.n_total, self.folder, self.fmt = tidy, n_total, folder, fmt
+        self.firsts, self.decimate = firsts, decimate
+        self.fatigue = None if fatigue is None else (fatigue.W, fatigue.curve, fatigue.m, fatigue.n_eq)
+
+    def __call__(self, est, i):
+        from dataclasses import replace
+
+        from core_akf.fatigue import FatigueAccumulator
+
+        step = self.firsts[i]
+        path = os.path.join(self.folder, f"part-{i:05d}.{self.fmt}")
+        frame = self.tidy.frame(est, None, step)
+        if self.fmt == "csv":
+            frame.to_csv(path, header=False, index=False, float_format="%.17g")
+        else:
+            frame.to_parquet(path, index=False)
+        diag = RunningDiagnostics(self.n_total).starting_at(step)
+        diag.update(est)
+        n = est.forces.shape[0]
+        diag.last = replace(est, states=est.states[-1:], forces=est.forces[-1:], innovations=est.innovations[-1:],
+                            measurements=est.measurements[-1:], loglik_terms=est.loglik_terms[-1:],
+                            t0=est.t0 + (n - 1) * est.dt)          # what the summary reads, not the whole piece
+        counts = None
+        if self.fatigue is not None:
+            W, curve, m, n_eq = self.fatigue
+            counts = FatigueAccumulator(W.shape[0], curve, m, n_eq)
+            counts.update(est.strains @ W.T)
+        sel = np.arange((-step) % self.decimate, n, self.decimate)
+        kept = {"t": est.time[sel], "f": est.forces[sel], "y": est.measurements[sel], "p": est.predicted[sel]}
+        return {"part": path, "diag": diag, "fatigue": counts, "steps": n, "kept": kept}
 
 
 def _joined(parts):

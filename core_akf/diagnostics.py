@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .exceptions import AKFInputError
 from .sensors import UNITS
 
 #: a channel whose innovations are this many times their predicted size is flagged
@@ -155,6 +156,7 @@ class RunningDiagnostics:
         if self.last is None:
             self._start(est)
         k = est.forces.shape[0]
+        self._seen = self.n_seen + k
         self.sum_loglik += est.loglik_channels            # the likelihood of the whole record: no skip
         cut = min(max(self.skip - self.step, 0), k)
         first = self.step + cut                      # record step of the first counted sample
@@ -237,6 +239,69 @@ class RunningDiagnostics:
         return [{"channel": f"{node}:{d}", "unit": "N", "rms": float(np.sqrt(self.sum_f2[j] / self.n)),
                  "peak": float(self.peak[j]), "time_of_peak": float(t0 + self.peak_step[j] * est.dt)}
                 for j, (node, d) in enumerate(est.force_locations)]
+
+    def starting_at(self, step: int) -> RunningDiagnostics:
+        """Count a piece of the record that starts at record step ``step`` (for :meth:`merge`).
+
+        Parameters
+        ----------
+        step : int
+            The record step of the piece's first row.
+
+        Returns
+        -------
+        RunningDiagnostics
+            ``self``.
+        """
+        if self.last is not None:
+            raise AKFInputError("starting_at comes before the first update")
+        self.step = int(step)
+        return self
+
+    def merge(self, later: RunningDiagnostics) -> RunningDiagnostics:
+        """Join the diagnostics of the piece that follows this one (counted apart,
+        :meth:`starting_at` its first step): as if one had seen both, the lag products across the
+        join included.
+
+        Parameters
+        ----------
+        later : RunningDiagnostics
+            The next piece's diagnostics.
+
+        Returns
+        -------
+        RunningDiagnostics
+            ``self``.
+        """
+        if later.last is None:
+            return self
+        if self.last is None:
+            self.__dict__.update({k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in later.__dict__.items()})
+            return self
+        if later.step - later.n_seen != self.step:
+            raise AKFInputError(f"the pieces do not join: this one ends at step {self.step}, the next starts at "
+                                f"{later.step - later.n_seen}")
+        T, H = self.tail.shape[0], later.head.shape[0]
+        for l in range(1, self.lags + 1):          # pairs l steps apart across the join: the i-th last of the
+            i = np.arange(max(0, l - H), min(l, T))  # left piece and the (l-1-i)-th first of the right one
+            if i.size:
+                self.lag[l - 1] += np.sum(self.tail[T - 1 - i] * later.head[l - 1 - i], axis=0)
+        for k in ("sum_y2", "sum_e", "sum_e2", "lag", "sum_f2", "sum_loglik"):
+            setattr(self, k, getattr(self, k) + getattr(later, k))
+        better = np.abs(later.peak) > np.abs(self.peak)
+        self.peak = np.where(better, later.peak, self.peak)
+        self.peak_step = np.where(better, later.peak_step, self.peak_step)
+        self.head = np.vstack([self.head, later.head])[:self.lags]
+        self.tail = np.vstack([self.tail, later.tail])[-self.lags:]
+        self.n += later.n
+        self.step = later.step
+        self.last = later.last
+        return self
+
+    @property
+    def n_seen(self):
+        """Steps given to :meth:`update` (counted or skipped)."""
+        return getattr(self, "_seen", 0)
 
     def state(self):
         """The accumulators, saved with a resumable run.

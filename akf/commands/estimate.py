@@ -8,6 +8,7 @@ import sys
 from core_akf.exceptions import AKFInputError
 
 from ..outputs import OutputFolder
+from ..parallel import add_scheduler_option, scheduler, workers
 from .common import add_print_job, print_written, seed
 
 
@@ -33,10 +34,12 @@ def _estimate(args):
     job = Job.from_dict(data, "estimate", source=args.job, overrides=overrides)     # checked once
     out = args.out or os.path.join("akf-out", job.name)
     shown = []             # warnings printed with the results, before the figures are drawn
-    with OutputFolder(out, "--out"):      # checked and locked before the work starts
+    parallel = args.n_jobs is not None or args.scheduler is not None
+    with OutputFolder(out, "--out"), scheduler(args.scheduler, resume="run the same command again"):
         res = estimate_job(job, out, resume=args.resume, overwrite=args.overwrite, plot=not args.no_plot,
                            progress=not args.json and sys.stderr.isatty(),
-                           on_result=None if args.json else lambda r: shown.extend(_print_results(job, r)))
+                           on_result=None if args.json else lambda r: shown.extend(_print_results(job, r)),
+                           n_jobs=workers(args) if parallel else None)
     m = res.metrics
     if args.json:
         print(json.dumps({"name": job.name, "complete": res.complete, "detectable": m.get("detectable"),
@@ -123,6 +126,9 @@ def register(sub):
     p.add_argument("--duration", type=float, help="override the simulated record length (s)")
     p.add_argument("--seed", type=seed, help="override the noise seed")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
+    p.add_argument("--n-jobs", type=int, help="a measured record of many files: filter its files at the same time on "
+                   "this many workers (time-parallel steady-state filter; -1: all cores)")
+    add_scheduler_option(p)
     p.add_argument("--resume", action="store_true", help="measured data: continue an interrupted run in --out from its "
                    "last written chunk")
     p.add_argument("--overwrite", action="store_true", help="measured data: start anew in --out, replacing an "

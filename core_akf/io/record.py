@@ -107,6 +107,14 @@ class Channel:
     sign: float
 
 
+def _si(block, sources):
+    """A block of raw samples in SI: each channel converted and signed."""
+    si = np.empty(block.shape)
+    for j, s in enumerate(sources):
+        si[:, j] = s.sign * s.convert(block[:, j])
+    return si
+
+
 class Record:
     """A measured record for a sensor layout, from one file or many.
 
@@ -311,9 +319,7 @@ class Record:
                     block, drop = block[drop:], max(drop - block.shape[0], 0)
                     if not block.shape[0]:
                         continue
-                si = np.empty(block.shape)
-                for j, s in enumerate(sources):
-                    si[:, j] = s.sign * s.convert(block[:, j])
+                si = _si(block, sources)
                 pending.append(si)
                 held += si.shape[0]
                 while held >= size:
@@ -393,6 +399,48 @@ class Record:
         """Channel ``j`` for messages: ``'SG13' (strain:13)``, or ``'strain:13'`` if named so."""
         name, label = self.sources[0][j].name, self.labels[j]
         return repr(name) if name == label else f"{name!r} ({label})"
+
+    def channel_offsets(self, size: int = 65536) -> FloatArray:
+        """The offset subtracted from each channel (``remove_offset``; zeros without), computed once.
+
+        Parameters
+        ----------
+        size : int
+            Steps read at a time.
+
+        Returns
+        -------
+        ndarray (m,)
+            SI.
+        """
+        return self._offsets(size)
+
+    def read_file(self, index: int, size: int = 65536) -> FloatArray:
+        """One file of the record, in SI, checked as a chunk (the piece a worker reads in a
+        time-parallel run, :func:`core_akf.streaming.estimate_in_parallel`).
+
+        Parameters
+        ----------
+        index : int
+            The file (0-based, in time order: :attr:`files`).
+        size : int
+            Steps read at a time.
+
+        Returns
+        -------
+        ndarray (k, m)
+            The file's samples in SI, columns in sensor order.
+        """
+        if not 0 <= int(index) < len(self.files):
+            raise AKFInputError(f"the record has {len(self.files)} files; there is no file {index}")
+        offsets = self._offsets(size)
+        sources = self.sources[index]
+        reader = self._open(self.files[index])
+        blocks = [_si(b, sources) for b in reader.chunks([s.name for s in sources], size)]
+        del reader
+        Y = (np.vstack(blocks) if blocks else np.empty((0, len(self.labels)))) - offsets
+        self._check_chunk(sum(t.n_steps for t in self.timings[:index]), Y)
+        return Y
 
     def read(self, size: int = 65536) -> tuple[Time, FloatArray]:
         """The whole record in memory.
