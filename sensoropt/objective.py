@@ -272,9 +272,10 @@ class FatigueErrorObjective(StrainErrorObjective):
 
     def __init__(self, structure: Structure, forces: Forces, loads: ForceHistories, dt: float, encoding: CandidateSet, *,
                  m: float = 3.0, youngs_modulus: float | None = None, **settings: object):
-        from core_akf.fatigue import _check_equivalence, equivalent_range, rainflow, stress_operator
+        from core_akf.fatigue import equivalent_range, rainflow, stress_operator
 
-        _check_equivalence(m, 1.0)
+        if not (np.isfinite(m) and m > 0):
+            raise AKFInputError(f"the DEL slope m must be a positive number, got {m!r}")
         super().__init__(structure, forces, loads, dt, encoding, **settings)
         targets = settings.get("targets")
         rows = list(range(structure.n_strain)) if targets is None else structure.strain_label_index(targets)
