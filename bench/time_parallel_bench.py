@@ -8,8 +8,9 @@ piece from a ``.npy`` file.  Printed: the sequential stream (one process, which 
 every core of a small machine busy: BLAS and the lifted recursion's own threads), the same pieces
 through the builtin ``map`` (one process: the price of the extra pass), and a 2-worker dask
 ``LocalCluster`` (one thread per worker); the time of each step on one core, and what they predict
-for N single-core workers (``(ends + runs) / N + boundaries`` plus the 2-worker run's overhead).  The parallel result is checked against the sequential
-stream: forces to 1e-9, cycle counts exactly.
+for N single-core workers (``(ends + runs) / N + boundaries`` plus the 2-worker run's overhead).
+The parallel result is checked against the sequential stream: forces to 1e-9, cycle counts
+exactly.
 """
 from __future__ import annotations
 
