@@ -22,3 +22,30 @@ def write_record(simulation, sensors, dt, path):
     frame.insert(0, "time", np.arange(len(frame)) * dt)
     frame.to_csv(path, index=False, float_format="%.17g")
     return path
+
+
+def measured_s17_files(tmp_path, files, output):
+    """S17 case 4 (the true model, 1 s) as a measured record in ``files`` CSV files under
+    ``tmp_path/rec``: the job dict reading them (``*.csv`` for several files), with ``[output]``
+    as given."""
+    import numpy as np
+    import pandas as pd
+
+    from akf.examples import example_job
+    from akf.job import Job
+
+    data = example_job("s17-case4")
+    data["simulation"]["duration"] = 1.0
+    data["filter"]["stiffness_factor"] = 1.0
+    sim = Job.from_dict(data, "estimate").simulate()
+    frame = pd.DataFrame(sim.measurements, columns=data["sensors"])
+    frame.insert(0, "time", np.arange(len(frame)) * data["dt"])
+    folder = tmp_path / "rec"
+    folder.mkdir(parents=True, exist_ok=True)
+    for i, part in enumerate(np.array_split(np.arange(len(frame)), files)):
+        frame.iloc[part].to_csv(folder / f"part{i:02d}.csv", index=False, float_format="%.17g")
+    measured = {k: v for k, v in data.items() if k != "simulation"}
+    measured["filter"]["noise_cov"] = [float(v) ** 2 for v in sim.noise_std]
+    measured["measurements"] = {"file": str(folder / ("*.csv" if files > 1 else "part00.csv")), "chunk": 0.1}
+    measured["output"] = output
+    return measured

@@ -5,9 +5,10 @@ import numpy as np
 import pandas as pd
 import pytest
 import rainflow as reference_rainflow
+from helpers import measured_s17_files
 
 from akf.estimating import estimate_job
-from akf.examples import example, example_job
+from akf.examples import example
 from akf.job import Job
 from core_akf.exceptions import AKFInputError
 from core_akf.fatigue import (
@@ -157,22 +158,7 @@ def test_estimate_job_fatigue_equals_the_package_on_the_estimated_stresses(tmp_p
 
 
 def _measured(tmp_path, files):
-    """S17 case 4 (true model, 1 s) as a measured record in ``files`` CSV files, fatigue on every member."""
-    data = example_job("s17-case4")
-    data["simulation"]["duration"] = 1.0
-    data["filter"]["stiffness_factor"] = 1.0
-    sim = Job.from_dict(data, "estimate").simulate()
-    frame = pd.DataFrame(sim.measurements, columns=data["sensors"])
-    frame.insert(0, "time", np.arange(len(frame)) * data["dt"])
-    folder = tmp_path / "rec"
-    folder.mkdir(parents=True)
-    for i, part in enumerate(np.array_split(np.arange(len(frame)), files)):
-        frame.iloc[part].to_csv(folder / f"part{i:02d}.csv", index=False, float_format="%.17g")
-    measured = {k: v for k, v in data.items() if k != "simulation"}
-    measured["filter"]["noise_cov"] = [float(v) ** 2 for v in sim.noise_std]
-    measured["measurements"] = {"file": str(folder / ("*.csv" if files > 1 else "part00.csv")), "chunk": 0.1}
-    measured["output"] = {"fatigue": {"members": list(range(1, 35)), "detail_category": 36}}
-    return measured
+    return measured_s17_files(tmp_path, files, {"fatigue": {"members": list(range(1, 35)), "detail_category": 36}})
 
 
 def test_ten_files_count_exactly_as_one_and_a_resumed_run_as_well(tmp_path):

@@ -4,6 +4,7 @@ state) equals the sequential stream, also on a 2-worker dask cluster, and the pi
 counts merge into the one-piece counts exactly."""
 import numpy as np
 import pytest
+from helpers import measured_s17_files
 
 from akf.examples import example
 from core_akf.exceptions import AKFInputError
@@ -101,27 +102,7 @@ def test_the_time_parallel_filter_needs_a_fresh_steady_estimator(record):
 
 
 def _measured_files(tmp_path, files=8):
-    """S17 case 4 (true model, 1 s) as a measured record in ``files`` CSV files, fatigue on every member."""
-    import pandas as pd
-
-    from akf.examples import example_job
-    from akf.job import Job
-
-    data = example_job("s17-case4")
-    data["simulation"]["duration"] = 1.0
-    data["filter"]["stiffness_factor"] = 1.0
-    sim = Job.from_dict(data, "estimate").simulate()
-    frame = pd.DataFrame(sim.measurements, columns=data["sensors"])
-    frame.insert(0, "time", np.arange(len(frame)) * data["dt"])
-    folder = tmp_path / "rec"
-    folder.mkdir(parents=True, exist_ok=True)
-    for i, part in enumerate(np.array_split(np.arange(len(frame)), files)):
-        frame.iloc[part].to_csv(folder / f"part{i:02d}.csv", index=False, float_format="%.17g")
-    measured = {k: v for k, v in data.items() if k != "simulation"}
-    measured["filter"]["noise_cov"] = [float(v) ** 2 for v in sim.noise_std]
-    measured["measurements"] = {"file": str(folder / "*.csv"), "chunk": 0.1}
-    measured["output"] = {"fatigue": {"detail_category": 36}, "strains": ["strain:13", "strain:1"]}
-    return measured
+    return measured_s17_files(tmp_path, files, {"fatigue": {"detail_category": 36}, "strains": ["strain:13", "strain:1"]})
 
 
 @pytest.mark.parametrize("cluster", [False, True], ids=["joblib", "dask LocalCluster"])
