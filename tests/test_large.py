@@ -73,15 +73,17 @@ def test_frequency_factors_keep_the_mode_shapes_and_the_static_response(plates):
     factors = [1.0, 0.96, 1.03]
     changed = dense.with_frequency_factors(factors)
     ratio = changed.frequencies(6) / dense.frequencies(6)
-    np.testing.assert_allclose(ratio, [1.0, 0.96, 1.03, 1.0, 1.0, 1.0], rtol=1e-9)
+    # to 1e-7: the lowest mode's eigenvalue is 1e7 times below the largest, and K' carries round-off of
+    # the largest (2e-9 under OPENBLAS_CORETYPE=Haswell)
+    np.testing.assert_allclose(ratio, [1.0, 0.96, 1.03, 1.0, 1.0, 1.0], rtol=1e-7)
     np.testing.assert_allclose(np.abs(changed.modes(6)), np.abs(dense.modes(6)), atol=1e-8 * np.abs(dense.modes(6)).max())
     full = _static_outputs(changed, SENSORS[:4], FORCES)
     assert np.max(np.abs(full - _static_outputs(dense, SENSORS[:4], FORCES))) > 1e-3 * np.max(np.abs(full))
     for model in (large.with_frequency_factors(factors), large.with_frequency_factors(factors).reduce(2),
                   changed.reduce(10, static_correction=True)):
-        np.testing.assert_allclose(_static_outputs(model, SENSORS[:4], FORCES), full, rtol=1e-8,
-                                   atol=1e-12 * np.max(np.abs(full)))
-    np.testing.assert_allclose(large.with_frequency_factors(factors).frequencies(6), changed.frequencies(6), rtol=1e-8)
+        np.testing.assert_allclose(_static_outputs(model, SENSORS[:4], FORCES), full, rtol=1e-7,
+                                   atol=1e-10 * np.max(np.abs(full)))
+    np.testing.assert_allclose(large.with_frequency_factors(factors).frequencies(6), changed.frequencies(6), rtol=1e-7)
 
 
 @pytest.mark.parametrize("factors, message", [([], "one per mode"), ([1.0, -0.9], "positive"), ([np.nan], "positive"),
