@@ -201,12 +201,14 @@ def main(argv=None):
     parser.add_argument("--hours", type=float, nargs="*", default=[1.0, 24.0], help="record lengths (none: skip)")
     parser.add_argument("--plate", action="store_true", help="also the thesis plate, 60 s at 2 kHz")
     parser.add_argument("--fatigue", action="store_true", help="also with fatigue on all 34 members")
+    parser.add_argument("--no-baseline", action="store_true", help="with --fatigue: only the runs with fatigue")
     parser.add_argument("--data", help="folder for the simulated record (default a temporary one; 24 h take ~7 GB)")
     args = parser.parse_args(argv)
     base = args.data or tempfile.mkdtemp(prefix="akf-stream-")
     os.makedirs(base, exist_ok=True)
     rows = []
-    for hours, fatigue in [(h, f) for h in args.hours for f in ((False, True) if args.fatigue else (False,))]:
+    kinds = ((True,) if args.no_baseline else (False, True)) if args.fatigue else (False,)
+    for hours, fatigue in [(h, f) for h in args.hours for f in kinds]:
         row = run(hours, base, fatigue)
         rows.append({"case": f"S17 case-4 set, {hours:g} h at 1 kHz" + (", fatigue of 34 members" if fatigue else "")}
                     | row)
