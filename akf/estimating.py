@@ -26,6 +26,7 @@ import numpy as np
 from core_akf.checks import check_memory
 from core_akf.diagnostics import CONSISTENCY_LIMIT, RunningDiagnostics, scale_check, warnings_for
 from core_akf.exceptions import AKFInputError
+from core_akf.forcemodels import ForceModel
 from core_akf.metrics import average_strain_error, rms_error
 from core_akf.outputs import atomic_path, confined, write_csv
 from core_akf.simulate import MICROSTRAIN
@@ -386,7 +387,7 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         raise AKFInputError("--resume continues an interrupted run of measured data; this job simulates its data")
     dt, structure, sensors, forces = job.dt, job.structure, job.sensors, job.forces
     model = job.filter_model()
-    n_a = 2 * model.n + len(forces)
+    n_a = 2 * model.n + job.force_model.n_states(len(forces))
     sim = record = None
     if spec.measurements is not None:
         record = job.open_record()
@@ -402,11 +403,11 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         sim = job.simulate(4 * n_a + 2 * 2 * structure.n + 3 * structure.n_strain + 4 * len(sensors))
         n_total, t0 = sim.measurements.shape[0], 0.0
         noise_cov = job.noise_cov(sim)
-    Q, S = job.model_error_cov, job.force_increment_cov
+    Q, fm = job.model_error_cov, job.force_model
     calibration = None
     if job.calibrate:        # learn the model and the covariances from the record first
         Y_cal = sim.measurements if sim is not None else calibration_record(job, record)
-        model, Q, S, noise_cov, calibration = calibrate_job(job, model, sensors, forces, Y_cal, noise_cov)
+        model, Q, fm, noise_cov, calibration = calibrate_job(job, model, sensors, forces, Y_cal, noise_cov)
     notes = []
     tidy = TidyRows(model, forces, strain_outputs(job, structure, n_total, notes) if out is not None else [])
     if record is None or out is None:
@@ -416,7 +417,7 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     else:
         chunk = default_chunk(n_a, len(sensors), len(tidy.labels))
     if n_jobs is not None and record is not None and len(record.files) > 1:
-        return _estimate_in_pieces(job, out, record, model, Q, S, noise_cov, tidy, calibration, notes, n_jobs,
+        return _estimate_in_pieces(job, out, record, model, Q, fm, noise_cov, tidy, calibration, notes, n_jobs,
                                    dict(resume=resume, overwrite=overwrite, plot=plot, stop_after=stop_after,
                                         on_result=on_result, n_total=n_total, t0=t0))
     # smoothing: with the whole record when it is one piece, else (or when asked) with a fixed lag
@@ -424,7 +425,8 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     if job.smooth and (job.smooth_lag is not None or chunk < n_total):
         lag = "auto" if job.smooth_lag in (None, "auto") else max(1, int(round(job.smooth_lag / dt)))
     estimator = Estimator(model, sensors, forces, dt, steady=job.steady, allow_undetectable=job.allow_undetectable,
-                          model_error_cov=Q, force_increment_cov=S, noise_cov=noise_cov, t0=t0, smooth_lag=lag)
+                          model_error_cov=Q, force_model=fm, noise_cov=noise_cov, t0=t0, smooth_lag=lag,
+                          dummy=job.dummy)
     fatigue = None
     if spec.output is not None and spec.output.fatigue is not None:
         from .fatigue import FatigueRun
@@ -501,7 +503,7 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     return result
 
 
-def _estimate_in_pieces(job, out, record, model, Q, S, noise_cov, tidy, calibration, notes, n_jobs, opts):
+def _estimate_in_pieces(job, out, record, model, Q, fm, noise_cov, tidy, calibration, notes, n_jobs, opts):
     """:func:`estimate_job` of a measured record of many files, time-parallel: a file per task."""
     import joblib
 
@@ -517,7 +519,7 @@ def _estimate_in_pieces(job, out, record, model, Q, S, noise_cov, tidy, calibrat
     if opts["resume"] or opts["stop_after"] is not None:
         raise AKFInputError("a time-parallel run is not resumed: its files run at once; run it again")
     estimator = Estimator(model, job.sensors, job.forces, job.dt, steady=True, allow_undetectable=job.allow_undetectable,
-                          model_error_cov=Q, force_increment_cov=S, noise_cov=noise_cov, t0=opts["t0"])
+                          model_error_cov=Q, force_model=fm, noise_cov=noise_cov, t0=opts["t0"], dummy=job.dummy)
     fatigue = None
     if job.spec.output is not None and job.spec.output.fatigue is not None:
         from .fatigue import FatigueRun
@@ -640,7 +642,7 @@ def _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors
     if estimator.report.detectable and any(d["consistency"] > CONSISTENCY_LIMIT for d in metrics["sensors"]):
         # some channel does not fit: on the record's first chunk, find out whether a unit or a sign is wrong
         found = scale_check(model, sensors, forces, first_chunk(), job.dt, model_error_cov=estimator.model_error_cov,
-                            force_increment_cov=estimator.force_increment_cov, noise_cov=noise_cov)
+                            force_model=estimator.setup.force_model, noise_cov=noise_cov)
         metrics["warnings"] = found + metrics["warnings"]
         if sim is None:
             metrics["warnings"].append("check the channel map in [measurements]: units, invert (sign) and "
@@ -658,7 +660,7 @@ def calibration_record(job, record):
 def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     """Fit ``[filter] calibrate`` of a job on the record ``Y`` (:func:`core_akf.calibration.calibrate`).
 
-    Returns the fitted ``(model, Q, S, R)`` and the report of the fit (the ``calibration`` object of
+    Returns the fitted ``(model, Q, force_model, R)`` and the report of the fit (the ``calibration`` object of
     the metrics): the fitted values under their ``[filter]`` names (``stiffness_factor`` relative to
     ``[structure]``; ``noise_cov`` per sensor kind when the job gives it so, else per channel), the
     log-likelihood and the consistency per channel before and after, the standard errors
@@ -667,13 +669,14 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     from core_akf.diagnostics import sensor_diagnostics
     from core_akf.filter import estimate
 
-    Q, S = job.model_error_cov, job.force_increment_cov
+    Q, fm = job.model_error_cov, job.force_model
     fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
-                    force_increment_cov=S, noise_cov=noise_cov, modes=job.calibrate_modes)
-    fitted = fit.apply(model, sensors, Q, S, noise_cov)
+                    force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy)
+    fitted = list(fit.apply(model, sensors, Q, fm.increment_cov, noise_cov))
+    fitted[2] = fit.force_model if fm.stationary else ForceModel("random_walk", increment_cov=fitted[2])
 
-    def consistency(m, q, s, r):
-        est = estimate(m, sensors, forces, Y, job.dt, model_error_cov=q, force_increment_cov=s, noise_cov=r)
+    def consistency(m, q, f, r):
+        est = estimate(m, sensors, forces, Y, job.dt, model_error_cov=q, force_model=f, noise_cov=r, dummy=job.dummy)
         return {d["channel"]: d["consistency"] for d in sensor_diagnostics(est)}
     report = {"parameters": list(job.calibrate), "record_steps": int(Y.shape[0])}
     m = fit.multipliers
@@ -694,11 +697,11 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
             report["noise_cov"] = fit.values["noise_cov"]
         else:
             report["noise_cov"] = [float(v) for v in np.diag(fitted[3])]
-    for name, value in (("force_increment_cov", fitted[2]), ("model_error_cov", fitted[1])):
+    for name in ("force_increment_cov", "model_error_cov", "force_std", "force_timescale"):
         if name in job.calibrate:
-            report[name] = float(value) if np.ndim(value) == 0 else np.asarray(value).tolist()
+            report[name] = fit.values[name]
     report |= {"multipliers": m, "std_errors": fit.std_errors, "loglik_before": fit.loglik_before,
-               "loglik_after": fit.loglik_after, "consistency_before": consistency(model, Q, S, noise_cov),
+               "loglik_after": fit.loglik_after, "consistency_before": consistency(model, Q, fm, noise_cov),
                "consistency_after": consistency(*fitted), "warnings": list(fit.warnings),
                "evaluations": fit.evaluations, "seconds": fit.seconds}
     return (*fitted, report)

@@ -47,6 +47,7 @@ from core_akf import loads as L
 from core_akf.checks import check_memory
 from core_akf.defaults import default
 from core_akf.exceptions import AKFInputError
+from core_akf.forcemodels import DummyMeasurements, ForceModel
 from core_akf.models import footbridge, from_files, imp_plate, plate, s17_truss, th_plate
 from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
 from core_akf.simulate import MG, MICROSTRAIN, simulate
@@ -136,6 +137,11 @@ class Job:
     calibrate_window : float or None
         Calibrate on the record's first this many seconds (None: the whole record, at most one
         chunk).
+    force_model : ForceModel
+        The forces' prior (``[filter] force_model``, ``force_std``, ``force_timescale``; the
+        random walk of :attr:`force_increment_cov` by default).
+    dummy : DummyMeasurements or None
+        ``[filter] dummy``.
     n_modes : int, "auto" or None
         Modes kept in the filter's model (with a static correction); None: the full model.
         estimate: ``[filter] n_modes``; place and locate: ``[place]`` / ``[locate] n_modes``
@@ -162,6 +168,8 @@ class Job:
         if self.smooth_lag is not None and not self.smooth:
             raise AKFInputError("[filter] smooth_lag is the lag of the smoother: set smooth = true as well, or remove it")
         self.calibrate_window = f.calibrate_window
+        self.force_model = self._force_model(f)
+        self.dummy = None if f.dummy is None else DummyMeasurements(f.dummy.sensors, f.dummy.variance)
         section = {"place": spec.place, "locate": spec.locate}.get(command)
         if command == "estimate":
             self.n_modes = f.n_modes
@@ -169,6 +177,28 @@ class Job:
             modes = getattr(section, "n_modes", None)
             self.n_modes = None if modes == "full" else (modes or "auto")
         self._structure = structure
+
+    def _force_model(self, f):
+        """The :class:`~core_akf.forcemodels.ForceModel` of ``[filter]``, its keys checked together."""
+        kind = f.force_model or "random_walk"
+        if kind == "random_walk":
+            if f.force_std is not None or f.force_timescale is not None:
+                raise AKFInputError("[filter] force_std and force_timescale belong to a Matérn force model: set "
+                                    "force_model = \"matern32\" (or matern12, matern52), or remove them")
+            return ForceModel("random_walk", increment_cov=self.force_increment_cov)
+        if f.force_increment_cov is not None:
+            raise AKFInputError(f"[filter] force_increment_cov is the random walk's S; force_model = \"{kind}\" takes "
+                                "force_std (N) and force_timescale (s) instead: remove force_increment_cov")
+        if f.force_std is None or f.force_timescale is None:
+            raise AKFInputError(f"[filter] force_model = \"{kind}\" needs force_std (N) and force_timescale (s), e.g. "
+                                "force_std = 500.0 and force_timescale = 0.005")
+        n_p = len(self.spec.forces or [])
+        for name in ("force_std", "force_timescale"):
+            value = getattr(f, name)
+            if isinstance(value, list) and len(value) not in (1, n_p):
+                raise AKFInputError(f"[filter] {name} has {len(value)} values for {n_p} forces: give one, or one per force")
+        std, ell = (v[0] if isinstance(v, list) and len(v) == 1 else v for v in (f.force_std, f.force_timescale))
+        return ForceModel(kind, std=std, timescale=ell)
 
     @classmethod
     def from_dict(cls, data: dict, command: str, *, source: str | os.PathLike | None = None,

@@ -107,7 +107,21 @@ class StructureSection(BaseModel):
 
 #: what ``[filter] calibrate`` may list (:data:`core_akf.calibration.PARAMETERS` and the noise of one kind or per channel)
 CALIBRATION_KEYS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "noise_cov:strain", "noise_cov:acc",
-                    "noise_cov:vel", "noise_cov:disp", "noise_cov:channels", "force_increment_cov", "model_error_cov")
+                    "noise_cov:vel", "noise_cov:disp", "noise_cov:channels", "force_increment_cov", "model_error_cov",
+                    "force_std", "force_timescale")
+#: the force models of ``[filter] force_model`` (:data:`core_akf.forcemodels.FORCE_MODELS`)
+FORCE_MODEL_NAMES = ("random_walk", "matern12", "matern32", "matern52")
+PerForce = Positive | Annotated[list[Positive], Field(min_length=1)]
+
+
+class Dummy(BaseModel):
+    """``[filter] dummy``: zero pseudo-measurements of displacements or strains."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    sensors: Texts = key("a non-empty list of displacement or strain sensors, e.g. [\"disp:8:y\"]",
+                         "the displacements (disp:NODE:DIR) or strains (strain:MEMBER) said to be zero", required=True)
+    variance: Positive = key("a positive number", "the pseudo-measurements' variance (m^2 for displacements, "
+                             "(m/m)^2 for strains): the size of the response they allow", unit="SI^2", required=True)
 
 
 class Filter(Section):
@@ -126,6 +140,21 @@ class Filter(Section):
         "a variance >= 0, a list of variances or a matrix (list of lists)",
         "S: force-increment variance per step (random-walk force model)", used_by=("estimate", "place"),
         unit="N^2", registry="force_increment_cov")
+    force_model: Literal[FORCE_MODEL_NAMES] = key(
+        "one of " + ", ".join(f'\"{k}\"' for k in FORCE_MODEL_NAMES),
+        "the forces' prior: random_walk (the papers'; needs strain or displacement sensors), or a stationary "
+        "Gaussian process with a Matérn covariance (matern12, matern32, matern52: smoothness 1/2, 3/2, 5/2; "
+        "force_std and force_timescale), which makes accelerometer-only sets detectable for zero-mean loads",
+        default_text='"random_walk"')
+    force_std: PerForce = key("a positive number or one per force", "Matérn force model: the standard deviation of "
+                              "each force (akf calibrate learns it: calibrate = [\"force_std\"])", unit="N")
+    force_timescale: PerForce = key("a positive number or one per force", "Matérn force model: the time scale "
+                                    "(length scale) of each force's covariance, over which it stays correlated",
+                                    unit="s")
+    dummy: Dummy = key("a table {sensors = [...], variance = ...}", "zero-valued pseudo-measurements of "
+                       "displacements or strains added to the sensors (dummy measurements): they keep an "
+                       "accelerometer-only random-walk filter from drifting, at the cost of a bias towards zero "
+                       "static response", used_by=ESTIMATE)
     noise_cov: Literal["simulated"] | dict[Text, Positive] | Annotated[list[Positive], Field(min_length=1)] | Positive = key(
         "\"simulated\", a table of positive variances per sensor kind (e.g. {strain = 1e-12, acc = 1e-4}), "
         "or positive variances per channel",

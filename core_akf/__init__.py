@@ -7,6 +7,7 @@ The most used names are importable from here::
 from . import loads, models
 from .exceptions import AKFInputError, ModelError, UndetectableError
 from .filter import Estimate, estimate, estimate_batch, run
+from .forcemodels import DummyMeasurements, ForceModel
 from .metrics import average_strain_error, rms_error
 from .sensors import Sensor
 from .simulate import Simulation, simulate
@@ -18,5 +19,5 @@ __version__ = "0.1.0"
 __all__ = [
     "models", "loads", "Structure", "Sensor", "estimate", "estimate_batch", "run", "smooth", "SmoothResult", "Estimate",
     "simulate", "Simulation", "detectability", "state_space", "rms_error", "average_strain_error",
-    "AKFInputError", "ModelError", "UndetectableError",
+    "AKFInputError", "ModelError", "UndetectableError", "ForceModel", "DummyMeasurements",
 ]

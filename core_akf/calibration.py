@@ -11,7 +11,9 @@ run as one batch each.
 The parameters are searched in logarithms (a factor 2 up is as far as a factor 2 down):
 ``stiffness_factor`` multiplies the starting model's stiffness (every frequency by its square
 root); ``damping`` multiplies its modal damping ratio; ``noise_cov`` multiplies R, one factor per
-sensor kind; ``force_increment_cov`` and ``model_error_cov`` multiply S and Q.  The stiffness is scanned on a grid first (the likelihood
+sensor kind; ``force_increment_cov`` and ``model_error_cov`` multiply S and Q; ``force_std`` and
+``force_timescale`` multiply the standard deviation and the time scale of a Matérn force model
+(:mod:`core_akf.forcemodels`), one factor for all forces.  The stiffness is scanned on a grid first (the likelihood
 of a frequency can have several peaks); then L-BFGS-B refines all of them together.  Standard
 errors come from the curvature of the log-likelihood at the optimum (the observed information).
 """
@@ -23,11 +25,13 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.linalg
 
 from .checks import as_finite_array
 from .covariances import noise_covariance
 from .defaults import default
 from .exceptions import AKFInputError
+from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .filter import FilterSetup, innovation_covariance
 from .likelihood import loglik_terms
 from .recursion import lti_response
@@ -41,7 +45,8 @@ if TYPE_CHECKING:
     from .structure import Structure
 
 #: the parameters :func:`calibrate` can learn
-PARAMETERS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "force_increment_cov", "model_error_cov")
+PARAMETERS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "force_increment_cov", "model_error_cov",
+              "force_std", "force_timescale")
 #: central-difference step of the gradient and the curvature, in natural-log units (a 1e-4 relative change)
 LOG_STEP = 1e-4
 #: a parameter whose log-likelihood changes by less than this over its whole search range is not
@@ -112,7 +117,8 @@ class CalibrationResult:
         ``frequency_factors``, the factors on the frequencies of modes 1..k (1 for a mode not
         fitted); ``damping_factor``, the factor on its modal damping ratio; ``noise_cov`` a dict
         of variances per sensor kind (SI^2) when R was given per kind and learnt per kind, else
-        a list of variances per channel; ``force_increment_cov`` and ``model_error_cov`` levels.
+        a list of variances per channel; ``force_increment_cov`` and ``model_error_cov`` levels;
+        ``force_std`` (N) and ``force_timescale`` (s) of a Matérn force model, one per force.
     multipliers : dict
         The fitted factor of each parameter on its starting value (``noise_cov:acc``,
         ``noise_cov:strain:13``, ``frequencies:2``, ...).
@@ -127,6 +133,9 @@ class CalibrationResult:
         Filters run.
     seconds : float
         Wall time.
+    force_model : ForceModel or None
+        The fitted force model (the starting one with ``force_std``/``force_timescale`` applied);
+        None for the random walk (its ``S`` is in :meth:`apply`).
     """
 
     values: dict
@@ -137,6 +146,7 @@ class CalibrationResult:
     warnings: list = field(default_factory=list)
     evaluations: int = 0
     seconds: float = 0.0
+    force_model: object = None
 
     def apply(self, structure: Structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance) -> tuple:
@@ -156,7 +166,8 @@ class CalibrationResult:
         structure : Structure
             The model with the fitted stiffness factor.
         model_error_cov, force_increment_cov : float or ndarray
-            Q and S with their fitted factors.
+            Q and S with their fitted factors (S None under a Matérn force model: see
+            :attr:`force_model`).
         noise_cov : ndarray (m, m)
             R with its fitted factor per sensor kind.
         """
@@ -170,7 +181,7 @@ class CalibrationResult:
         scale = noise_scale(layout, m)
         R = noise_covariance(layout, noise_cov) * np.outer(scale, scale)
         Q = np.asarray(model_error_cov, float) * m.get("model_error_cov", 1.0)
-        S = np.asarray(force_increment_cov, float) * m.get("force_increment_cov", 1.0)
+        S = None if force_increment_cov is None else np.asarray(force_increment_cov, float) * m.get("force_increment_cov", 1.0)
         return model, Q, S, R
 
 
@@ -216,10 +227,10 @@ def frequency_factors(multipliers: dict) -> np.ndarray:
 class _Problem:
     """The log-likelihood as a function of the log-factors ``u`` of the chosen parameters."""
 
-    def __init__(self, structure, layout, locs, Y, dt, Q, S, R, names, modes=()):
-        self.structure, self.layout, self.locs, self.Y, self.dt = structure, layout, locs, Y, dt
+    def __init__(self, structure, layout, locs, Y, dt, Q, force_model, R, names, modes=(), dummy=None):
+        self.structure, self.layout, self.locs, self.dt = structure, layout, locs, dt
         self.modes = tuple(modes)
-        self.Q, self.S = Q, S
+        self.Q, self.force_model, self.dummy = Q, force_model, dummy
         self.R = noise_covariance(layout, R)
         self.kinds = sorted({s.kind for s in layout})
         self.names = []
@@ -234,6 +245,7 @@ class _Problem:
                 self.names.append(name)
         self._setups = {}
         self.evaluations = 0
+        self.Y = self.setup({}).extend(Y)
 
     def setup(self, p):
         """The filter matrices of the model parameters in ``p`` (log-factors by name), kept per set."""
@@ -246,7 +258,8 @@ class _Problem:
                     frequency_factors({f"frequencies:{k}": np.exp(x) for k, x in zip(self.modes, freq)}))
             if key[1] != 0.0:
                 model = model.with_damping(np.asarray(self.structure.damping, float) * np.exp(key[1]))
-            self._setups[key] = FilterSetup(model, [self.layout], self.locs, self.dt, self.Q, self.S, self.R)
+            self._setups[key] = FilterSetup(model, [self.layout], self.locs, self.dt, self.Q, None, self.R,
+                                            force_model=self.force_model, dummy=self.dummy)
             if len(self._setups) > 64:
                 self._setups.pop(next(iter(self._setups)))
         return self._setups[key]
@@ -255,12 +268,20 @@ class _Problem:
         """``(A_a, G_a, Q_a, R)`` of the log-factors ``u``."""
         p = dict(zip(self.names, u))
         setup = self.setup(p)
-        nx = setup.nx
+        nx, A_a = setup.nx, setup.A_a
         Q_a = setup.Q_a.copy()             # blockdiag(Q, S) in modal coordinates: each block is linear in its level
         Q_a[:nx, :nx] *= np.exp(p.get("model_error_cov", 0.0))
         Q_a[nx:, nx:] *= np.exp(p.get("force_increment_cov", 0.0))
+        if "force_timescale" in p:         # the force block of A and Q (the coupling B H does not change)
+            F_d, Q_a[nx:, nx:] = self.force_model.scaled(1.0, np.exp(p["force_timescale"])).discrete(len(self.locs), self.dt)
+            A_a = A_a.copy()
+            A_a[nx:, nx:] = F_d
+        Q_a[nx:, nx:] *= np.exp(2 * p.get("force_std", 0.0))     # Q_f is linear in std^2
         scale = noise_scale(self.layout, {n: np.exp(x) for n, x in p.items()})
-        return setup.A_a, setup.G_a[0], Q_a, self.R * np.outer(scale, scale)
+        R = self.R * np.outer(scale, scale)
+        if setup.dummy_layout:
+            R = scipy.linalg.block_diag(R, setup.R[0][self.R.shape[0]:, self.R.shape[0]:])
+        return A_a, setup.G_a[0], Q_a, R
 
     def logliks(self, U):
         """The log-likelihood at every row of ``U`` (one batch)."""
@@ -271,9 +292,10 @@ class _Problem:
 
 
 def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
-              parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance,
+              parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance | None = None,
               noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
-              decades: float | None = None, modes: Sequence[int] | None = None) -> CalibrationResult:
+              decades: float | None = None, modes: Sequence[int] | None = None,
+              force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None) -> CalibrationResult:
     """Fit the filter's model and covariances to a record by maximum likelihood.
 
     Parameters
@@ -292,7 +314,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         What to learn, a subset of :data:`PARAMETERS`: ``noise_cov`` learns one factor per sensor
         kind of the layout; ``noise_cov:<kind>`` (``noise_cov:acc``) the factor of one kind only,
         ``noise_cov:channels`` one factor per channel; ``frequencies`` a factor per mode of
-        ``modes``.
+        ``modes``; ``force_std`` and ``force_timescale`` the parameters of a Matérn ``force_model``.
     model_error_cov, force_increment_cov, noise_cov
         The starting Q, S and R, as in :func:`core_akf.filter.estimate`.
     stiffness_range : (float, float), optional
@@ -304,6 +326,9 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     modes : sequence of int, optional
         The modes (1-based) whose frequencies ``frequencies`` learns (default
         :func:`calibration_modes`).
+    force_model, dummy : optional
+        The force model (its parameters are the starting ones) and dummy measurements, as in
+        :func:`core_akf.filter.estimate`.
 
     Returns
     -------
@@ -341,14 +366,26 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     Y = as_finite_array(measurements, "measurements", ndim=2)
     if Y.shape[1] != len(layout):
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
-    check_detectable(structure, layout, locs)
+    force_model = as_force_model(force_model, force_increment_cov)
+    force_model.parameters(len(locs))
+    if force_model.stationary and "force_increment_cov" in names:
+        raise AKFInputError(f"force_increment_cov is the random walk's S; the {force_model.kind} force model learns "
+                            "force_std and force_timescale")
+    if not force_model.stationary and {"force_std", "force_timescale"} & set(names):
+        raise AKFInputError("force_std and force_timescale are the parameters of a Matérn force model "
+                            "(force_model = matern12, matern32 or matern52); the random walk learns force_increment_cov")
+    check_detectable(structure, list(layout) + ([] if dummy is None else dummy.layout(structure, layout)), locs,
+                     force_model=force_model)
     if "damping" in names and not _modal_ratio(structure.damping):
         raise AKFInputError(f"damping is calibrated as a factor on the model's modal damping ratio; this model's damping "
                             f"is {structure.damping!r} (give it a modal ratio, e.g. 0.01)")
-    Q, S = _level(model_error_cov, "model_error_cov", "model_error_cov" in names), \
-        _level(force_increment_cov, "force_increment_cov", "force_increment_cov" in names)
+    Q = _level(model_error_cov, "model_error_cov", "model_error_cov" in names)
+    if not force_model.stationary:
+        force_model = ForceModel("random_walk",
+                                 increment_cov=_level(force_model.increment_cov, "force_increment_cov",
+                                                      "force_increment_cov" in names))
     modes = _check_modes(structure, dt, modes) if "frequencies" in names else ()
-    problem = _Problem(structure, layout, locs, Y, dt, Q, S, noise_cov, names, modes)
+    problem = _Problem(structure, layout, locs, Y, dt, Q, force_model, noise_cov, names, modes, dummy)
     if Y.shape[0] < 10 * (len(problem.names) + 1):
         raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(problem.names)} parameter(s)")
     ranges = {"stiffness_factor": default("calibration_stiffness_range", stiffness_range),
@@ -357,14 +394,23 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     width = np.log(10.0) * default("calibration_decades", decades)
     bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else (-width, width)
               for n in problem.names]
+    if "force_timescale" in problem.names:     # between one step and a tenth of the record: what it can resolve
+        ell = np.asarray(force_model.timescale, float)
+        j = problem.names.index("force_timescale")
+        bounds[j] = (max(-width, float(np.log(dt / ell.min()))), min(width, float(np.log(0.1 * Y.shape[0] * dt / ell.max()))))
+        if bounds[j][0] >= bounds[j][1]:
+            raise AKFInputError(f"force_timescale {force_model.timescale!r} s is outside what a record of {Y.shape[0]} "
+                                f"steps of {dt:g} s can resolve (one step to a tenth of the record)")
     u0 = np.zeros(len(problem.names))
     before = float(problem.logliks(u0)[0])
     if not np.isfinite(before):
         raise AKFInputError("the log-likelihood at the starting values is not finite (no steady-state filter): "
                             "check the covariances")
     # a grid first for what sets a frequency, whose likelihood may have several peaks: the stiffness
-    # factor, or each mode's factor on its own (one batch; the modes' peaks barely interact)
-    scanned = [j for j, n in enumerate(problem.names) if n == "stiffness_factor" or n.startswith("frequencies:")]
+    # factor, or each mode's factor on its own (one batch; the modes' peaks barely interact), and
+    # a force model's time scale
+    scanned = [j for j, n in enumerate(problem.names)
+               if n in ("stiffness_factor", "force_timescale") or n.startswith("frequencies:")]
     if scanned:
         grid = [np.linspace(*bounds[j], 25) for j in scanned]
         U = np.tile(u0, (sum(g.size for g in grid), 1))
@@ -395,9 +441,16 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         u, after = np.zeros(len(u)), before
     errors, warnings = _curvature(problem, u, bounds, before)
     multipliers = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
-    return CalibrationResult(_values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, layout),
-                             multipliers, errors, before, after, warnings, problem.evaluations,
-                             time.perf_counter() - start_time)
+    fitted_force = None
+    values = _values(multipliers, names, noise_cov, model_error_cov, force_model.increment_cov, layout)
+    if force_model.stationary:
+        fitted_force = force_model.scaled(multipliers.get("force_std", 1.0), multipliers.get("force_timescale", 1.0))
+        for name, value in (("force_std", fitted_force.std), ("force_timescale", fitted_force.timescale)):
+            if name in names:
+                value = np.asarray(value, float)
+                values[name] = float(value) if value.ndim == 0 else value.tolist()
+    return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
+                             time.perf_counter() - start_time, fitted_force)
 
 
 def calibration_modes(structure: Structure, dt: float) -> list[int]:

@@ -403,7 +403,8 @@ def _guess(c):
     return best[1] if dist < np.log(2.5) else "a wrong unit, gain or sign"
 
 
-def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov, force_increment_cov, noise_cov):
+def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov, force_increment_cov=None, noise_cov,
+                force_model=None):
     """Which channels or sensor kinds disagree with the rest by a scale factor (a wrong unit or sign).
 
     Each sensor kind (when there are several) and each single channel is held out in turn -- the
@@ -427,6 +428,8 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
         Time step (s).
     model_error_cov, force_increment_cov, noise_cov
         Q, S and R as in :func:`core_akf.filter.estimate`.
+    force_model : ForceModel, optional
+        The force model, as in :func:`core_akf.filter.estimate`.
 
     Returns
     -------
@@ -435,6 +438,7 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     """
     from .covariances import noise_covariance
     from .filter import FilterSetup
+    from .forcemodels import as_force_model
     from .sensors import as_layout, parse_force_locations
     from .statespace import detectability
     from .steady import steady_outputs
@@ -448,8 +452,10 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     # a hold-out whose other sensors cannot see the forces has no steady-state filter (acceleration
     # only, say): nothing to compare with there
     locs = parse_force_locations(structure, forces)
+    force_model = as_force_model(force_model, force_increment_cov)
     groups = [g for g in groups if len(g[2]) < len(layout)
-              and detectability(structure, [s for j, s in enumerate(layout) if j not in g[2]], locs).detectable]
+              and detectability(structure, [s for j, s in enumerate(layout) if j not in g[2]], locs,
+                                force_model).detectable]
     if not groups:
         return []
     Rs = np.stack([R.copy() for _ in groups])
@@ -458,7 +464,7 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     # one-step predictions y_k^- = G_a A_a X_{k-1} of every hold-out, straight from the lifted
     # recursion (no state histories: memory of the order of the data, also for a large model)
     setup = FilterSetup(structure, [layout] * len(groups), locs, dt,
-                         model_error_cov, force_increment_cov, Rs)
+                         model_error_cov, None, Rs, force_model=force_model)
     H = setup.G_a @ setup.A_a
     predicted = np.zeros((len(groups),) + Y.shape)
     predicted[:, 1:] = steady_outputs(setup.A_a, setup.G_a, setup.Q_a, setup.R,

@@ -27,6 +27,6 @@ class UndetectableError(AKFInputError):
         super().__init__(
             "the sensor set is not detectable for the augmented state "
             "(the force/state estimate would drift or diverge):\n" + str(report)
-            + "\nAdd strain or displacement sensors, or pass allow_undetectable=True "
-            "to run the filter anyway."
+            + "\nAdd strain or displacement sensors, use a Matérn force model or dummy displacements, or "
+            "pass allow_undetectable=True to run the filter anyway."
         )

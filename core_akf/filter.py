@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 from .checks import as_finite_array, check_covariance
 from .covariances import augmented_covariance, diag_levels, noise_covariance, state_covariance  # noqa: F401
 from .exceptions import AKFInputError
+from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError
@@ -579,9 +580,10 @@ class Estimate:
 
 
 def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forces, measurements: BatchMeasurements,
-                   dt: float, *, model_error_cov: Covariance, force_increment_cov: Covariance,
+                   dt: float, *, model_error_cov: Covariance, force_increment_cov: Covariance | None = None,
                    noise_cov: NoiseCovariance, steady: bool | None = None, allow_undetectable: bool = False,
-                   x0: ArrayLike | None = None, P0: ArrayLike | None = None, smooth: bool = False) -> list[Estimate]:
+                   x0: ArrayLike | None = None, P0: ArrayLike | None = None, smooth: bool = False,
+                   force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None) -> list[Estimate]:
     """AKF estimates for many sensor layouts of one structure in one batched filter call.
 
     Parameters
@@ -608,6 +610,8 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
     x0, P0 : optional
         Prior mean (n_a,) and covariance of the physical augmented state ``[u; u'; f]``.
     smooth : bool
+        As in :func:`estimate`.
+    force_model, dummy : optional
         As in :func:`estimate`.
 
     Returns
@@ -640,7 +644,9 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
     if Y.shape[0] != len(layouts) or Y.shape[2] != m:
         raise AKFInputError(f"measurements must have shape ({len(layouts)}, N, {m}); got {Y.shape}")
     locs = parse_force_locations(structure, forces)
-    reports = [check_detectable(structure, l, locs, allow_undetectable) for l in layouts]
+    force_model = as_force_model(force_model, force_increment_cov)
+    dummies = [] if dummy is None else dummy.layout(structure, layouts[0])
+    reports = [check_detectable(structure, list(l) + dummies, locs, allow_undetectable, force_model) for l in layouts]
     if steady is None:     # the default: the steady-state filter where it exists
         steady = all(r.detectable for r in reports)
     for l, report in zip(layouts, reports):
@@ -648,12 +654,13 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
                                 f"({', '.join(s.label for s in l)}); use steady=False to run the "
                                 "time-varying filter and watch it drift")
-    setup = FilterSetup(structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0, P0)
+    setup = FilterSetup(structure, layouts, locs, dt, model_error_cov, None, noise_cov, x0, P0, force_model, dummy)
+    Y_f = setup.extend(Y)
     # classically damped structures are block-diagonal in these coordinates: cheap A P A^T
     transition = None if steady else ModalBlockTransition.detect(setup.A_a, structure.n)
     try:
         # Q, S, R and P0 were checked as the user gave them; their modal transforms need no second check
-        res = filter_states(setup.A_a, setup.G_a, setup.Q_a, setup.R, Y, x0=setup.z0, P0=setup.Pz0, steady=steady,
+        res = filter_states(setup.A_a, setup.G_a, setup.Q_a, setup.R, Y_f, x0=setup.z0, P0=setup.Pz0, steady=steady,
                             transition=transition, check=False)
     except RiccatiError as exc:
         raise setup.riccati_error(exc) from None
@@ -698,16 +705,23 @@ class FilterSetup:
         The transforms of the augmented state, ``x_a = Ta z_a``.
     """
 
-    def __init__(self, structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0=None, P0=None):
+    def __init__(self, structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0=None, P0=None,
+                 force_model=None, dummy=None):
         from .reduced import ModalFilterModel
 
         self.structure, self.layouts, self.locs, self.dt = structure, layouts, locs, float(dt)
-        self.filter_model = fm = ModalFilterModel(structure, locs, dt)
+        self.m = len(layouts[0])
+        self.dummy = dummy
+        self.dummy_layout = [] if dummy is None else dummy.layout(structure, layouts[0])
+        self.force_model = force_model = as_force_model(force_model, force_increment_cov)
+        force_model.parameters(len(locs))                        # checked once, with the number of forces
+        self.filter_model = fm = ModalFilterModel(structure, locs, dt, force_model=force_model)
         T, T_inv, self.A_a = fm.T, fm.T_inv, fm.A_a
-        self.nx, nf = fm.n_states, len(locs)
-        self.Ta = scipy.linalg.block_diag(T, np.eye(nf))
-        self.Ta_inv = Ta_inv = scipy.linalg.block_diag(T_inv, np.eye(nf))
-        self.G_a = np.stack([np.hstack([G @ T, D]) for G, D in (observation(structure, l, locs) for l in layouts)])
+        self.nx, ng = fm.n_states, fm.H.shape[1]
+        self.H = fm.H
+        self.Ta = scipy.linalg.block_diag(T, np.eye(ng))
+        self.Ta_inv = Ta_inv = scipy.linalg.block_diag(T_inv, np.eye(ng))
+        self.G_a = np.stack([fm.observation(list(l) + self.dummy_layout) for l in layouts])
         per_layout = (isinstance(noise_cov, (list, tuple)) and len(noise_cov) > 0
                       and all(isinstance(c, dict) for c in noise_cov)) or (
             not isinstance(noise_cov, dict) and np.ndim(noise_cov) == 3)
@@ -715,11 +729,32 @@ class FilterSetup:
             raise AKFInputError(f"noise_cov has {len(noise_cov)} entries for {len(layouts)} layouts")
         self.R = np.stack([noise_covariance(l, noise_cov[b] if per_layout else noise_cov)
                            for b, l in enumerate(layouts)])
-        Q_a = augmented_covariance(self.nx, nf, state_covariance(structure, model_error_cov), force_increment_cov)
+        if self.dummy_layout:
+            self.R = np.stack([scipy.linalg.block_diag(R, dummy.variance * np.eye(len(self.dummy_layout))) for R in self.R])
+        Q_f = force_model.discrete(len(locs), dt)[1]
+        Q_a = scipy.linalg.block_diag(state_covariance(structure, model_error_cov), Q_f)
         Q_a = Ta_inv @ Q_a @ Ta_inv.T
         self.Q_a = 0.5 * (Q_a + Q_a.T)
-        self.z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", ndim=1, shape=(self.nx + nf,))
-        self.Pz0 = None if P0 is None else Ta_inv @ diag_levels(P0, self.nx + nf, "P0") @ Ta_inv.T
+        self.z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", ndim=1, shape=(self.nx + ng,))
+        self.Pz0 = None if P0 is None else Ta_inv @ diag_levels(P0, self.nx + ng, "P0") @ Ta_inv.T
+        if P0 is None and force_model.stationary:      # a stationary force starts from its own prior
+            self.Pz0 = self.Q_a.copy()
+            self.Pz0[self.nx:, self.nx:] = force_model.stationary_covariance(len(locs))
+
+    def extend(self, Y):
+        """The measurements with the dummy channels' zeros appended (the filter's channels).
+
+        Parameters
+        ----------
+        Y : ndarray (..., N, m)
+
+        Returns
+        -------
+        ndarray (..., N, m + m_dummy)
+        """
+        if not self.dummy_layout:
+            return Y
+        return np.concatenate([Y, np.zeros(Y.shape[:-1] + (len(self.dummy_layout),))], axis=-1)
 
     def riccati_error(self, exc):
         """A :class:`RiccatiError` naming the layouts whose gain failed.
@@ -761,11 +796,13 @@ class FilterSetup:
         -------
         list of Estimate
         """
-        nx = self.nx
+        nx, m = self.nx, self.m
         states = states @ self.Ta.T
-        gains = self.Ta @ gain
-        S_innov = innovation_covariance(self.G_a, P_prior, self.R)
-        return [Estimate(self.structure, l, self.locs, self.dt, states[b, :, :nx], states[b, :, nx:],
+        gains = (self.Ta @ gain)[..., :m]              # the real channels' (dummies are the filter's own)
+        S_innov = innovation_covariance(self.G_a, P_prior, self.R)[:, :m, :m]
+        innovations = innovations[..., :m]
+        terms = None if terms is None else terms[..., :m]
+        return [Estimate(self.structure, l, self.locs, self.dt, states[b, :, :nx], states[b, :, nx:] @ self.H.T,
                          innovations[b], gains[b], reports[b], Y[b], S_innov[b],
                          (self.A_a, self.G_a[b], gain[b]), t0=t0, loglik_terms=None if terms is None else terms[b])
                 for b, l in enumerate(self.layouts)]
@@ -794,7 +831,7 @@ class FilterSetup:
         """
         from .smoother import smooth
 
-        res = smooth(self.A_a, self.G_a[b], self.Q_a, self.R[b], Y, x0=self.z0, P0=self.Pz0, steady=steady,
+        res = smooth(self.A_a, self.G_a[b], self.Q_a, self.R[b], self.extend(Y), x0=self.z0, P0=self.Pz0, steady=steady,
                      covariances=None, outputs=self.std_rows())
         return self.with_std(est, res.states, res.output_std)
 
@@ -806,8 +843,7 @@ class FilterSetup:
         ndarray (n_p + n_strain, n_a)
             The forces, then every strain output, on the modal state.
         """
-        nx, n_a = self.nx, self.A_a.shape[0]
-        return np.vstack([np.eye(n_a)[nx:], self.filter_model.strain_rows()])
+        return np.vstack([self.filter_model.force_rows(), self.filter_model.strain_rows()])
 
     def with_std(self, est, states, std):
         """A smoothed estimate.
@@ -828,15 +864,16 @@ class FilterSetup:
         from dataclasses import replace
 
         states = states @ self.Ta.T
-        n_p = self.A_a.shape[0] - self.nx
-        return replace(est, states=states[:, :self.nx], forces=states[:, self.nx:], force_std=std[:, :n_p],
+        n_p = self.H.shape[0]
+        return replace(est, states=states[:, :self.nx], forces=states[:, self.nx:] @ self.H.T, force_std=std[:, :n_p],
                        strain_std=std[:, n_p:])
 
 
 def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
-             model_error_cov: Covariance, force_increment_cov: Covariance, noise_cov: NoiseCovariance,
+             model_error_cov: Covariance, force_increment_cov: Covariance | None = None, noise_cov: NoiseCovariance,
              steady: bool | None = None, allow_undetectable: bool = False, x0: ArrayLike | None = None,
-             P0: ArrayLike | None = None, smooth: bool = False) -> Estimate:
+             P0: ArrayLike | None = None, smooth: bool = False, force_model: ForceModel | None = None,
+             dummy: DummyMeasurements | None = None) -> Estimate:
     """Estimate unknown forces and the full response with the AKF.
 
     Parameters
@@ -854,8 +891,9 @@ def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements
     model_error_cov : float, ndarray
         ``Q``: variance level(s) of the state model error per step, per physical DOF
         (displacements then velocities: scalar, vector or matrix); see :func:`state_covariance`.
-    force_increment_cov : float, ndarray
-        ``S``: variance of the force increment per step (N^2).
+    force_increment_cov : float, ndarray, optional
+        ``S``: variance of the force increment per step (N^2) of the random-walk force model
+        (required with it; leave it out with a Matérn ``force_model``).
     noise_cov : float, ndarray or dict
         ``R``: measurement-noise variance(s), e.g. ``{"strain": (1e-6)**2, "acc": 0.01**2}``.
     steady : bool or None
@@ -864,16 +902,25 @@ def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements
         an undetectable set run with ``allow_undetectable`` (no steady state exists there).
     allow_undetectable : bool
         Run even if the PBH test fails (the estimate will drift).
-    x0 : array_like (2n + n_p,), optional
-        Prior mean of the augmented state ``[u; u'; f]`` at step 0 (default zero).
+    x0 : array_like (2n + n_g,), optional
+        Prior mean of the augmented state ``[u; u'; xi]`` at step 0 (default zero); ``xi = f``
+        (``n_g = n_p``) for the random walk, the force states of a Matérn model otherwise.
     P0 : float or array_like, optional
-        Prior covariance at step 0 (a level, variances or the matrix; default ``Q_a``); the
-        steady-state filter does not use it.
+        Prior covariance at step 0 (a level, variances or the matrix; default ``Q_a``, with the
+        stationary covariance of a Matérn model's force states); the steady-state filter does not
+        use it.
     smooth : bool
         Smooth the states with the whole record (the RTS smoother, :func:`core_akf.smoother.smooth`):
         forces and strains are then the smoothed ones, with their standard deviations
         (:attr:`Estimate.force_std`, :attr:`Estimate.strain_std`).  Smoothing helps only a model
         the data agree with: check the consistency first (calibrate).
+    force_model : ForceModel, optional
+        The forces' prior (:mod:`core_akf.forcemodels`): default the random walk of
+        ``force_increment_cov``; a Matérn model (``ForceModel("matern32", std=..., timescale=...)``)
+        makes accelerometer-only sets detectable for zero-mean loads.
+    dummy : DummyMeasurements, optional
+        Zero pseudo-measurements of displacements or strains, appended to the sensors (they keep a
+        random-walk filter on accelerations from drifting).
 
     Returns
     -------
@@ -894,4 +941,5 @@ def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
     return estimate_batch(structure, [layout], forces, Y[None], dt, model_error_cov=model_error_cov,
                           force_increment_cov=force_increment_cov, noise_cov=noise_cov, steady=steady,
-                          allow_undetectable=allow_undetectable, x0=x0, P0=P0, smooth=smooth)[0]
+                          allow_undetectable=allow_undetectable, x0=x0, P0=P0, smooth=smooth,
+                          force_model=force_model, dummy=dummy)[0]

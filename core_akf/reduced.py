@@ -19,8 +19,9 @@ import numpy as np
 from .covariances import state_covariance
 from .defaults import auto_modes
 from .exceptions import AKFInputError
+from .forcemodels import ForceModel
 from .sensors import as_layout, parse_force_locations
-from .statespace import augment, continuous, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
+from .statespace import continuous, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
 from .steady import steady_outputs  # noqa: F401  (re-exported here for the optimisers)
 
 
@@ -36,14 +37,18 @@ class ModalFilterModel:
     dt : float -- s
     n_modes : None (full model), an int, or ``"auto"`` (:func:`core_akf.defaults.auto_modes`, with
         accelerometers; resolve it with the sensors' kinds before if they are known)
+    force_model : ForceModel, optional
+        The forces' prior (:mod:`core_akf.forcemodels`); default the random walk, whose ``S`` is
+        then given to :meth:`Q_a`.
 
     Attributes
     ----------
-    A_a : (n_a, n_a) augmented transition;  Q_unit : (2n, 2n) state covariance for a unit
-    ``model_error_cov`` level;  n_a = 2 n_modes + n_p
+    A_a : (n_a, n_a) augmented transition ``[[A, B H], [0, F_d]]``;  Q_unit : (2n, 2n) state
+    covariance for a unit ``model_error_cov`` level;  H : (n_p, n_g) the forces from the force
+    states;  n_a = 2 n_modes + n_g (``n_g = n_p`` for the random walk)
     """
 
-    def __init__(self, structure, forces, dt, n_modes=None):
+    def __init__(self, structure, forces, dt, n_modes=None, force_model=None):
         self.full = structure
         self.forces = parse_force_locations(structure, forces)
         self.dt = float(dt)
@@ -62,8 +67,34 @@ class ModalFilterModel:
         if AB is None:
             A, B = zoh(*continuous(self.structure, self.forces), self.dt)
             AB = (self.T_inv @ A @ self.T, self.T_inv @ B)
-        self.A_a, _ = augment(AB[0], AB[1], np.zeros((0, AB[0].shape[0])), np.zeros((0, len(self.forces))))
+        self.A_z, self.B_z = AB
         self.n_states = AB[0].shape[0]
+        self.force_model = None
+        self.set_force_model(ForceModel("random_walk", increment_cov=0.0) if force_model is None else force_model)
+
+    def set_force_model(self, force_model):
+        """Use another force model: rebuilds the force block of :attr:`A_a` (cheap; the structural
+        blocks are kept).
+
+        Parameters
+        ----------
+        force_model : ForceModel
+
+        Returns
+        -------
+        ModalFilterModel
+            Itself.
+        """
+        n_p = len(self.forces)
+        self.force_model = force_model
+        self.H = force_model.output(n_p)
+        F_d, self._force_Q = force_model.discrete(n_p, self.dt)
+        nx, ng = self.n_states, F_d.shape[0]
+        self.A_a = np.zeros((nx + ng, nx + ng))
+        self.A_a[:nx, :nx] = self.A_z
+        self.A_a[:nx, nx:] = self.B_z @ self.H
+        self.A_a[nx:, nx:] = F_d
+        return self
 
     @cached_property
     def Q_unit(self):
@@ -90,7 +121,7 @@ class ModalFilterModel:
         ndarray (m, n_a)
         """
         G, D = observation(self.structure, as_layout(sensors), self.forces)
-        return np.hstack([G @ self.T, D])
+        return np.hstack([G @ self.T, D @ self.H])
 
     def strain_rows(self):
         """Rows giving every strain output from the augmented state (with the static correction).
@@ -104,18 +135,30 @@ class ModalFilterModel:
         out[:, :self.n_states] = np.hstack([ops, np.zeros_like(ops)]) @ self.T
         extra = strain_feedthrough(self.structure, self.forces)
         if extra is not None:
-            out[:, self.n_states:] = extra
+            out[:, self.n_states:] = extra @ self.H
         return out
 
-    def Q_a(self, model_error_cov, force_increment_cov):
-        """The augmented process covariance ``blockdiag(q Q_unit, S)`` in modal coordinates.
+    def force_rows(self):
+        """Rows giving the forces from the augmented state, ``[0, H]``.
+
+        Returns
+        -------
+        ndarray (n_p, n_a)
+        """
+        out = np.zeros((len(self.forces), self.n_a))
+        out[:, self.n_states:] = self.H
+        return out
+
+    def Q_a(self, model_error_cov, force_increment_cov=None):
+        """The augmented process covariance ``blockdiag(q Q_unit, Q_f)`` in modal coordinates.
 
         Parameters
         ----------
         model_error_cov : float
             A scalar state level ``q`` (per physical DOF, as :func:`~core_akf.covariances.state_covariance`).
-        force_increment_cov : float or array_like (n_p,)
-            ``S`` (N^2 per step), one for all forces or one per force.
+        force_increment_cov : float or array_like (n_p,), optional
+            The random walk's ``S`` (N^2 per step), one for all forces or one per force; None:
+            the force model's own ``Q_f`` (a Matérn model's, or the random walk's ``S``).
 
         Returns
         -------
@@ -123,6 +166,12 @@ class ModalFilterModel:
         """
         Q = np.zeros((self.n_a, self.n_a))
         Q[:self.n_states, :self.n_states] = float(model_error_cov) * self.Q_unit
-        S = np.broadcast_to(np.asarray(force_increment_cov, float), (len(self.forces),))
-        Q[self.n_states:, self.n_states:] = np.diag(S)
+        if force_increment_cov is None:
+            Q[self.n_states:, self.n_states:] = self._force_Q
+        else:
+            if self.force_model.stationary:
+                raise AKFInputError(f"force_increment_cov is the random walk's S; this filter model has the "
+                                    f"{self.force_model.kind} force model")
+            S = np.broadcast_to(np.asarray(force_increment_cov, float), (len(self.forces),))
+            Q[self.n_states:, self.n_states:] = np.diag(S)
         return Q

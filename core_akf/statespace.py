@@ -16,6 +16,7 @@ import scipy.linalg
 from .types import Forces, Layout
 
 if TYPE_CHECKING:
+    from .forcemodels import ForceModel
     from .structure import Structure
 from . import rank
 from .exceptions import AKFInputError, UndetectableError
@@ -375,12 +376,15 @@ class DetectabilityReport:
         the relative smallest singular value and the part of the state that cannot be seen.
     sensors : tuple of str
         The layout's labels.
+    force_model : ForceModel or None
+        The force model tested (None: the random walk).
     """
 
     detectable: bool
     checked: list = field(default_factory=list)
     failures: list = field(default_factory=list)
     sensors: tuple = ()
+    force_model: object = None
 
     def __str__(self):
         head = "detectable" if self.detectable else "NOT detectable"
@@ -390,8 +394,11 @@ class DetectabilityReport:
                 f"  s = {f['s']:.6g}: rank deficient (relative smallest singular value {f['sigma_rel']:.2e}); "
                 f"unseen direction mostly in {f['unseen']}"
             )
-        if self.detectable:
+        if self.detectable and self.checked:
             lines.append(f"  checked {len(self.checked)} critical eigenvalue(s): all full rank")
+        elif self.detectable:
+            lines.append(f"  the {self.force_model.kind} force model is stationary and the structure stable: "
+                         "no critical eigenvalue (the forces are estimated as well as the sensors' band allows)")
         return "\n".join(lines)
 
     def __bool__(self):
@@ -469,21 +476,27 @@ def _describe_combination(locs, combo):
     return " ".join(terms)
 
 
-def detectability(structure: Structure, sensors: Layout, forces: Forces) -> DetectabilityReport:
+def detectability(structure: Structure, sensors: Layout, forces: Forces,
+                   force_model: ForceModel | None = None) -> DetectabilityReport:
     """PBH detectability of the augmented system for a sensor layout (S17 §2.4).
 
-    The pair ``(A_ac, H_ac)`` with ``A_ac = [[A_c, B_c], [0, 0]]`` and ``H_ac = [G, D]`` is
-    detectable iff ``[[sI - A_ac], [H_ac]]`` has full column rank at every eigenvalue with
-    Re s >= 0.  For a supported, damped structure only ``s = 0`` (the force states) is critical
-    and the test reduces to the rank of the static gain from forces to sensors.  Every rank
-    decision is taken in :mod:`core_akf.rank` against a rounding-error bound, so the verdict does
-    not depend on the BLAS kernel.
+    The pair ``(A_ac, H_ac)`` with ``A_ac = [[A_c, B_c H], [0, F]]`` and ``H_ac = [G, D H]`` (the
+    force model's continuous ``F`` and output ``H``, :mod:`core_akf.forcemodels`) is detectable
+    iff ``[[sI - A_ac], [H_ac]]`` has full column rank at every eigenvalue with Re s >= 0.  For the
+    random walk (``F = 0``, ``H = I``) on a supported, damped structure only ``s = 0`` (the force
+    states) is critical and the test reduces to the rank of the static gain from forces to
+    sensors.  A stationary (Matérn) force model has its poles at ``-lambda``: it adds no critical
+    eigenvalue, so only the structure's own ones are tested.  Every rank decision is taken in
+    :mod:`core_akf.rank` against a rounding-error bound, so the verdict does not depend on the
+    BLAS kernel.
 
     Parameters
     ----------
     structure : Structure
     sensors : sequence of sensor specs
     forces : sequence of force specs
+    force_model : ForceModel, optional
+        The forces' prior; default the random walk.
 
     Returns
     -------
@@ -492,33 +505,50 @@ def detectability(structure: Structure, sensors: Layout, forces: Forces) -> Dete
 
     Examples
     --------
+    >>> from core_akf.forcemodels import ForceModel
     >>> from core_akf.models import s17_truss
     >>> detectability(s17_truss(), ["acc:4:y", "acc:8:y"], ["8:y"]).detectable
     False
     >>> detectability(s17_truss(), ["strain:13", "acc:8:y"], ["8:y"]).detectable
     True
+    >>> detectability(s17_truss(), ["acc:4:y", "acc:8:y"], ["8:y"],
+    ...               ForceModel("matern32", std=500.0, timescale=0.01)).detectable
+    True
     """
     layout = as_layout(sensors)
     locs = parse_force_locations(structure, forces)
+    stationary = force_model is not None and force_model.stationary
     checked, failures = [], []
-    if static_test_suffices(structure):
+    if static_test_suffices(structure) and not stationary:
         rel, combo, seen = static_gain(structure, layout, locs).visibility()
         checked.append(0j)
         if not seen:
+            acc_only = all(s.kind in ("acc", "vel") for s in layout)
+            hint = ("; accelerations alone do not see the static response: a Matérn force model "
+                    "(force_model = \"matern32\") or a dummy displacement makes this set detectable") if acc_only else \
+                ("; a Matérn force model (force_model = \"matern32\") or a dummy displacement at the unseen "
+                 "force makes this set detectable")
             failures.append(dict(s=0.0, sigma_rel=rel, unseen=(
                 "displacements, forces: no strain/displacement sensor sees the static response to the "
-                f"force combination {_describe_combination(locs, combo)}")))
-        return DetectabilityReport(detectable=not failures, checked=checked, failures=failures, sensors=layout)
+                f"force combination {_describe_combination(locs, combo)}{hint}")))
+        return DetectabilityReport(detectable=not failures, checked=checked, failures=failures, sensors=layout,
+                                   force_model=force_model)
     A_c, B_c = continuous(structure, locs)
     G, D = observation(structure, layout, locs)
-    n, npf = A_c.shape[0], B_c.shape[1]
+    F, H_f = (np.zeros((len(locs), len(locs))), np.eye(len(locs))) if force_model is None else \
+        (force_model.continuous(len(locs))[0], force_model.output(len(locs)))
+    n, ng = A_c.shape[0], F.shape[0]
     nu = structure.n
-    A_ac = np.zeros((n + npf, n + npf))
+    A_ac = np.zeros((n + ng, n + ng))
     A_ac[:n, :n] = A_c
-    A_ac[:n, n:] = B_c
-    H = np.hstack([G, D])
-    for s in _critical_eigenvalues(structure, rank.CRITICAL_RTOL):
-        rel, null, deficient = rank.column_rank_test(np.vstack([s * np.eye(n + npf) - A_ac, H]).astype(complex))
+    A_ac[:n, n:] = B_c @ H_f
+    A_ac[n:, n:] = F
+    H = np.hstack([G, D @ H_f])
+    critical = _critical_eigenvalues(structure, rank.CRITICAL_RTOL)
+    if stationary:                                  # the force states' poles lie at -lambda: not critical
+        critical = [s for s in critical if s != 0.0] + ([0.0] if not is_supported(structure) else [])
+    for s in critical:
+        rel, null, deficient = rank.column_rank_test(np.vstack([s * np.eye(n + ng) - A_ac, H]).astype(complex))
         checked.append(complex(s))
         if deficient:
             v = np.abs(null)  # in the scaled coordinates: comparable across blocks
@@ -527,7 +557,8 @@ def detectability(structure: Structure, sensors: Layout, forces: Forces) -> Dete
             unseen = ", ".join(k for k, val in parts.items() if val > 1e-2)
             failures.append(dict(s=complex(s) if abs(complex(s).imag) > 0 else float(np.real(s)),
                                  sigma_rel=float(rel), unseen=unseen))
-    return DetectabilityReport(detectable=not failures, checked=checked, failures=failures, sensors=layout)
+    return DetectabilityReport(detectable=not failures, checked=checked, failures=failures, sensors=layout,
+                               force_model=force_model)
 
 
 # ---------------------------------------------------------------------------- bundle
@@ -589,12 +620,19 @@ class SubsetDetectability:
     sensors : sequence of sensor specs
         The candidates.
     forces : sequence of force specs
+    force_model : ForceModel, optional
+        The forces' prior (default the random walk).  Under a stationary (Matérn) model on a
+        supported, damped structure every subset is detectable.
     """
 
-    def __init__(self, structure, sensors, forces):
+    def __init__(self, structure, sensors, forces, force_model=None):
         self.structure, self.sensors = structure, list(sensors)
         self.forces = parse_force_locations(structure, forces)
-        self.static = static_gain(structure, self.sensors, self.forces) if static_test_suffices(structure) else None
+        self.force_model = force_model
+        stationary = force_model is not None and force_model.stationary
+        self.always = stationary and static_test_suffices(structure)
+        self.static = static_gain(structure, self.sensors, self.forces) \
+            if static_test_suffices(structure) and not stationary else None
 
     def detectable(self, indices):
         """Whether a subset of the candidates is detectable.
@@ -608,9 +646,12 @@ class SubsetDetectability:
         -------
         bool
         """
+        if self.always:
+            return True
         if self.static is not None:
             return self.static.rows(indices).sees_every_force
-        return detectability(self.structure, [self.sensors[i] for i in indices], self.forces).detectable
+        return detectability(self.structure, [self.sensors[i] for i in indices], self.forces,
+                             self.force_model).detectable
 
 
 def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float) -> StateSpace:
@@ -644,7 +685,7 @@ def state_space(structure: Structure, sensors: Layout, forces: Forces, dt: float
     return StateSpace(structure, layout, locs, float(dt), A, B, G, D, A_a, G_a)
 
 
-def check_detectable(structure, sensors, forces, allow_undetectable=False):
+def check_detectable(structure, sensors, forces, allow_undetectable=False, force_model=None):
     """The PBH report of a layout, refusing an undetectable one unless allowed.
 
     Parameters
@@ -654,6 +695,8 @@ def check_detectable(structure, sensors, forces, allow_undetectable=False):
     forces : sequence of force specs
     allow_undetectable : bool
         Return the report of an undetectable set instead of raising.
+    force_model : ForceModel, optional
+        The forces' prior (default the random walk).
 
     Returns
     -------
@@ -664,7 +707,7 @@ def check_detectable(structure, sensors, forces, allow_undetectable=False):
     UndetectableError
         For an undetectable set, unless ``allow_undetectable``.
     """
-    report = detectability(structure, sensors, forces)
+    report = detectability(structure, sensors, forces, force_model)
     if not report.detectable and not allow_undetectable:
         raise UndetectableError(report)
     return report

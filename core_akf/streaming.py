@@ -26,6 +26,7 @@ import numpy as np
 
 from .checks import as_finite_array
 from .exceptions import AKFInputError
+from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .filter import FilterSetup, ModalBlockTransition, innovation_covariance, time_varying_filter
 from .likelihood import loglik_terms
 from .recursion import lti_response
@@ -80,6 +81,8 @@ class Estimator:
         returns the smoothed estimate of the steps ``smooth_lag`` behind the input, with
         :attr:`~core_akf.filter.Estimate.force_std` and ``strain_std``, and :meth:`finish` the
         last ones.
+    force_model, dummy : optional
+        The force model and dummy measurements, as in :func:`core_akf.filter.estimate`.
 
     Examples
     --------
@@ -101,21 +104,24 @@ class Estimator:
     """
 
     def __init__(self, structure: Structure, sensors: Layout, forces: Forces, dt: float, *, model_error_cov: Covariance,
-                 force_increment_cov: Covariance, noise_cov: NoiseCovariance, steady: bool | None = None,
+                 force_increment_cov: Covariance | None = None, noise_cov: NoiseCovariance, steady: bool | None = None,
                  allow_undetectable: bool = False, x0: ArrayLike | None = None, P0: Covariance | None = None,
-                 t0: float = 0.0, switch_tol: float = 1e-14, smooth_lag: int | str | None = None):
+                 t0: float = 0.0, switch_tol: float = 1e-14, smooth_lag: int | str | None = None,
+                 force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None):
         if not np.isfinite(dt) or dt <= 0:
             raise AKFInputError(f"dt must be a positive time step in seconds, got {dt!r}")
         self.layout = as_layout(sensors)
         self.locs = parse_force_locations(structure, forces)
-        self.report = check_detectable(structure, self.layout, self.locs, allow_undetectable)
+        force_model = as_force_model(force_model, force_increment_cov)
+        dummies = [] if dummy is None else dummy.layout(structure, self.layout)
+        self.report = check_detectable(structure, list(self.layout) + dummies, self.locs, allow_undetectable, force_model)
         if steady is None:
             steady = self.report.detectable
         if steady and not self.report.detectable:
             raise AKFInputError("the steady-state AKF does not exist for an undetectable sensor set "
                                 f"({', '.join(s.label for s in self.layout)}); use steady=False")
-        self.setup = FilterSetup(structure, [self.layout], self.locs, dt, model_error_cov, force_increment_cov,
-                                  noise_cov, x0, P0)
+        self.setup = FilterSetup(structure, [self.layout], self.locs, dt, model_error_cov, None,
+                                  noise_cov, x0, P0, force_model, dummy)
         self.dt, self.t0, self.switch_tol = float(dt), float(t0), float(switch_tol)
         self.model_error_cov, self.force_increment_cov = model_error_cov, force_increment_cov
         self.steady = bool(steady)
@@ -181,11 +187,12 @@ class Estimator:
                                 f"starting at step {self.n_steps}; first at step {self.n_steps + r} "
                                 f"(t = {self.t0 + (self.n_steps + r) * self.dt:.9g} s), channel {self.layout[c].label!r}")
         t0 = self.t0 + self.n_steps * self.dt
+        Y_real, Y = Y, self.setup.extend(Y)           # with the dummy channels' zeros
         if Y.shape[0] == 0 and self.lagged is not None:
-            return self._smoothed(*self.lagged.update(np.empty((0, self.setup.A_a.shape[0])), Y, Y, Y, Y))
+            return self._smoothed(*self.lagged.update(np.empty((0, self.setup.A_a.shape[0])), Y, Y, Y_real, Y))
         if Y.shape[0] == 0:
             return self.setup.estimates(np.zeros((1, 0, self.setup.A_a.shape[0])), Y[None], self._gain()[None],
-                                        self._P[None], Y[None], [self.report], t0=t0,
+                                        self._P[None], Y_real[None], [self.report], t0=t0,
                                         terms=np.zeros((1, 0, Y.shape[1])))[0]
         s = self.setup
         x = self._prior()
@@ -208,9 +215,9 @@ class Estimator:
         self._z = X[-1].copy()
         self.n_steps += Y.shape[0]
         if self.lagged is not None:
-            return self._smoothed(*self.lagged.update(X, innov, innov, Y, terms))
+            return self._smoothed(*self.lagged.update(X, innov, innov, Y_real, terms))
         self.n_returned = self.n_steps
-        return s.estimates(X[None], innov[None], L[None], self._P[None], Y[None], [self.report], t0=t0,
+        return s.estimates(X[None], innov[None], L[None], self._P[None], Y_real[None], [self.report], t0=t0,
                            terms=terms[None])[0]
 
     def finish(self) -> Estimate:
@@ -235,7 +242,7 @@ class Estimator:
         return s.with_std(est, X, std)
 
     def _gain(self):
-        return self._L if self._L is not None else np.zeros((self.setup.A_a.shape[0], self.n_channels))
+        return self._L if self._L is not None else np.zeros(self.setup.G_a.shape[:0:-1])
 
     # ------------------------------------------------------------------ what is carried over
     def _digest(self):

@@ -1,0 +1,429 @@
+"""Force models: the prior the filter puts on each unknown force.
+
+``random_walk`` (the papers' model, S17 eq. 14): ``f_k+1 = f_k + w_k`` with ``Var w = S``.  It
+has a pole at 1: a force is only pinned down by sensors that see the static response (strain,
+displacement).  Accelerations do not, so an accelerometer-only set drifts.
+
+``matern12``, ``matern32``, ``matern52``: a stationary Gaussian process with a Matérn covariance
+of smoothness ``nu = 1/2, 3/2, 5/2`` (the Gaussian-process latent force model, GPLFM; Hartikainen &
+Särkkä 2010, Nayek, Chakraborty & Narasimhan 2019).  Each force gets ``p + 1`` states (``nu = p +
+1/2``), the force and its first ``p`` derivatives, driven by white noise through the SDE
+``d xi/dt = F xi + L w``; the force is ``f = H xi``.  The process has its poles at ``-lambda``
+(``lambda = sqrt(2 nu) / timescale``): a force forgets its past after a few time scales, so
+accelerations alone make the augmented model detectable.  The parameters are ``std`` (N, the
+standard deviation of the force) and ``timescale`` (s, the Matérn length scale ``l``).
+
+The states are scaled, ``xi = [f, f'/lambda, f''/lambda^2]``: every state then has the force's
+size, ``F = lambda N_p`` with a constant companion matrix ``N_p``, and the stationary covariance is
+``std^2`` times a constant matrix.  Discretisation is exact for any time step: ``F_d = expm(F dt)``
+and ``Q_d`` by Van Loan's integral, so ``H F_d^j P_inf H^T`` is the Matérn kernel at lag ``j dt``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import comb, gamma, sqrt
+
+import numpy as np
+import scipy.linalg
+
+from .exceptions import AKFInputError
+
+#: the force models, by name; the value is the Matérn order ``p`` (states per force ``p + 1``),
+#: None for the random walk
+FORCE_MODELS = {"random_walk": None, "matern12": 0, "matern32": 1, "matern52": 2}
+
+
+def _positive(value, name, n_p, unit):
+    """One positive finite value per force (a scalar or a sequence of n_p)."""
+    try:
+        arr = np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise AKFInputError(f"{name} must be a positive number ({unit}) or one per force, got {value!r}") from None
+    if arr.ndim > 1 or (arr.ndim == 1 and arr.size != n_p):
+        raise AKFInputError(f"{name} must be one value or one per force ({n_p}), got {arr.size} values")
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise AKFInputError(f"{name} must be positive and finite ({unit}), got {value!r}")
+    return np.broadcast_to(arr, (n_p,)).astype(float)
+
+
+def _companion(p):
+    """``N_p`` and the unit noise intensity of a Matérn-(p+1/2) process with ``lambda = 1``, ``std = 1``,
+    in the scaled states: ``F = lambda N_p``, ``Q_c = std^2 lambda q_p e_p e_p^T``."""
+    N = np.diag(np.ones(p), 1)
+    N[p, :] = -np.array([comb(p + 1, k) for k in range(p + 1)], float)
+    q = 2.0 * sqrt(np.pi) * gamma(p + 1) / gamma(p + 0.5)
+    return N, q
+
+
+@dataclass(frozen=True)
+class ForceModel:
+    """The prior of the unknown forces.
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`FORCE_MODELS`: ``"random_walk"`` (default), ``"matern12"``, ``"matern32"``,
+        ``"matern52"``.
+    increment_cov : float or array_like (n_p,), optional
+        Random walk: ``S``, the variance of the force increment per step (N^2), one for all
+        forces or one per force.
+    std : float or array_like (n_p,), optional
+        Matérn: the standard deviation of each force (N).
+    timescale : float or array_like (n_p,), optional
+        Matérn: the length scale ``l`` of the covariance (s); a force is correlated over about
+        ``l`` and forgets its past after a few ``l``.
+
+    Examples
+    --------
+    >>> fm = ForceModel("matern32", std=600.0, timescale=2e-3)
+    >>> fm.states_per_force, fm.stationary
+    (2, True)
+    >>> round(float(fm.kernel([0.0, 2e-3])[0, 1] / 600.0 ** 2), 4)   # (1 + sqrt 3) exp(-sqrt 3)
+    0.4834
+    """
+
+    kind: str = "random_walk"
+    increment_cov: object = None
+    std: object = None
+    timescale: object = None
+
+    def __post_init__(self):
+        if self.kind not in FORCE_MODELS:
+            raise AKFInputError(f"unknown force model {self.kind!r}; the force models are {list(FORCE_MODELS)}")
+        if self.kind == "random_walk":
+            if self.increment_cov is None:
+                raise AKFInputError("the random-walk force model needs force_increment_cov (S, N^2 per step)")
+            if self.std is not None or self.timescale is not None:
+                raise AKFInputError("force_std and force_timescale belong to a Matérn force model (matern12, matern32, "
+                                    "matern52); the random walk has force_increment_cov only")
+        else:
+            if self.std is None or self.timescale is None:
+                raise AKFInputError(f"the {self.kind} force model needs force_std (N) and force_timescale (s)")
+            _positive(self.std, "force_std", np.size(self.std), "N")
+            _positive(self.timescale, "force_timescale", np.size(self.timescale), "s")
+
+    @property
+    def order(self):
+        """The Matérn order ``p`` (``nu = p + 1/2``); None for the random walk."""
+        return FORCE_MODELS[self.kind]
+
+    @property
+    def stationary(self):
+        """Whether the force is a stationary process (every Matérn model); the random walk is not."""
+        return self.order is not None
+
+    @property
+    def states_per_force(self):
+        """The filter states each force takes: 1 for the random walk, ``p + 1`` for a Matérn model."""
+        return 1 if self.order is None else self.order + 1
+
+    def n_states(self, n_p: int) -> int:
+        """The force states for ``n_p`` forces.
+
+        Parameters
+        ----------
+        n_p : int
+            Forces.
+
+        Returns
+        -------
+        int
+        """
+        return self.states_per_force * int(n_p)
+
+    def parameters(self, n_p: int) -> tuple:
+        """The parameters, one per force, checked.
+
+        Parameters
+        ----------
+        n_p : int
+            Forces.
+
+        Returns
+        -------
+        tuple of ndarray (n_p,)
+            ``(S,)`` for the random walk (N^2 per step); ``(std, timescale, lambda)`` (N, s, 1/s)
+            for a Matérn model.
+        """
+        if self.order is None:
+            S = np.asarray(self.increment_cov, float)
+            if S.ndim > 1 or (S.ndim == 1 and S.size != n_p) or not np.all(np.isfinite(S)) or np.any(S < 0):
+                raise AKFInputError(f"force_increment_cov must be one variance >= 0 (N^2 per step) or one per force "
+                                    f"({n_p}), got {self.increment_cov!r}")
+            return (np.broadcast_to(S, (n_p,)).astype(float),)
+        std = _positive(self.std, "force_std", n_p, "N")
+        ell = _positive(self.timescale, "force_timescale", n_p, "s")
+        return std, ell, sqrt(2 * self.order + 1) / ell
+
+    def output(self, n_p: int) -> np.ndarray:
+        """``H``: the forces from the force states, ``f = H xi``.
+
+        Parameters
+        ----------
+        n_p : int
+            Forces.
+
+        Returns
+        -------
+        ndarray (n_p, n_g)
+        """
+        k = self.states_per_force
+        H = np.zeros((n_p, k * n_p))
+        H[np.arange(n_p), k * np.arange(n_p)] = 1.0
+        return H
+
+    def continuous(self, n_p: int) -> tuple:
+        """The continuous-time force model ``d xi/dt = F xi + w``, ``E[w w^T] = Q_c delta``.
+
+        Parameters
+        ----------
+        n_p : int
+            Forces.
+
+        Returns
+        -------
+        F : ndarray (n_g, n_g)
+            Zero for the random walk (1/s).
+        Q_c : ndarray (n_g, n_g) or None
+            The white-noise intensity (N^2/s); None for the random walk, whose ``S`` is per step.
+        """
+        k = self.states_per_force
+        if self.order is None:
+            return np.zeros((n_p, n_p)), None
+        std, _, lam = self.parameters(n_p)
+        N, q = _companion(self.order)
+        F, Qc = np.zeros((k * n_p, k * n_p)), np.zeros((k * n_p, k * n_p))
+        for j in range(n_p):
+            s = slice(k * j, k * (j + 1))
+            F[s, s] = lam[j] * N
+            Qc[k * j + k - 1, k * j + k - 1] = std[j] ** 2 * lam[j] * q
+        return F, Qc
+
+    def discrete(self, n_p: int, dt: float) -> tuple:
+        """The exact discretisation over one step ``dt``: ``xi_k+1 = F_d xi_k + w_k``, ``Var w_k = Q_d``.
+
+        Parameters
+        ----------
+        n_p : int
+            Forces.
+        dt : float
+            Time step (s).
+
+        Returns
+        -------
+        F_d : ndarray (n_g, n_g)
+        Q_d : ndarray (n_g, n_g)
+            (N^2); ``diag(S)`` for the random walk.
+        """
+        from .statespace import van_loan
+
+        if self.order is None:
+            return np.eye(n_p), np.diag(self.parameters(n_p)[0])
+        F, Qc = self.continuous(n_p)
+        k = self.states_per_force
+        F_d, Q_d = np.zeros_like(F), np.zeros_like(F)
+        for j in range(n_p):              # block by block: each force on its own time scale
+            s = slice(k * j, k * (j + 1))
+            F_d[s, s] = scipy.linalg.expm(F[s, s] * dt)
+            Q_d[s, s] = van_loan(F[s, s], Qc[s, s], dt)
+        return F_d, Q_d
+
+    def stationary_covariance(self, n_p: int) -> np.ndarray:
+        """``P_inf``, the stationary covariance of the force states (a Matérn model).
+
+        Parameters
+        ----------
+        n_p : int
+            Forces.
+
+        Returns
+        -------
+        ndarray (n_g, n_g)
+            (N^2); solves ``F P + P F^T + Q_c = 0``.
+
+        Raises
+        ------
+        AKFInputError
+            For the random walk, which has none.
+        """
+        if self.order is None:
+            raise AKFInputError("the random-walk force model is not stationary: it has no stationary covariance")
+        F, Qc = self.continuous(n_p)
+        P = scipy.linalg.solve_continuous_lyapunov(F, -Qc)
+        return 0.5 * (P + P.T)
+
+    def kernel(self, lags, n_p: int = 1) -> np.ndarray:
+        """The Matérn covariance function ``k(tau) = E[f(t) f(t + tau)]`` of each force, in closed form.
+
+        Parameters
+        ----------
+        lags : array_like (L,)
+            Time lags ``tau`` (s).
+        n_p : int
+            Forces.
+
+        Returns
+        -------
+        ndarray (n_p, L)
+            (N^2).
+        """
+        if self.order is None:
+            raise AKFInputError("the random-walk force model is not stationary: it has no covariance function")
+        std, _, lam = self.parameters(n_p)
+        r = lam[:, None] * np.abs(np.asarray(lags, float))[None, :]
+        poly = {0: 1.0, 1: 1.0 + r, 2: 1.0 + r + r ** 2 / 3.0}[self.order]
+        return std[:, None] ** 2 * poly * np.exp(-r)
+
+    def scaled(self, std_factor=1.0, timescale_factor=1.0) -> ForceModel:
+        """The same kind with its std and time scale multiplied (a Matérn model; calibration).
+
+        Parameters
+        ----------
+        std_factor, timescale_factor : float or array_like (n_p,)
+            Factors on ``std`` and ``timescale``.
+
+        Returns
+        -------
+        ForceModel
+        """
+        if self.order is None:
+            raise AKFInputError("force_std and force_timescale belong to a Matérn force model")
+        return ForceModel(self.kind, std=np.asarray(self.std, float) * std_factor,
+                          timescale=np.asarray(self.timescale, float) * timescale_factor)
+
+    def describe(self) -> str:
+        """A one-line description with the parameters, for reports.
+
+        Returns
+        -------
+        str
+        """
+        def fmt(v):
+            a = np.atleast_1d(np.asarray(v, float))
+            return f"{a[0]:.4g}" if np.all(a == a[0]) else "[" + ", ".join(f"{x:.4g}" for x in a) + "]"
+        if self.order is None:
+            return f"random walk, S = {fmt(self.increment_cov)} N^2 per step"
+        return f"{self.kind}, std = {fmt(self.std)} N, time scale = {fmt(self.timescale)} s"
+
+
+def as_force_model(force_model=None, force_increment_cov=None) -> ForceModel:
+    """The :class:`ForceModel` of a call: the one given, or the random walk of ``force_increment_cov``.
+
+    Parameters
+    ----------
+    force_model : ForceModel, str or None
+        A model; a name (``"random_walk"`` only: a Matérn model needs its parameters); None: the
+        random walk.
+    force_increment_cov : float or array_like, optional
+        ``S`` of the random walk (N^2 per step).
+
+    Returns
+    -------
+    ForceModel
+
+    Raises
+    ------
+    AKFInputError
+        For an unknown model, a Matérn name without parameters, or ``force_increment_cov`` given
+        with a Matérn model (it would be silently unused).
+
+    Examples
+    --------
+    >>> as_force_model(None, 1e4).describe()
+    'random walk, S = 1e+04 N^2 per step'
+    """
+    if force_model is None or (isinstance(force_model, str) and force_model == "random_walk"):
+        return ForceModel("random_walk", increment_cov=force_increment_cov)
+    if isinstance(force_model, str):
+        if force_model not in FORCE_MODELS:
+            raise AKFInputError(f"unknown force model {force_model!r}; the force models are {list(FORCE_MODELS)}")
+        raise AKFInputError(f"the {force_model} force model needs its parameters: "
+                            f"ForceModel({force_model!r}, std=..., timescale=...)")
+    if not isinstance(force_model, ForceModel):
+        raise AKFInputError(f"force_model must be a ForceModel or a name, got {type(force_model).__name__}")
+    if force_model.stationary and force_increment_cov is not None:
+        raise AKFInputError(f"force_increment_cov is the random walk's S; the {force_model.kind} force model has "
+                            "force_std and force_timescale instead: drop force_increment_cov")
+    return force_model
+
+
+@dataclass(frozen=True)
+class DummyMeasurements:
+    """Zero-valued pseudo-measurements of chosen displacements or strains (Naets, Cuadrado &
+    Desmet 2015).
+
+    Each dummy channel says "this displacement (strain) is zero, give or take ``sqrt(variance)``".
+    It anchors the quasi-static response that accelerations cannot see, so an accelerometer-only
+    set under the random-walk force model does not drift; it costs no state.  It biases a load
+    with a true static part towards zero: choose the variance of the response you expect.
+
+    Parameters
+    ----------
+    sensors : sequence of str
+        Displacement (``"disp:8:y"``) or strain (``"strain:13"``) sensor specs on the filter's model.
+    variance : float
+        The pseudo-measurement variance (m^2 for displacements, (m/m)^2 for strains).
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss
+    >>> [s.label for s in DummyMeasurements(["disp:8:y"], 1e-8).layout(s17_truss(), [])]
+    ['disp:8:y']
+    """
+
+    sensors: tuple
+    variance: float
+
+    def __post_init__(self):
+        sensors = (self.sensors,) if isinstance(self.sensors, str) else tuple(self.sensors)
+        object.__setattr__(self, "sensors", sensors)
+        if not sensors:
+            raise AKFInputError("dummy: name at least one displacement or strain (e.g. \"disp:8:y\")")
+        try:
+            var = float(self.variance)
+        except (TypeError, ValueError):
+            raise AKFInputError(f"dummy variance must be a positive number, got {self.variance!r}") from None
+        if not np.isfinite(var) or var <= 0:
+            raise AKFInputError(f"dummy variance must be positive and finite (m^2 or (m/m)^2), got {self.variance!r}")
+        object.__setattr__(self, "variance", var)
+
+    def layout(self, structure, real) -> list:
+        """The dummy channels as sensors of ``structure``, checked.
+
+        Parameters
+        ----------
+        structure : Structure
+            The filter's model.
+        real : sequence of Sensor
+            The real layout (a dummy may not repeat one of its channels).
+
+        Returns
+        -------
+        list of Sensor
+
+        Raises
+        ------
+        AKFInputError
+            For a dummy that is not a displacement or strain, not on the model, given twice, or
+            the same as a real sensor.
+        """
+        from .checks import first_repeat
+        from .sensors import as_layout, selection_matrices
+
+        try:
+            layout = as_layout(self.sensors)
+            selection_matrices(structure, layout)
+        except AKFInputError as exc:
+            raise AKFInputError(f"dummy: {exc}") from None
+        bad = [s.label for s in layout if s.kind not in ("disp", "strain")]
+        if bad:
+            raise AKFInputError(f"dummy: {bad} are not displacements or strains; a dummy measurement is a zero "
+                                "displacement (\"disp:8:y\") or strain (\"strain:13\")")
+        labels = [s.label for s in layout]
+        twice = first_repeat(labels)
+        if twice is not None:
+            raise AKFInputError(f"dummy: {twice[2]!r} is given twice")
+        both = sorted(set(labels) & {s.label for s in real})
+        if both:
+            raise AKFInputError(f"dummy: {both} are measured sensors of the layout; a dummy is a channel not measured")
+        return list(layout)
