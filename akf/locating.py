@@ -35,6 +35,8 @@ from __future__ import annotations
 import logging
 import os
 
+import numpy as np
+
 from core_akf.exceptions import AKFInputError
 from core_akf.outputs import confined, write_csv
 
@@ -65,12 +67,18 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
     loc = spec.locate
     c = loc.covariances
     covariances = None if c is None else Covariances(c.model_error_cov, c.force_increment_cov, dict(c.noise_cov))
+    force_model = job.force_model if job.force_model.stationary else None
+    if force_model is not None and covariances is None:      # the Matérn std of [filter] starts the levels
+        from impactloc.scan import default_covariances
+
+        start = default_covariances(sensors, Y)
+        covariances = Covariances(start.model_error, float(np.mean(np.asarray(force_model.std, float) ** 2)), start.noise)
     tuning = None if loc.tuning is None else loc.tuning.model_dump(exclude_none=True)
     return locate(job.structure, sensors, Y, job.dt, n_ad=loc.n_ad, direction=loc.direction,
                   ad_kinds=tuple(loc.ad_kinds or ["strain"]), candidates=loc.candidates, covariances=covariances,
                   tune=(True if loc.tune is None else loc.tune) if tune is None else tune, max_splits=loc.max_splits,
                   n_modes=job.n_modes, skip=loc.skip or 0.0, n_jobs=n_jobs, seed=seed, progress=progress,
-                  tuning=tuning)
+                  tuning=tuning, force_model=force_model)
 
 
 def is_event_folder(job):

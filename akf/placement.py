@@ -59,8 +59,9 @@ def problem_from_job(job: Job):
                                relative_noise=default("relative_noise", sim.relative_noise),
                                model_error_cov=job.model_error_cov, force_increment_cov=job.force_increment_cov,
                                n_modes=job.n_modes, seed=sim.seed or 0, objective_kind=p.objective or "strain",
-                               del_slope=3.0 if p.del_slope is None else float(p.del_slope))
-    if f.force_increment_cov is None:
+                               del_slope=3.0 if p.del_slope is None else float(p.del_slope),
+                               force_model=job.force_model)
+    if f.force_increment_cov is None and not job.force_model.stationary:
         problem.notes = force_increment_notes(loads)
     return problem, ga_settings(job)
 

@@ -31,8 +31,8 @@ from .checks import as_finite_array
 from .covariances import noise_covariance
 from .defaults import default
 from .exceptions import AKFInputError
-from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .filter import FilterSetup, innovation_covariance
+from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError

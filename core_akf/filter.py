@@ -692,6 +692,10 @@ class FilterSetup:
         Q, S and R as in :func:`estimate` (``noise_cov`` may give one entry per layout).
     x0, P0 : optional
         Prior mean and covariance of the physical augmented state.
+    force_model : ForceModel, optional
+        The forces' prior (default the random walk of ``force_increment_cov``).
+    dummy : DummyMeasurements, optional
+        Zero pseudo-measurements appended to every layout's channels (:meth:`extend`).
 
     Attributes
     ----------
@@ -703,6 +707,10 @@ class FilterSetup:
         The prior in modal coordinates (None: zero / ``Q_a``).
     Ta, Ta_inv : ndarray (n_a, n_a)
         The transforms of the augmented state, ``x_a = Ta z_a``.
+    H : ndarray (n_p, n_g)
+        The forces from the force states.
+    m : int
+        The real channels per layout (the dummies follow them in ``G_a`` and ``R``).
     """
 
     def __init__(self, structure, layouts, locs, dt, model_error_cov, force_increment_cov, noise_cov, x0=None, P0=None,

@@ -22,11 +22,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from math import comb, gamma, sqrt
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg
 
 from .exceptions import AKFInputError
+from .types import ArrayLike, Layout
+
+if TYPE_CHECKING:
+    from .structure import Structure
 
 #: the force models, by name; the value is the Matérn order ``p`` (states per force ``p + 1``),
 #: None for the random walk
@@ -64,9 +69,9 @@ class ForceModel:
     kind : str
         One of :data:`FORCE_MODELS`: ``"random_walk"`` (default), ``"matern12"``, ``"matern32"``,
         ``"matern52"``.
-    increment_cov : float or array_like (n_p,), optional
+    increment_cov : float or array_like (n_p,) or (n_p, n_p), optional
         Random walk: ``S``, the variance of the force increment per step (N^2), one for all
-        forces or one per force.
+        forces, one per force or the matrix.
     std : float or array_like (n_p,), optional
         Matérn: the standard deviation of each force (N).
     timescale : float or array_like (n_p,), optional
@@ -141,16 +146,14 @@ class ForceModel:
 
         Returns
         -------
-        tuple of ndarray (n_p,)
-            ``(S,)`` for the random walk (N^2 per step); ``(std, timescale, lambda)`` (N, s, 1/s)
-            for a Matérn model.
+        tuple
+            ``(S,)`` for the random walk, S (n_p, n_p) (N^2 per step); ``(std, timescale, lambda)``,
+            each (n_p,) (N, s, 1/s), for a Matérn model.
         """
         if self.order is None:
-            S = np.asarray(self.increment_cov, float)
-            if S.ndim > 1 or (S.ndim == 1 and S.size != n_p) or not np.all(np.isfinite(S)) or np.any(S < 0):
-                raise AKFInputError(f"force_increment_cov must be one variance >= 0 (N^2 per step) or one per force "
-                                    f"({n_p}), got {self.increment_cov!r}")
-            return (np.broadcast_to(S, (n_p,)).astype(float),)
+            from .covariances import diag_levels
+
+            return (diag_levels(self.increment_cov, n_p, "force_increment_cov"),)
         std = _positive(self.std, "force_std", n_p, "N")
         ell = _positive(self.timescale, "force_timescale", n_p, "s")
         return std, ell, sqrt(2 * self.order + 1) / ell
@@ -215,10 +218,8 @@ class ForceModel:
         Q_d : ndarray (n_g, n_g)
             (N^2); ``diag(S)`` for the random walk.
         """
-        from .statespace import van_loan
-
         if self.order is None:
-            return np.eye(n_p), np.diag(self.parameters(n_p)[0])
+            return np.eye(n_p), self.parameters(n_p)[0]
         F, Qc = self.continuous(n_p)
         k = self.states_per_force
         F_d, Q_d = np.zeros_like(F), np.zeros_like(F)
@@ -252,7 +253,7 @@ class ForceModel:
         P = scipy.linalg.solve_continuous_lyapunov(F, -Qc)
         return 0.5 * (P + P.T)
 
-    def kernel(self, lags, n_p: int = 1) -> np.ndarray:
+    def kernel(self, lags: ArrayLike, n_p: int = 1) -> np.ndarray:
         """The Matérn covariance function ``k(tau) = E[f(t) f(t + tau)]`` of each force, in closed form.
 
         Parameters
@@ -274,7 +275,7 @@ class ForceModel:
         poly = {0: 1.0, 1: 1.0 + r, 2: 1.0 + r + r ** 2 / 3.0}[self.order]
         return std[:, None] ** 2 * poly * np.exp(-r)
 
-    def scaled(self, std_factor=1.0, timescale_factor=1.0) -> ForceModel:
+    def scaled(self, std_factor: ArrayLike = 1.0, timescale_factor: ArrayLike = 1.0) -> ForceModel:
         """The same kind with its std and time scale multiplied (a Matérn model; calibration).
 
         Parameters
@@ -300,10 +301,38 @@ class ForceModel:
         """
         def fmt(v):
             a = np.atleast_1d(np.asarray(v, float))
+            if a.ndim == 2:
+                a = np.diag(a)
             return f"{a[0]:.4g}" if np.all(a == a[0]) else "[" + ", ".join(f"{x:.4g}" for x in a) + "]"
         if self.order is None:
             return f"random walk, S = {fmt(self.increment_cov)} N^2 per step"
         return f"{self.kind}, std = {fmt(self.std)} N, time scale = {fmt(self.timescale)} s"
+
+
+def van_loan(A_c: ArrayLike, Q_c: ArrayLike, dt: float) -> np.ndarray:
+    """Discrete process-noise covariance ``Q = int_0^dt e^{A t} Q_c e^{A^T t} dt`` (Van Loan).
+
+    Parameters
+    ----------
+    A_c : ndarray (n, n)
+    Q_c : ndarray (n, n)
+        Continuous-time noise intensity.
+    dt : float
+        Time step (s).
+
+    Returns
+    -------
+    ndarray (n, n)
+    """
+    n = A_c.shape[0]
+    blk = np.zeros((2 * n, 2 * n))
+    blk[:n, :n] = -A_c
+    blk[:n, n:] = Q_c
+    blk[n:, n:] = A_c.T
+    E = scipy.linalg.expm(blk * dt)
+    Ad = E[n:, n:].T
+    Q = Ad @ E[:n, n:]
+    return 0.5 * (Q + Q.T)
 
 
 def as_force_model(force_model=None, force_increment_cov=None) -> ForceModel:
@@ -387,7 +416,7 @@ class DummyMeasurements:
             raise AKFInputError(f"dummy variance must be positive and finite (m^2 or (m/m)^2), got {self.variance!r}")
         object.__setattr__(self, "variance", var)
 
-    def layout(self, structure, real) -> list:
+    def layout(self, structure: Structure, real: Layout) -> list:
         """The dummy channels as sensors of ``structure``, checked.
 
         Parameters
@@ -407,7 +436,6 @@ class DummyMeasurements:
             For a dummy that is not a displacement or strain, not on the model, given twice, or
             the same as a real sensor.
         """
-        from .checks import first_repeat
         from .sensors import as_layout, selection_matrices
 
         try:
@@ -420,9 +448,6 @@ class DummyMeasurements:
             raise AKFInputError(f"dummy: {bad} are not displacements or strains; a dummy measurement is a zero "
                                 "displacement (\"disp:8:y\") or strain (\"strain:13\")")
         labels = [s.label for s in layout]
-        twice = first_repeat(labels)
-        if twice is not None:
-            raise AKFInputError(f"dummy: {twice[2]!r} is given twice")
         both = sorted(set(labels) & {s.label for s in real})
         if both:
             raise AKFInputError(f"dummy: {both} are measured sensors of the layout; a dummy is a channel not measured")

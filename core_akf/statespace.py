@@ -16,10 +16,10 @@ import scipy.linalg
 from .types import Forces, Layout
 
 if TYPE_CHECKING:
-    from .forcemodels import ForceModel
     from .structure import Structure
 from . import rank
 from .exceptions import AKFInputError, UndetectableError
+from .forcemodels import ForceModel, van_loan  # noqa: F401  (van_loan public here as before)
 from .rank import is_supported  # noqa: F401  (public here as before)
 from .sensors import as_layout, parse_force_locations, selection_matrices
 
@@ -141,32 +141,6 @@ def zoh(A_c, B_c, dt):
     blk[:nx, nx:] = B_c
     E = scipy.linalg.expm(blk * dt)
     return E[:nx, :nx], E[:nx, nx:]
-
-
-def van_loan(A_c, Q_c, dt):
-    """Discrete process-noise covariance ``Q = int_0^dt e^{A t} Q_c e^{A^T t} dt`` (Van Loan).
-
-    Parameters
-    ----------
-    A_c : ndarray (n, n)
-    Q_c : ndarray (n, n)
-        Continuous-time noise intensity.
-    dt : float
-        Time step (s).
-
-    Returns
-    -------
-    ndarray (n, n)
-    """
-    n = A_c.shape[0]
-    blk = np.zeros((2 * n, 2 * n))
-    blk[:n, :n] = -A_c
-    blk[:n, n:] = Q_c
-    blk[n:, n:] = A_c.T
-    E = scipy.linalg.expm(blk * dt)
-    Ad = E[n:, n:].T
-    Q = Ad @ E[:n, n:]
-    return 0.5 * (Q + Q.T)
 
 
 def observation(structure, sensors, forces):

@@ -26,8 +26,8 @@ import numpy as np
 
 from .checks import as_finite_array
 from .exceptions import AKFInputError
-from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .filter import FilterSetup, ModalBlockTransition, innovation_covariance, time_varying_filter
+from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError, steady_gain

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core_akf.exceptions import AKFInputError
+from core_akf.forcemodels import ForceModel
 from core_akf.sensors import as_layout
 
 from .reconstruct import reconstruct
@@ -89,7 +90,7 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
            ad_kinds: tuple[str, ...] = ("strain",), candidates: list[int] | None = None,
            covariances: Covariances | None = None, tune: bool | str = True, max_splits: int | None = None,
            n_modes: int | str | None = "auto", skip: float = 0.0, n_jobs: int = 1, seed: int = 0,
-           progress: bool = False, tuning: dict | None = None) -> LocateResult:
+           progress: bool = False, tuning: dict | None = None, force_model: ForceModel | None = None) -> LocateResult:
     """Locate an impact and reconstruct its force history.
 
     Parameters
@@ -131,6 +132,9 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
     tuning : dict, optional
         Options of :func:`tune_covariances` (population, generations, n_splits, decades,
         crossover, mutation); with ``tune="ml"`` only n_splits and decades apply.
+    force_model : ForceModel, optional
+        The impact's prior (:class:`ImpactModel`): None, the random walk; a Matérn model, whose std
+        is then ``sqrt(covariances.force_increment)`` (tuned in its place).
 
     Returns
     -------
@@ -160,7 +164,7 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
     cov = covariances or default_covariances(layout, Y)
     seconds = {}
     t = time.perf_counter()
-    model = ImpactModel(structure, layout, dt, n_modes)
+    model = ImpactModel(structure, layout, dt, n_modes, force_model)
     res = scan(structure, layout, Y, dt, splits, candidates=cands, covariances=cov, skip=skip, n_modes=n_modes,
                n_jobs=n_jobs, progress=progress, model=model)
     seconds["scan"] = time.perf_counter() - t
@@ -182,8 +186,9 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
         if method == "ml" or tuned.tuned_error < tuned.initial_error:
             best_cov = tuned.covariances
     t = time.perf_counter()
-    initial = reconstruct(structure, layout, Y, dt, res.identified, cov, n_modes)
-    final = reconstruct(structure, layout, Y, dt, res.identified, best_cov, n_modes) if best_cov is not cov else initial
+    initial = reconstruct(structure, layout, Y, dt, res.identified, cov, n_modes, model.force_model)
+    final = reconstruct(structure, layout, Y, dt, res.identified, best_cov, n_modes, model.force_model) \
+        if best_cov is not cov else initial
     seconds["reconstruction"] = time.perf_counter() - t
     seconds["total"] = sum(seconds.values())
     return LocateResult(res, tuned, final, initial, seconds)

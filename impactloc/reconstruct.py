@@ -8,6 +8,7 @@ import numpy as np
 
 from core_akf.exceptions import AKFInputError
 from core_akf.filter import estimate
+from core_akf.forcemodels import ForceModel
 from core_akf.types import ForceLocation, Layout, Measurements, Signal
 
 if TYPE_CHECKING:
@@ -112,7 +113,8 @@ FULL_MODEL_LIMIT = 500
 
 
 def reconstruct(structure: Structure, sensors: Layout, measurements: Measurements, dt: float, location: ForceLocation,
-                covariances: Covariances, n_modes: int | str | None = None) -> Reconstruction:
+                covariances: Covariances, n_modes: int | str | None = None,
+                force_model: ForceModel | None = None) -> Reconstruction:
     """Reconstruct the force history at a location and the response everywhere.
 
     The steady-state AKF fed by every installed sensor with the given covariances.
@@ -134,6 +136,9 @@ def reconstruct(structure: Structure, sensors: Layout, measurements: Measurement
         The filter modes of the scan; a structure of more than :data:`FULL_MODEL_LIMIT` DOFs is
         then reduced to them with a static correction, a smaller one is used whole (the papers'
         cases).
+    force_model : ForceModel, optional
+        A Matérn model (kind and time scale; std ``sqrt(covariances.force_increment)``); default
+        the random walk.
 
     Returns
     -------
@@ -159,6 +164,6 @@ def reconstruct(structure: Structure, sensors: Layout, measurements: Measurement
         if k < structure.n:
             structure = structure.reduce(k, static_correction=True)
     est = estimate(structure, sensors, [location], measurements, dt, model_error_cov=covariances.model_error,
-                   force_increment_cov=covariances.force_increment, noise_cov=dict(covariances.noise), steady=True)
+                   force_model=covariances.force_model(force_model), noise_cov=dict(covariances.noise), steady=True)
     force = est.forces[:, 0]
     return Reconstruction(est, force, force_summary(force, dt))

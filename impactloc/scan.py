@@ -15,6 +15,7 @@ import numpy as np
 from core_akf.checks import as_finite_array
 from core_akf.defaults import auto_modes, default
 from core_akf.exceptions import AKFInputError
+from core_akf.forcemodels import ForceModel
 from core_akf.metrics import rms, rms_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.sensors import as_layout, parse_force_locations
@@ -37,7 +38,9 @@ class Covariances:
     Attributes
     ----------
     model_error : float -- ``Q``, variance per step per physical DOF (m^2 and (m/s)^2)
-    force_increment : float -- ``S``, variance of the force increment per step (N^2)
+    force_increment : float -- ``S``, variance of the force increment per step (N^2); under a
+        Matérn force model (:class:`ImpactModel` ``force_model``) the variance of the force
+        itself, ``std^2`` (N^2)
     noise : dict -- ``R``, measurement-noise variance per sensor kind (SI^2), e.g.
         ``{"strain": 1e-12, "acc": 1e-4}``
 
@@ -73,6 +76,23 @@ class Covariances:
         """
         return {"model_error": self.model_error, "force_increment": self.force_increment,
                 **{f"noise_{k}": v for k, v in self.noise.items()}}
+
+    def force_model(self, base: ForceModel | None = None) -> ForceModel:
+        """The force model of these levels.
+
+        Parameters
+        ----------
+        base : ForceModel, optional
+            A Matérn model whose kind and time scale to keep (its std becomes
+            ``sqrt(force_increment)``); None or a random walk: the random walk of ``force_increment``.
+
+        Returns
+        -------
+        ForceModel
+        """
+        if base is None or not base.stationary:
+            return ForceModel("random_walk", increment_cov=self.force_increment)
+        return ForceModel(base.kind, std=float(np.sqrt(self.force_increment)), timescale=base.timescale)
 
 
 def default_covariances(sensors: Layout, measurements: Measurements, model_error: float = default("model_error_cov"),
@@ -176,10 +196,15 @@ class ImpactModel:
         location fits as well as with the full model, the wrong ones score differently but stay
         far worse).  A cut at the sampling rate itself is too deep: a 4 ms impact excites modes up
         to a few kHz and the identification fails.
+    force_model : ForceModel, optional
+        The impact's prior: None, the random walk (the paper's); a Matérn model (its kind and time
+        scale; the std is ``sqrt(Covariances.force_increment)``).
     """
 
-    def __init__(self, structure: Structure, sensors: Layout, dt: float, n_modes: int | str | None = None):
+    def __init__(self, structure: Structure, sensors: Layout, dt: float, n_modes: int | str | None = None,
+                 force_model: ForceModel | None = None):
         self.full = structure
+        self.force_model = force_model if force_model is not None and force_model.stationary else None
         self.layout = as_layout(sensors)
         self.dt = float(dt)
         if n_modes is not None and n_modes != "auto" and not 1 <= int(n_modes) <= structure.n:
@@ -206,8 +231,9 @@ class ImpactModel:
         G_a : ndarray (m, n_a)
             The observation rows of all installed sensors.
         """
-        if loc not in self._systems:
-            fm = ModalFilterModel(self.full, [loc], self.dt, self.n_modes)
+        if loc not in self._systems:        # a Matérn model with unit std: Q_f scales with std^2
+            unit = None if self.force_model is None else Covariances(0.0, 1.0, {}).force_model(self.force_model)
+            fm = ModalFilterModel(self.full, [loc], self.dt, self.n_modes, force_model=unit)
             self._systems[loc] = (fm, fm.observation(self.layout))
         return self._systems[loc]
 
@@ -244,7 +270,7 @@ class ImpactModel:
         bool
         """
         if loc not in self._detectability:
-            self._detectability[loc] = SubsetDetectability(self.full, self.layout, [loc])
+            self._detectability[loc] = SubsetDetectability(self.full, self.layout, [loc], self.force_model)
         return self._detectability[loc].detectable(se)
 
     def Q_a(self, cov: Covariances, loc: ForceLocation) -> FloatArray:
@@ -259,7 +285,12 @@ class ImpactModel:
         -------
         ndarray (n_a, n_a)
         """
-        return self.filter_model(loc)[0].Q_a(cov.model_error, cov.force_increment)
+        fm = self.filter_model(loc)[0]
+        if self.force_model is None:
+            return fm.Q_a(cov.model_error, cov.force_increment)
+        Q = fm.Q_a(cov.model_error)
+        Q[fm.n_states:, fm.n_states:] *= cov.force_increment         # the unit-std Q_f times std^2
+        return Q
 
     def noise(self, cov: Covariances) -> FloatArray:
         """The measurement-noise variance of every installed sensor.

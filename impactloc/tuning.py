@@ -262,7 +262,7 @@ def tune_covariances(structure: Structure, sensors: Layout, measurements: Measur
 
 
 #: the names of :func:`core_akf.calibration.calibrate` for the genes of :class:`TuningResult`
-_ML_GENES = {"model_error_cov": "model_error", "force_increment_cov": "force_increment"}
+_ML_GENES = {"model_error_cov": "model_error", "force_increment_cov": "force_increment", "force_std": "force_increment"}
 
 
 def tune_covariances_ml(structure: Structure, sensors: Layout, measurements: Measurements, dt: float,
@@ -338,12 +338,14 @@ def tune_covariances_ml(structure: Structure, sensors: Layout, measurements: Mea
     k = model.n_modes
     filter_structure = structure if k is None else structure.memo(
         ("reduced with static correction", int(k)), lambda: structure.reduce(int(k), static_correction=True))
-    parameters = ["noise_cov", "force_increment_cov"] + (["model_error_cov"] if start.model_error > 0 else [])
+    force = "force_increment_cov" if model.force_model is None else "force_std"     # a Matérn model: its std
+    parameters = ["noise_cov", force] + (["model_error_cov"] if start.model_error > 0 else [])
     fit = calibrate(filter_structure, model.layout, [location], Y, dt, parameters=parameters,
-                    model_error_cov=start.model_error, force_increment_cov=start.force_increment,
+                    model_error_cov=start.model_error, force_model=start.force_model(model.force_model),
                     noise_cov=dict(start.noise), decades=decades)
     v = fit.values
-    tuned = Covariances(v.get("model_error_cov", start.model_error), v["force_increment_cov"],
+    level = v["force_increment_cov"] if model.force_model is None else float(v["force_std"]) ** 2
+    tuned = Covariances(v.get("model_error_cov", start.model_error), level,
                         {kind: v["noise_cov"].get(kind, level) for kind, level in start.noise.items()})
     sample = _split_sample(splits, n_splits, np.random.default_rng(seed))
     _, rel = location_errors(model, location, sample, Y, [start, tuned], int(round(skip / dt)))

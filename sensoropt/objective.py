@@ -15,6 +15,7 @@ import numpy as np
 
 from core_akf.defaults import auto_modes, default
 from core_akf.exceptions import AKFInputError
+from core_akf.forcemodels import ForceModel
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.riccati import RiccatiError
 from core_akf.simulate import simulate
@@ -140,6 +141,9 @@ class StrainErrorObjective:
     targets : sequence of str, optional
         Strain output labels (``"strain:13"``, ``"strain:58:ex"``) whose error is averaged;
         default every strain output.
+    force_model : ForceModel, optional
+        The filter's force model (:mod:`core_akf.forcemodels`; ``force_increment_cov`` is then
+        unused): under a Matérn model accelerometer-only layouts are admissible.
     """
 
     n_objectives = 1
@@ -148,7 +152,7 @@ class StrainErrorObjective:
                  window: float = default("window"), stiffness_factor: float = default("placement_stiffness_factor"),
                  relative_noise: float = default("relative_noise"), model_error_cov: float = default("model_error_cov"),
                  force_increment_cov: float = default("force_increment_cov"), n_modes: int | str | None = "auto",
-                 seed: int = 0, targets: Sequence[str] | None = None):
+                 seed: int = 0, targets: Sequence[str] | None = None, force_model: ForceModel | None = None):
         loads = np.asarray(loads, float)
         if loads.ndim != 2:
             raise AKFInputError("loads must be (N, n_forces)")
@@ -168,11 +172,13 @@ class StrainErrorObjective:
             raise AKFInputError("targets is empty: name the strain outputs whose error to average")
         self.true_strains = sim.strains                # (n, n_strain)
         self.reference = sim.strains if rows is None else sim.strains[:, rows]    # (n, n_targets)
-        self.model = ModalFilterModel(structure.scaled(stiffness_factor), forces, dt, n_modes)
+        if force_model is None:
+            force_model = ForceModel("random_walk", increment_cov=force_increment_cov)
+        self.model = ModalFilterModel(structure.scaled(stiffness_factor), forces, dt, n_modes, force_model=force_model)
         self.G = self.model.observation(self.labels)   # (n_candidates, n_a)
         self.H = self.model.strain_rows() if rows is None else self.model.strain_rows()[rows]
-        self.Q = self.model.Q_a(model_error_cov, force_increment_cov)
-        self._detectability = SubsetDetectability(structure, self.labels, self.model.forces)
+        self.Q = self.model.Q_a(model_error_cov)
+        self._detectability = SubsetDetectability(structure, self.labels, self.model.forces, force_model)
         self.n_forces = len(self.model.forces)
 
     def detectable(self, idx: Sequence[int]) -> bool:

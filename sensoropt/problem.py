@@ -9,6 +9,7 @@ import numpy as np
 
 from core_akf.defaults import auto_modes, default
 from core_akf.exceptions import AKFInputError
+from core_akf.forcemodels import ForceModel
 from core_akf.metrics import average_strain_error
 from core_akf.reduced import ModalFilterModel, steady_outputs
 from core_akf.simulate import simulate
@@ -67,6 +68,9 @@ class PlacementProblem:
         (:class:`~sensoropt.objective.FatigueErrorObjective`).
     del_slope : float
         The slope m of that damage-equivalent range.
+    force_model : ForceModel, optional
+        The filter's force model (default the random walk of ``force_increment_cov``); under a
+        Matérn model accelerometer-only layouts are admissible.
     notes : list of str
         Notes for the user (a default S far from the loads' increments).
 
@@ -104,6 +108,7 @@ class PlacementProblem:
     targets: list = None
     objective_kind: str = "strain"
     del_slope: float = 3.0
+    force_model: object = None
     #: what a user should know about the settings (shown with the result)
     notes: list = field(default_factory=list)
 
@@ -142,7 +147,7 @@ class PlacementProblem:
         """
         settings = dict(window=self.window, stiffness_factor=self.stiffness_factor, relative_noise=self.relative_noise,
                         model_error_cov=self.model_error_cov, force_increment_cov=self.force_increment_cov,
-                        n_modes=self.n_modes, seed=self.seed, targets=self.targets)
+                        n_modes=self.n_modes, seed=self.seed, targets=self.targets, force_model=self.force_model)
         if self.objective_kind == "fatigue":
             return FatigueErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding or self.encoding(),
                                          m=self.del_slope, **settings)
@@ -204,9 +209,10 @@ class PlacementProblem:
         n_modes = self.n_modes
         if n_modes == "auto":
             n_modes = auto_modes(self.structure, self.dt, accelerations=any(str(s).startswith("acc") for s in sensors))
+        force_model = self.force_model or ForceModel("random_walk", increment_cov=self.force_increment_cov)
         fm = ModalFilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt,
-                              None if n_modes is None else min(int(n_modes), self.structure.n))
+                              None if n_modes is None else min(int(n_modes), self.structure.n), force_model=force_model)
         R = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2)
-        est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov, self.force_increment_cov),
+        est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov),
                              R[None], sim.measurements[None], rows_of(fm))[0]
         return est, sim

@@ -39,6 +39,7 @@ JOBS_DIR = os.path.join(os.path.dirname(__file__), "jobs")
 #: example name -> the command that runs it
 COMMAND_OF = {
     "s17-case1": "estimate", "s17-case2": "estimate", "s17-case3": "estimate", "s17-case4": "estimate",
+    "s17-acc": "estimate",
     "th-case2": "estimate", "th-case3": "estimate",
     "th-case5": "place", "th-case6": "place", "th-multi": "place",
     "imp-truss-case1": "locate", "imp-truss-case2": "locate", "imp-plate": "locate",
