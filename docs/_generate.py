@@ -22,7 +22,7 @@ def gallery(out):
 
     wanted = {"s17_truss.png", "th_plate.png", "imp_plate.png", "estimate.png", "sensors.png", "layout.png",
               "convergence.png", "error_vs_location.png", "force.png", "strain_errors.png", "likelihood.png",
-              "smoothed.png"}
+              "smoothed.png", "accelerations.png", "timescale.png"}
     if all(os.path.exists(os.path.join(out, w)) for w in wanted):
         return
     with tempfile.TemporaryDirectory() as tmp, open(os.devnull, "w") as quiet, \
@@ -34,6 +34,7 @@ def gallery(out):
               "--out", os.path.join(tmp, "place")])
         main(["locate", "--example", "imp-truss-case1", "--json", "--out", os.path.join(tmp, "locate")])
         main(["study", "learning", "--quick", "-q", "--out", os.path.join(tmp, "learning")])
+        main(["study", "accelerations", "--quick", "-q", "--out", os.path.join(tmp, "accelerations")])
         for root, _, files in os.walk(tmp):
             for f in files:
                 if f in wanted:

@@ -17,7 +17,7 @@ from akf.job import load_job
 from akf.schema import parse_job
 
 #: our average strain error (microstrain) of the estimate examples, full 2 s / 6 s records
-ESTIMATE_PINS = {"s17-case3": 0.855449194414839, "s17-case4": 0.9494734494049967,
+ESTIMATE_PINS = {"s17-case3": 0.855449194414839, "s17-case4": 0.9494734494049967, "s17-acc": 0.5430793683294031,
                  "th-case2": 3.5969818812816796, "th-case3": 6.502470786404743}
 S17_CASE4_FORCE_ERRORS = {"4:y": 47.96, "6:y": 105.35, "8:y": 210.27, "12:y": 161.41}    # N
 
@@ -40,8 +40,8 @@ def test_every_example_is_a_valid_job_file_of_its_command(name):
 
 
 def test_examples_are_listed_per_command():
-    assert example_names("estimate") == ["footbridge-walk", "s17-case1", "s17-case2", "s17-case3", "s17-case4",
-                                         "th-case2", "th-case3"]
+    assert example_names("estimate") == ["footbridge-walk", "s17-acc", "s17-case1", "s17-case2", "s17-case3",
+                                         "s17-case4", "th-case2", "th-case3"]
     assert example_names("place") == ["footbridge-place", "th-case5", "th-case6", "th-multi"]
     assert example_names("locate") == ["footbridge-impact", "imp-plate", "imp-truss-case1", "imp-truss-case2"]
 

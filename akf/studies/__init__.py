@@ -23,6 +23,7 @@ STUDIES = {
     "imp_cases": "akf.studies.imp:cases",
     "imp_hit_rate": "akf.studies.imp:hit_rate",
     "learning": "akf.studies.learning",
+    "accelerations": "akf.studies.accelerations",
 }
 
 

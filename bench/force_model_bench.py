@@ -1,0 +1,138 @@
+"""Force models compared, run by hand: ``python bench/force_model_bench.py [--csv PATH] [--quick]``.
+
+Per sensor set -- S17 cases 1, 2 and 4, the accelerometer-only truss job ``s17-acc``, an
+accelerometer-only TH plate and the footbridge walk -- the force and strain errors of:
+
+* ``random_walk``: the job's random walk (time-varying, ``allow_undetectable``, where the set is
+  not detectable: the papers' cases 1 and 2);
+* ``dummy``: the random walk with zero displacement pseudo-measurements at the force DOFs, their
+  standard deviation the static displacement of a load of the loads' RMS (what a user knows
+  roughly: the size of the loads);
+* ``matern32_ml``: the Matérn-3/2 Gaussian-process force model with std and time scale learnt by
+  maximum likelihood (``calibrate = ["force_std", "force_timescale"]``, starting at 300 N and
+  10 ms), filtered; ``matern32_ml_smooth``: the same, smoothed;
+* ``matern32_hand``: Matérn-3/2 with the std of the loads' RMS and a time scale of a quarter
+  period of the highest load frequency, smoothed.
+
+Written per row: the mean RMS force error (N) and relative to the loads' RMS, the average strain
+error (µε), the drift (the force error RMS of the last quarter of the record over that of the
+second quarter; > 1.5 drifts), the fitted hyperparameters and the seconds.  Prints first, then
+writes ``bench/force_model_results.csv``.
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import csv
+import os
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+PLATE_ACC = ["acc:24:w", "acc:29:w", "acc:57:w", "acc:63:w", "acc:90:w", "acc:96:w", "acc:113:w", "acc:118:w"]
+
+
+def _jobs(quick):
+    """(name, job dict, the highest load frequency in Hz) of each sensor set."""
+    from akf.examples import example_job
+
+    out = []
+    for name in ("s17-case1", "s17-case2", "s17-case4", "s17-acc"):
+        out.append((name, example_job(name), 200.0))
+    plate = example_job("th-case3")
+    plate["name"], plate["sensors"] = "th-acc", PLATE_ACC
+    plate["simulation"]["duration"] = 1.0
+    plate["simulation"]["loads"] = [{"components": [{"type": "band_noise", "rms": 20.0, "f_high": 100.0, "seed": 31}]},
+                                    {"components": [{"type": "band_noise", "rms": 15.0, "f_high": 100.0, "seed": 32}]}]
+    plate["filter"]["stiffness_factor"] = 1.0
+    out.append(("th-acc (plate, 8 acc)", plate, 100.0))
+    out.append(("footbridge-walk", example_job("footbridge-walk"), 6.0))
+    if quick:
+        for _, data, _ in out:
+            data["simulation"]["duration"] = min(data["simulation"]["duration"], 0.5 if data["dt"] < 1e-3 else 5.0)
+    return out
+
+
+def _filter_keys(data, method, loads_rms, f_high, static_std):
+    f = data["filter"]
+    for key in ("force_increment_cov", "steady", "allow_undetectable", "smooth", "force_model", "force_std",
+                "force_timescale", "calibrate", "dummy"):
+        f.pop(key, None)
+    if method in ("random_walk", "dummy"):
+        f["force_increment_cov"] = data["_S"]
+        if method == "dummy":
+            f["dummy"] = {"sensors": data["_dummy"], "variance": float(static_std ** 2)}
+        return
+    f["force_model"] = "matern32"
+    if method.startswith("matern32_ml"):
+        f.update(force_std=300.0, force_timescale=0.01, calibrate=["force_std", "force_timescale"])
+    else:
+        f.update(force_std=float(np.mean(loads_rms)), force_timescale=float(0.25 / f_high))
+    f["smooth"] = method.endswith("smooth") or method == "matern32_hand"
+
+
+def main(argv=None):
+    from akf.estimating import estimate_job
+    from akf.job import Job
+    from core_akf.statespace import detectability, static_gain
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--csv", default=os.path.join(HERE, "force_model_results.csv"))
+    parser.add_argument("--quick", action="store_true", help="short records (a smoke run)")
+    args = parser.parse_args(argv)
+    methods = ("random_walk", "dummy", "matern32_ml", "matern32_ml_smooth", "matern32_hand")
+    rows = []
+    print(f"{'sensor set':24s} {'method':20s} {'force err N':>11s} {'x RMS':>7s} {'strain µε':>10s} {'drift':>6s} "
+          f"{'std N':>8s} {'scale ms':>8s} {'s':>6s}")
+    for name, base, f_high in _jobs(args.quick):
+        job0 = Job.from_dict(base, "estimate")
+        sim = job0.simulate()
+        loads_rms = np.sqrt(np.mean(sim.loads ** 2, axis=0))
+        model = job0.structure
+        disp = [f"disp:{node}:{d}" for node, d in job0.forces]
+        # the static displacement at each force DOF of a load of the loads' RMS: the dummies' std
+        gain = static_gain(model, disp, job0.forces).gain
+        static_std = float(np.mean(np.abs(np.diag(gain)) * loads_rms))
+        base = copy.deepcopy(base)
+        base["_S"] = float(base["filter"].get("force_increment_cov", job0.force_increment_cov))
+        base["_dummy"] = disp
+        for method in methods:
+            data = copy.deepcopy(base)
+            _filter_keys(data, method, loads_rms, f_high, static_std)
+            S, _ = data.pop("_S"), data.pop("_dummy")
+            if method == "random_walk" and not detectability(model, job0.sensors, job0.forces).detectable:
+                data["filter"].update(steady=False, allow_undetectable=True)
+            t = time.perf_counter()
+            try:
+                res = estimate_job(Job.from_dict(data, "estimate"))
+            except Exception as exc:            # a method that cannot run on a set is a row, not a lost table
+                print(f"{name:24s} {method:20s} failed: {exc}")
+                rows.append(dict(set=name, method=method, error=str(exc).splitlines()[0]))
+                continue
+            seconds = time.perf_counter() - t
+            est, true = res.estimate.forces, sim.loads
+            e = est - true
+            q = e.shape[0] // 4
+            drift = float(np.max(np.sqrt(np.mean(e[3 * q:] ** 2, 0)) / np.sqrt(np.mean(e[q:2 * q] ** 2, 0))))
+            force_err = float(np.mean(list(res.metrics["rms_force"].values())))
+            rel = float(np.mean(np.sqrt(np.mean(e ** 2, 0)) / loads_rms))
+            strain = float(res.metrics["avg_strain_error_microstrain"])
+            cal = res.metrics.get("calibration", {})
+            std = np.mean(cal.get("force_std", data["filter"].get("force_std", np.nan)))
+            scale = 1e3 * np.mean(cal.get("force_timescale", data["filter"].get("force_timescale", np.nan)))
+            print(f"{name:24s} {method:20s} {force_err:11.4g} {rel:7.3f} {strain:10.4g} {drift:6.2f} {std:8.4g} "
+                  f"{scale:8.3g} {seconds:6.1f}", flush=True)
+            rows.append(dict(set=name, method=method, force_error_N=force_err, force_error_rel=rel,
+                             strain_error_microstrain=strain, drift=drift, force_std_N=std, force_timescale_ms=scale,
+                             seconds=seconds, loads_rms_N=float(np.mean(loads_rms)), error=""))
+    keys = sorted({k for r in rows for k in r}, key=lambda k: list(rows[-1]).index(k) if k in rows[-1] else 99)
+    with open(args.csv, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=keys)
+        writer.writeheader()
+        writer.writerows(rows)
+    print(f"wrote {args.csv}")
+
+
+if __name__ == "__main__":
+    main()
