@@ -394,6 +394,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     width = np.log(10.0) * default("calibration_decades", decades)
     bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else (-width, width)
               for n in problem.names]
+    if "force_std" in problem.names:           # a factor on a std: its variance spans the decades, as the others'
+        bounds[problem.names.index("force_std")] = (-width / 2, width / 2)
     if "force_timescale" in problem.names:     # between one step and a tenth of the record: what it can resolve
         ell = np.asarray(force_model.timescale, float)
         j = problem.names.index("force_timescale")

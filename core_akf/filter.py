@@ -1,4 +1,5 @@
-"""Augmented Kalman filter (AKF) with a random-walk force model (Lourens et al. 2012; S17 eq. 14-26, IMP eq. 12-25).
+"""Augmented Kalman filter (AKF) with a random-walk force model (Lourens et al. 2012; S17 eq. 14-26, IMP eq. 12-25),
+or a Matérn Gaussian-process force model and dummy measurements (:mod:`core_akf.forcemodels`).
 
 Low level: :func:`run` / :func:`filter_states` work on the augmented matrices and a
 stack (batch) of filters at once.  High level: :func:`estimate` takes a
@@ -7,7 +8,8 @@ levels and measurements and returns an :class:`Estimate` (forces, states, strain
 every member/node, innovations); :func:`estimate_batch` does the same for many sensor
 layouts / measurement sets sharing one structure and force set.
 
-Conventions: ``X_k = [x_k; f_k]`` (``n_a = 2n + n_p``), the prior at step 0 is
+Conventions: ``X_k = [x_k; f_k]`` (``n_a = 2n + n_p``; ``[x_k; xi_k]`` with the force states of a
+Matérn model, ``f_k = H xi_k``), the prior at step 0 is
 ``x0`` with covariance ``P0``; each step first updates with ``y_k`` and then predicts.
 The returned states are the filtered (posterior) ones.
 """
@@ -739,8 +741,7 @@ class FilterSetup:
                            for b, l in enumerate(layouts)])
         if self.dummy_layout:
             self.R = np.stack([scipy.linalg.block_diag(R, dummy.variance * np.eye(len(self.dummy_layout))) for R in self.R])
-        Q_f = force_model.discrete(len(locs), dt)[1]
-        Q_a = scipy.linalg.block_diag(state_covariance(structure, model_error_cov), Q_f)
+        Q_a = scipy.linalg.block_diag(state_covariance(structure, model_error_cov), fm.Q_f)
         Q_a = Ta_inv @ Q_a @ Ta_inv.T
         self.Q_a = 0.5 * (Q_a + Q_a.T)
         self.z0 = None if x0 is None else Ta_inv @ as_finite_array(x0, "x0", ndim=1, shape=(self.nx + ng,))

@@ -45,7 +45,8 @@ class ModalFilterModel:
     ----------
     A_a : (n_a, n_a) augmented transition ``[[A, B H], [0, F_d]]``;  Q_unit : (2n, 2n) state
     covariance for a unit ``model_error_cov`` level;  H : (n_p, n_g) the forces from the force
-    states;  n_a = 2 n_modes + n_g (``n_g = n_p`` for the random walk)
+    states;  Q_f : (n_g, n_g) the force model's process covariance per step;  n_a = 2 n_modes + n_g
+    (``n_g = n_p`` for the random walk)
     """
 
     def __init__(self, structure, forces, dt, n_modes=None, force_model=None):
@@ -88,7 +89,7 @@ class ModalFilterModel:
         n_p = len(self.forces)
         self.force_model = force_model
         self.H = force_model.output(n_p)
-        F_d, self._force_Q = force_model.discrete(n_p, self.dt)
+        F_d, self.Q_f = force_model.discrete(n_p, self.dt)
         nx, ng = self.n_states, F_d.shape[0]
         self.A_a = np.zeros((nx + ng, nx + ng))
         self.A_a[:nx, :nx] = self.A_z
@@ -167,7 +168,7 @@ class ModalFilterModel:
         Q = np.zeros((self.n_a, self.n_a))
         Q[:self.n_states, :self.n_states] = float(model_error_cov) * self.Q_unit
         if force_increment_cov is None:
-            Q[self.n_states:, self.n_states:] = self._force_Q
+            Q[self.n_states:, self.n_states:] = self.Q_f
         else:
             if self.force_model.stationary:
                 raise AKFInputError(f"force_increment_cov is the random walk's S; this filter model has the "

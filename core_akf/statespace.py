@@ -1,6 +1,7 @@
 """State space of a structure with unknown inputs: continuous model, zero-order-hold
 discretisation, heterogeneous observation matrices ``G``/``D``, augmentation with a
-random-walk force model and the PBH detectability test (S17 §2 and eq. 14-30, IMP eq. 12-30).
+random-walk force model and the PBH detectability test (S17 §2 and eq. 14-30, IMP eq. 12-30), for
+any force model of :mod:`core_akf.forcemodels`.
 
 Everything that derives these matrices lives here; the filter, the simulator and the
 optimisers call these functions instead of re-deriving them.

@@ -351,3 +351,33 @@ def test_scipy_lyapunov_and_van_loan_agree():
     P = fm.stationary_covariance(1)
     np.testing.assert_allclose(Q_d, P - F_d @ P @ F_d.T, atol=1e-12)
     assert np.all(scipy.linalg.eigvalsh(Q_d) > 0)
+
+
+def test_akf_place_searches_accelerometer_only_layouts(tmp_path, capsys):
+    """``akf place`` with ``kinds = ["acc:y"]``: a finite best layout of accelerometers under
+    ``force_model = "matern32"``; under the random walk no layout is admissible, and the error says
+    which force model would make them so."""
+    import contextlib
+    import io
+    import json
+
+    import tomlkit
+
+    job = {"name": "acc-place", "dt": DT, "forces": ["6:y", "12:y"], "structure": {"model": "s17_truss"},
+           "place": {"kinds": ["acc:y"], "sensors": 5, "window": 0.25, "population": 8, "generations": 3},
+           "filter": {"stiffness_factor": 1.0, "model_error_cov": 1e-16, "force_model": "matern32",
+                      "force_std": 500.0, "force_timescale": 0.002},
+           "simulation": {"duration": 0.5, "relative_noise": 0.02, "seed": 0,
+                          "loads": [{"components": [{"type": "band_noise", "rms": 600.0, "f_high": 200.0, "seed": 21}]},
+                                    {"components": [{"type": "band_noise", "rms": 425.0, "f_high": 200.0, "seed": 22}]}]}}
+    path = tmp_path / "acc-place.toml"
+    path.write_text(tomlkit.dumps(job))
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(["place", str(path), "--json", "--out", str(tmp_path / "gp")]) == 0
+    res = json.loads(buf.getvalue().strip().splitlines()[-1])
+    assert np.isfinite(res["error"]) and all(s.startswith("acc:") for s in res["sensors"])
+    job["filter"] = {"stiffness_factor": 1.0, "model_error_cov": 1e-16, "force_increment_cov": 1e5}
+    path.write_text(tomlkit.dumps(job))
+    assert main(["place", str(path), "-q", "--out", str(tmp_path / "rw")]) == 2
+    assert 'force_model = "matern32"' in capsys.readouterr().err

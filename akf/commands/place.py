@@ -6,6 +6,7 @@ problems are ``akf/examples/jobs/th-*.toml``.
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 
@@ -72,6 +73,13 @@ def _run_place(args, problem, settings, out):
     with scheduler(args.scheduler, resume=resume):
         res = place(obj, enc, seed=args.seed, n_jobs=workers(args), checkpoint=checkpoint, resume=args.resume,
                     progress=not args.json, **settings)
+    if not math.isfinite(obj.evaluate([res.sensors])[0]):       # the GA's best is a penalty: nothing admissible
+        kinds = {str(k).split(":")[0] for k in (problem.kinds or ())} or {str(s).split(":")[0] for s in res.sensors}
+        hint = ("accelerometer-only layouts cannot see the static response under the random-walk force model: set "
+                "[filter] force_model = \"matern32\" (with force_std and force_timescale), or allow strain gauges in "
+                "[place] kinds") if kinds <= {"acc", "vel"} and not (problem.force_model and problem.force_model.stationary) \
+            else "check the candidates, the covariances and the budget"
+        raise AKFInputError(f"no layout the GA tried is admissible (each is undetectable or its filter fails): {hint}")
     error = problem.full_record_error(res.sensors)
     refs = {name: problem.full_record_error(s) for name, s in problem.reference_layouts.items()
             if len(s) == enc.n_sensors and not problem.budget}

@@ -133,7 +133,7 @@ def _figures(estimates, scan, fit, job, sim, out, files):
         err = float(np.sqrt(np.mean((est.forces[:, j] - sim.loads[:, j]) ** 2)))
         ax.set_title(f"{name}: force {label}, RMS error {err:.0f} N", fontsize=8)
         ax.set_ylabel("force (N)")
-        lim = 3 * np.abs(sim.loads[:, j]).max()
+        lim = 1.8 * np.abs(sim.loads[:, j]).max()
         ax.set_ylim(-lim, lim)
     axes[0].legend(fontsize=7, ncol=3, loc="upper right")
     axes[-1].set_xlabel("time (s)")
