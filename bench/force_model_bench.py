@@ -121,7 +121,7 @@ def main(argv=None):
         for method in methods:
             data = copy.deepcopy(base)
             _filter_keys(data, method, loads_rms, f_high, static_std)
-            S, _ = data.pop("_S"), data.pop("_dummy")
+            data.pop("_S"), data.pop("_dummy")
             if method == "random_walk" and not detectability(model, job0.sensors, job0.forces).detectable:
                 data["filter"].update(steady=False, allow_undetectable=True)
             t = time.perf_counter()
