@@ -426,7 +426,7 @@ class TimeParallel:
         tuple
             ``(z_end (n_a,), K)``.
         """
-        Y = as_finite_array(Y, "measurements", ndim=2)
+        Y = self.estimator.setup.extend(as_finite_array(Y, "measurements", ndim=2))   # with the dummies' zeros
         return zero_state_end(self.F, self.L, Y), Y.shape[0]
 
     def starts(self, ends: list) -> list:
