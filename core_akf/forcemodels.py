@@ -216,7 +216,7 @@ class ForceModel:
         -------
         F_d : ndarray (n_g, n_g)
         Q_d : ndarray (n_g, n_g)
-            (N^2); ``diag(S)`` for the random walk.
+            (N^2); ``S`` for the random walk.
         """
         if self.order is None:
             return np.eye(n_p), self.parameters(n_p)[0]
