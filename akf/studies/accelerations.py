@@ -7,7 +7,8 @@ accelerometers on the S17 truss, two zero-mean loads of 600 and 425 N RMS (band-
    displacements at the loaded joints; the Matérn-3/2 force model with the job's rough std and
    time scale, filtered and smoothed; and with both learnt by maximum likelihood.  Per estimator:
    the force error relative to the loads' RMS, the drift (error RMS of the last quarter over the
-   second) and the strain error (figure ``accelerations.png``).
+   second), the strain error, and for a smoothed estimate how well its bands fit the errors (the
+   RMS of error over std; 1 when they are right) (figure ``accelerations.png``).
 3. The log-likelihood and the force error against the Matérn time scale (figure
    ``timescale.png``): where the record's likelihood peaks, and where the force error is least.
 
@@ -87,7 +88,11 @@ def run(out=None, quick=False, seed=0):
         rows.append({"estimator": name, **{f"force_error_rel_{a}:{b}": float(r) for (a, b), r in zip(forces, rel)},
                      "drift_max": float(drift.max()),
                      "strain_error_microstrain": float(average_strain_error(est.strains, sim.strains)) * 1e6,
-                     "loglik": est.loglik})
+                     "loglik": est.loglik,
+                     # how well the smoother's bands fit the errors: RMS of error / std (1 when they are right)
+                     "error_over_std_rms": float(np.mean(np.sqrt(np.mean(((est.forces - sim.loads) / est.force_std)
+                                                                         [100:-100] ** 2, axis=0))))
+                     if est.force_std is not None else float("nan")})
     summary = pd.DataFrame(rows)
 
     progress.step("the log-likelihood against the time scale")
