@@ -150,3 +150,22 @@ def test_the_learning_study_is_the_worked_example_of_the_guide(tmp_path):
     assert 0.8 < s.loc[("calibrated", "smoothed"), "error_over_std_rms"] < 1.2 < 5 < s.loc[("as given", "smoothed"),
                                                                                           "error_over_std_rms"]
     assert os.path.exists(res.files["likelihood_figure"]) and os.path.exists(res.files["smoothed_figure"])
+
+
+def test_the_accelerations_study_is_the_worked_example_of_the_force_model_guide(tmp_path):
+    """akf study accelerations (quick): the random walk is refused, dummies and Matérn are
+    detectable; the Matérn-3/2 estimate beats the drifting random walk and the dummies, its bands
+    fit its errors; the likelihood of the time scale peaks inside the scanned range
+    (docs/guide/forcemodels.md, on 1 s of record)."""
+    res = run_study("accelerations", out=str(tmp_path), quick=True)
+    verdicts = res.data["verdicts"]
+    assert not verdicts["random walk"].detectable and verdicts["Matérn-3/2"].detectable
+    s = res.summary.set_index("estimator")
+    rel = s.filter(like="force_error_rel_")
+    assert (rel.loc["Matérn-3/2, given, smoothed"] < 0.35).all()
+    assert (rel.loc["Matérn-3/2, given, smoothed"] < 0.5 * rel.loc["random walk + dummy displacements"]).all()
+    assert (rel.loc["random walk (drifts)"] > 1.0).all()
+    assert 0.8 < s.loc["Matérn-3/2, given, smoothed", "error_over_std_rms"] < 1.2
+    peak = int(res.table["loglik"].idxmax())
+    assert 0 < peak < len(res.table) - 1
+    assert os.path.exists(res.files["accelerations_figure"]) and os.path.exists(res.files["timescale_figure"])
