@@ -71,6 +71,7 @@ class ModalFilterModel:
         self.A_z, self.B_z = AB
         self.n_states = AB[0].shape[0]
         self.force_model = None
+        self._level_given = force_model is not None        # else the random walk's S comes with each Q_a call
         self.set_force_model(ForceModel("random_walk", increment_cov=0.0) if force_model is None else force_model)
 
     def set_force_model(self, force_model):
@@ -168,6 +169,9 @@ class ModalFilterModel:
         Q = np.zeros((self.n_a, self.n_a))
         Q[:self.n_states, :self.n_states] = float(model_error_cov) * self.Q_unit
         if force_increment_cov is None:
+            if not self._level_given:
+                raise AKFInputError("force_increment_cov (S) is needed: this filter model has the random walk without "
+                                    "a level (give force_model=... to the model, or S here)")
             Q[self.n_states:, self.n_states:] = self.Q_f
         else:
             if self.force_model.stationary:

@@ -344,8 +344,8 @@ def tune_covariances_ml(structure: Structure, sensors: Layout, measurements: Mea
                     model_error_cov=start.model_error, force_model=start.force_model(model.force_model),
                     noise_cov=dict(start.noise), decades=decades)
     v = fit.values
-    level = v["force_increment_cov"] if model.force_model is None else float(v["force_std"]) ** 2
-    tuned = Covariances(v.get("model_error_cov", start.model_error), level,
+    force_level = v["force_increment_cov"] if model.force_model is None else float(v["force_std"]) ** 2
+    tuned = Covariances(v.get("model_error_cov", start.model_error), force_level,
                         {kind: v["noise_cov"].get(kind, level) for kind, level in start.noise.items()})
     sample = _split_sample(splits, n_splits, np.random.default_rng(seed))
     _, rel = location_errors(model, location, sample, Y, [start, tuned], int(round(skip / dt)))
