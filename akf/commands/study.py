@@ -12,12 +12,13 @@ def _study(args):
     from ..studies import STUDIES, run_study, study_module
 
     if args.list or args.name is None:
+        width = max(len(n) for n in STUDIES)
         for name in STUDIES:
             try:
                 desc = study_module(name).DESCRIPTION
             except ImportError as exc:  # a study of an optional package that is not installed
                 desc = f"(unavailable: {exc})"
-            print(f"{name:12s} {desc}")
+            print(f"{name:{width}s} {desc}")
         return 0
     study_module(args.name)                          # an unknown name fails before a folder is made
     out = args.out or os.path.join("akf-out", "studies", args.name)
