@@ -698,7 +698,7 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
         else:
             report["noise_cov"] = [float(v) for v in np.diag(fitted[3])]
     for name in ("force_increment_cov", "model_error_cov", "force_std", "force_timescale"):
-        if name in job.calibrate:
+        if name in job.calibrate or f"{name}:forces" in job.calibrate:
             report[name] = fit.values[name]
     report |= {"multipliers": m, "std_errors": fit.std_errors, "loglik_before": fit.loglik_before,
                "loglik_after": fit.loglik_after, "consistency_before": consistency(model, Q, fm, noise_cov),

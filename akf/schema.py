@@ -108,7 +108,7 @@ class StructureSection(BaseModel):
 #: what ``[filter] calibrate`` may list (:data:`core_akf.calibration.PARAMETERS` and the noise of one kind or per channel)
 CALIBRATION_KEYS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "noise_cov:strain", "noise_cov:acc",
                     "noise_cov:vel", "noise_cov:disp", "noise_cov:channels", "force_increment_cov", "model_error_cov",
-                    "force_std", "force_timescale")
+                    "force_std", "force_timescale", "force_std:forces", "force_timescale:forces")
 #: the force models of ``[filter] force_model`` (:data:`core_akf.forcemodels.FORCE_MODELS`)
 FORCE_MODEL_NAMES = ("random_walk", "matern12", "matern32", "matern52")
 PerForce = Positive | Annotated[list[Positive], Field(min_length=1)]

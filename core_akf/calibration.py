@@ -241,6 +241,8 @@ class _Problem:
                 self.names += [f"noise_cov:{s.label}" for s in layout]
             elif name == "frequencies":
                 self.names += [f"frequencies:{k}" for k in self.modes]
+            elif name in ("force_std:forces", "force_timescale:forces"):
+                self.names += [f"{name.split(':')[0]}:{node}:{d}" for node, d in locs]
             else:
                 self.names.append(name)
         self._setups = {}
@@ -272,16 +274,33 @@ class _Problem:
         Q_a = setup.Q_a.copy()             # blockdiag(Q, S) in modal coordinates: each block is linear in its level
         Q_a[:nx, :nx] *= np.exp(p.get("model_error_cov", 0.0))
         Q_a[nx:, nx:] *= np.exp(p.get("force_increment_cov", 0.0))
-        if "force_timescale" in p:         # the force block of A and Q (the coupling B H does not change)
-            F_d, Q_a[nx:, nx:] = self.force_model.scaled(1.0, np.exp(p["force_timescale"])).discrete(len(self.locs), self.dt)
+        std, scale_t = self.force_factors(p)
+        if np.any(scale_t != 1.0):         # the force block of A and Q (the coupling B H does not change)
+            F_d, Q_a[nx:, nx:] = self.force_model.scaled(1.0, scale_t).discrete(len(self.locs), self.dt)
             A_a = A_a.copy()
             A_a[nx:, nx:] = F_d
-        Q_a[nx:, nx:] *= np.exp(2 * p.get("force_std", 0.0))     # Q_f is linear in std^2
+        k = self.force_model.states_per_force                    # Q_f is linear in std^2, force by force
+        s_states = np.repeat(std, k)
+        Q_a[nx:, nx:] *= np.outer(s_states, s_states)
         scale = noise_scale(self.layout, {n: np.exp(x) for n, x in p.items()})
         R = self.R * np.outer(scale, scale)
         if setup.dummy_layout:
             R = scipy.linalg.block_diag(R, setup.R[0][self.R.shape[0]:, self.R.shape[0]:])
         return A_a, setup.G_a[0], Q_a, R
+
+    def force_factors(self, p):
+        """The factors on each force's std and time scale of the log-factors ``p`` (by name): one
+        for all (``force_std``) times one per force (``force_std:8:y``).
+
+        Returns
+        -------
+        std, timescale : ndarray (n_p,)
+        """
+        out = []
+        for base in ("force_std", "force_timescale"):
+            own = np.array([p.get(f"{base}:{node}:{d}", 0.0) for node, d in self.locs])
+            out.append(np.exp(p.get(base, 0.0) + own))
+        return tuple(out)
 
     def logliks(self, U):
         """The log-likelihood at every row of ``U`` (one batch)."""
@@ -314,7 +333,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         What to learn, a subset of :data:`PARAMETERS`: ``noise_cov`` learns one factor per sensor
         kind of the layout; ``noise_cov:<kind>`` (``noise_cov:acc``) the factor of one kind only,
         ``noise_cov:channels`` one factor per channel; ``frequencies`` a factor per mode of
-        ``modes``; ``force_std`` and ``force_timescale`` the parameters of a Matérn ``force_model``.
+        ``modes``; ``force_std`` and ``force_timescale`` the parameters of a Matérn ``force_model``
+        (one factor for all forces; ``force_std:forces``, ``force_timescale:forces`` one per force).
     model_error_cov, force_increment_cov, noise_cov
         The starting Q, S and R, as in :func:`core_akf.filter.estimate`.
     stiffness_range : (float, float), optional
@@ -371,7 +391,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     if force_model.stationary and "force_increment_cov" in names:
         raise AKFInputError(f"force_increment_cov is the random walk's S; the {force_model.kind} force model learns "
                             "force_std and force_timescale")
-    if not force_model.stationary and {"force_std", "force_timescale"} & set(names):
+    if not force_model.stationary and any(n.startswith(("force_std", "force_timescale")) for n in names):
         raise AKFInputError("force_std and force_timescale are the parameters of a Matérn force model "
                             "(force_model = matern12, matern32 or matern52); the random walk learns force_increment_cov")
     check_detectable(structure, list(layout) + ([] if dummy is None else dummy.layout(structure, layout)), locs,
@@ -394,15 +414,18 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     width = np.log(10.0) * default("calibration_decades", decades)
     bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else (-width, width)
               for n in problem.names]
-    if "force_std" in problem.names:           # a factor on a std: its variance spans the decades, as the others'
-        bounds[problem.names.index("force_std")] = (-width / 2, width / 2)
-    if "force_timescale" in problem.names:     # between one step and a tenth of the record: what it can resolve
-        ell = np.asarray(force_model.timescale, float)
-        j = problem.names.index("force_timescale")
-        bounds[j] = (max(-width, float(np.log(dt / ell.min()))), min(width, float(np.log(0.1 * Y.shape[0] * dt / ell.max()))))
-        if bounds[j][0] >= bounds[j][1]:
-            raise AKFInputError(f"force_timescale {force_model.timescale!r} s is outside what a record of {Y.shape[0]} "
-                                f"steps of {dt:g} s can resolve (one step to a tenth of the record)")
+    if force_model.stationary:
+        ell = np.broadcast_to(np.asarray(force_model.timescale, float), (len(locs),))
+        for j, name in enumerate(problem.names):
+            if name.startswith("force_std"):       # a factor on a std: its variance spans the decades, as the others'
+                bounds[j] = (-width / 2, width / 2)
+            elif name.startswith("force_timescale"):   # between one step and a tenth of the record: what it resolves
+                own = ell if name == "force_timescale" else ell[[f"{n}:{d}" for n, d in locs].index(name.split(":", 1)[1])]
+                bounds[j] = (max(-width, float(np.log(dt / np.min(own)))),
+                             min(width, float(np.log(0.1 * Y.shape[0] * dt / np.max(own)))))
+                if bounds[j][0] >= bounds[j][1]:
+                    raise AKFInputError(f"force_timescale {force_model.timescale!r} s is outside what a record of "
+                                        f"{Y.shape[0]} steps of {dt:g} s can resolve (one step to a tenth of the record)")
     u0 = np.zeros(len(problem.names))
     before = float(problem.logliks(u0)[0])
     if not np.isfinite(before):
@@ -412,7 +435,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     # factor, or each mode's factor on its own (one batch; the modes' peaks barely interact), and
     # a force model's time scale
     scanned = [j for j, n in enumerate(problem.names)
-               if n in ("stiffness_factor", "force_timescale") or n.startswith("frequencies:")]
+               if n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale"))]
     if scanned:
         grid = [np.linspace(*bounds[j], 25) for j in scanned]
         U = np.tile(u0, (sum(g.size for g in grid), 1))
@@ -446,9 +469,12 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     fitted_force = None
     values = _values(multipliers, names, noise_cov, model_error_cov, force_model.increment_cov, layout)
     if force_model.stationary:
-        fitted_force = force_model.scaled(multipliers.get("force_std", 1.0), multipliers.get("force_timescale", 1.0))
+        factors = problem.force_factors({n: np.log(v) for n, v in multipliers.items()})
+        # one factor for all forces keeps a single std or time scale single
+        factors = [f if f"{base}:forces" in names else float(f[0]) for base, f in zip(("force_std", "force_timescale"), factors)]
+        fitted_force = force_model.scaled(*factors)
         for name, value in (("force_std", fitted_force.std), ("force_timescale", fitted_force.timescale)):
-            if name in names:
+            if name in names or f"{name}:forces" in names:
                 value = np.asarray(value, float)
                 values[name] = float(value) if value.ndim == 0 else value.tolist()
     return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
@@ -499,10 +525,11 @@ def _check_parameters(parameters, layout):
     kinds = {s.kind for s in layout}
     for name in names:
         base, _, detail = str(name).partition(":")
-        if base not in PARAMETERS or (detail and base != "noise_cov"):
+        per_force = base in ("force_std", "force_timescale") and detail == "forces"
+        if base not in PARAMETERS or (detail and base != "noise_cov" and not per_force):
             raise AKFInputError(f"cannot calibrate {name!r}; the parameters are {list(PARAMETERS)}, and noise_cov:<kind> "
-                                "or noise_cov:channels")
-        if detail and detail != "channels" and detail not in kinds:
+                                "or noise_cov:channels, force_std:forces or force_timescale:forces (one factor per force)")
+        if detail and not per_force and detail != "channels" and detail not in kinds:
             what = "is not a sensor kind" if detail not in KINDS else "has no channel in this layout"
             raise AKFInputError(f"cannot calibrate {name!r}: {detail!r} {what}; the layout's kinds are "
                                 f"{sorted(kinds)} (noise_cov:channels learns one factor per channel)")
@@ -515,6 +542,9 @@ def _check_parameters(parameters, layout):
     if "stiffness_factor" in names and "frequencies" in names:
         raise AKFInputError("stiffness_factor and frequencies overlap (a stiffness factor moves every frequency): "
                             "calibrate one of them")
+    for base in ("force_std", "force_timescale"):
+        if base in names and f"{base}:forces" in names:
+            raise AKFInputError(f"{base} and {base}:forces overlap ({base} is one factor for every force): give one")
     return names
 
 

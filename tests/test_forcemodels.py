@@ -199,20 +199,27 @@ def test_streamed_equals_whole_under_force_models(kw):
     assert sum(p.loglik for p in parts) == pytest.approx(whole.loglik, rel=1e-9)
 
 
+def _gp_loads(model, n_steps, dt, seed):
+    """Force histories drawn from a Matérn process (its exact discretisation), one column per force."""
+    n_p = np.size(model.std)
+    F_d, Q_d = model.discrete(n_p, dt)
+    rng = np.random.default_rng(seed)
+    L = np.linalg.cholesky(Q_d)
+    xi = rng.multivariate_normal(np.zeros(F_d.shape[0]), model.stationary_covariance(n_p))
+    H = model.output(n_p)
+    loads = np.empty((n_steps, n_p))
+    for k in range(n_steps):
+        loads[k] = H @ xi
+        xi = F_d @ xi + L @ rng.standard_normal(F_d.shape[0])
+    return loads
+
+
 def test_calibration_recovers_the_parameters_of_a_gaussian_process_load():
     """A load drawn from a Matérn-3/2 process (std 400 N, time scale 5 ms) on the truss, gauges and
     accelerometers: starting a factor 2 off in both, maximum likelihood finds both within 10 %."""
     truss, sensors, dt = s17_truss(), ["strain:13", "strain:26", "acc:6:y", "acc:12:y"], 1e-3
-    true = ForceModel("matern32", std=400.0, timescale=5e-3)
-    F_d, Q_d = true.discrete(1, dt)
-    rng = np.random.default_rng(3)
-    L = np.linalg.cholesky(Q_d)
-    xi = rng.multivariate_normal(np.zeros(2), true.stationary_covariance(1))
-    load = np.empty(8000)
-    for k in range(load.size):
-        load[k] = xi[0]
-        xi = F_d @ xi + L @ rng.standard_normal(2)
-    sim = simulate(truss, sensors, ["8:y"], load[:, None], dt, relative_noise=0.02, seed=1)
+    load = _gp_loads(ForceModel("matern32", std=400.0, timescale=5e-3), 8000, dt, seed=3)
+    sim = simulate(truss, sensors, ["8:y"], load, dt, relative_noise=0.02, seed=1)
     fit = calibrate(truss, sensors, ["8:y"], sim.measurements, dt, parameters=["force_std", "force_timescale"],
                     model_error_cov=1e-16, noise_cov=np.diag(sim.noise_std ** 2),
                     force_model=ForceModel("matern32", std=200.0, timescale=1e-2))
@@ -220,6 +227,24 @@ def test_calibration_recovers_the_parameters_of_a_gaussian_process_load():
     assert fit.values["force_timescale"] == pytest.approx(5e-3, rel=0.1)
     assert fit.force_model.kind == "matern32" and fit.loglik_after > fit.loglik_before
     assert not fit.warnings
+
+
+def test_calibration_per_force_finds_loads_of_different_size():
+    """Two Matérn-1/2 loads of 500 and 150 N (time scale 4 ms) under accelerometers only: one std
+    per force (``force_std:forces``) finds each within 15 %, one for all cannot."""
+    sensors, dt = ACC, 1 / 2048
+    true = ForceModel("matern12", std=[500.0, 150.0], timescale=4e-3)
+    loads = _gp_loads(true, 8192, dt, seed=5)
+    sim = simulate(s17_truss(), sensors, ["6:y", "12:y"], loads, dt, relative_noise=0.02, seed=2)
+    kw = dict(model_error_cov=1e-16, noise_cov=np.diag(sim.noise_std ** 2),
+              force_model=ForceModel("matern12", std=300.0, timescale=4e-3))
+    fit = calibrate(s17_truss(), sensors, ["6:y", "12:y"], sim.measurements, dt,
+                    parameters=["force_std:forces", "force_timescale"], **kw)
+    np.testing.assert_allclose(fit.values["force_std"], [500.0, 150.0], rtol=0.15)
+    assert sorted(fit.multipliers) == ["force_std:12:y", "force_std:6:y", "force_timescale"]
+    common = calibrate(s17_truss(), sensors, ["6:y", "12:y"], sim.measurements, dt,
+                       parameters=["force_std", "force_timescale"], **kw)
+    assert np.ndim(common.values["force_std"]) == 0 and fit.loglik_after > common.loglik_after
 
 
 def test_akf_calibrate_writes_the_force_model_parameters(tmp_path):
@@ -292,7 +317,17 @@ BAD = {
                                     "measured sensors"),
     "dummy twice": (lambda: DummyMeasurements(["disp:6:y", "disp:6:y"], 1e-8).layout(s17_truss(), []), "duplicate sensor"),
     "dummy zero variance": (lambda: DummyMeasurements(["disp:6:y"], 0.0), "variance must be positive"),
+    "std and std per force": (lambda: _calibrate(["force_std", "force_std:forces"]), "overlap"),
+    "per node is not a parameter": (lambda: _calibrate(["force_std:nodes"]), "cannot calibrate 'force_std:nodes'"),
+    "std with the random walk": (lambda: _calibrate(["force_std"], random_walk=True), "parameters of a Matérn"),
+    "S with a Matérn model": (lambda: _calibrate(["force_increment_cov"]), "learns force_std and force_timescale"),
 }
+
+
+def _calibrate(parameters, random_walk=False):
+    fm = {"force_increment_cov": 1e5} if random_walk else {"force_model": ForceModel("matern32", std=1.0, timescale=0.01)}
+    return calibrate(s17_truss(), ACC + ["strain:13"], ["6:y", "12:y"], np.zeros((400, 11)), DT, parameters=parameters,
+                     model_error_cov=1e-16, noise_cov=1e-4, **fm)
 
 
 def as_layout(x):
