@@ -140,6 +140,7 @@ def _figures(estimates, scan, fit, job, sim, out, files):
         ax.set_ylabel("force (N)")
         lim = 1.8 * np.abs(sim.loads[:, j]).max()
         ax.set_ylim(-lim, lim)
+        ax.set_xlim(0.8, 0.95)            # 150 ms: the loads' peaks and the band can be told apart
     axes[0].legend(fontsize=7, ncol=3, loc="upper right")
     axes[-1].set_xlabel("time (s)")
     save(fig, os.path.join(out, "accelerations.png"), files, "accelerations_figure")
