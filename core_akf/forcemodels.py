@@ -60,7 +60,7 @@ def _companion(p):
     return N, q
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)        # parameters may be arrays: compared by identity, not element-wise
 class ForceModel:
     """The prior of the unknown forces.
 
@@ -376,7 +376,7 @@ def as_force_model(force_model=None, force_increment_cov=None) -> ForceModel:
     return force_model
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class DummyMeasurements:
     """Zero-valued pseudo-measurements of chosen displacements or strains (Naets, Cuadrado &
     Desmet 2015).
