@@ -31,6 +31,9 @@ import time
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+#: the columns of the CSV (a row of a method that cannot run has set, method and error only)
+FIELDS = ("set", "method", "force_error_N", "force_error_rel", "strain_error_microstrain", "drift", "force_std_N",
+          "force_timescale_ms", "seconds", "loads_rms_N", "error")
 PLATE_ACC = ["acc:111:w", "acc:116:w", "acc:121:w", "acc:100:w", "acc:89:w", "acc:60:w"]
 
 
@@ -153,9 +156,8 @@ def main(argv=None):
             rows.append(dict(set=name, method=method, force_error_N=force_err, force_error_rel=rel,
                              strain_error_microstrain=strain, drift=drift, force_std_N=std, force_timescale_ms=scale,
                              seconds=seconds, loads_rms_N=float(np.mean(loads_rms)), error=""))
-    keys = sorted({k for r in rows for k in r}, key=lambda k: list(rows[-1]).index(k) if k in rows[-1] else 99)
     with open(args.csv, "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=keys)
+        writer = csv.DictWriter(fh, fieldnames=FIELDS)
         writer.writeheader()
         writer.writerows(rows)
     print(f"wrote {args.csv}")

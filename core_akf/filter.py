@@ -721,10 +721,8 @@ class FilterSetup:
 
         self.structure, self.layouts, self.locs, self.dt = structure, layouts, locs, float(dt)
         self.m = len(layouts[0])
-        self.dummy = dummy
         self.dummy_layout = [] if dummy is None else dummy.layout(structure, layouts[0])
         self.force_model = force_model = as_force_model(force_model, force_increment_cov)
-        force_model.parameters(len(locs))                        # checked once, with the number of forces
         self.filter_model = fm = ModalFilterModel(structure, locs, dt, force_model=force_model)
         T, T_inv, self.A_a = fm.T, fm.T_inv, fm.A_a
         self.nx, ng = fm.n_states, fm.H.shape[1]

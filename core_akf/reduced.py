@@ -70,25 +70,10 @@ class ModalFilterModel:
             AB = (self.T_inv @ A @ self.T, self.T_inv @ B)
         self.A_z, self.B_z = AB
         self.n_states = AB[0].shape[0]
-        self.force_model = None
         self._level_given = force_model is not None        # else the random walk's S comes with each Q_a call
-        self.set_force_model(ForceModel("random_walk", increment_cov=0.0) if force_model is None else force_model)
-
-    def set_force_model(self, force_model):
-        """Use another force model: rebuilds the force block of :attr:`A_a` (cheap; the structural
-        blocks are kept).
-
-        Parameters
-        ----------
-        force_model : ForceModel
-
-        Returns
-        -------
-        ModalFilterModel
-            Itself.
-        """
+        self.force_model = force_model = ForceModel("random_walk", increment_cov=0.0) if force_model is None \
+            else force_model
         n_p = len(self.forces)
-        self.force_model = force_model
         self.H = force_model.output(n_p)
         F_d, self.Q_f = force_model.discrete(n_p, self.dt)
         nx, ng = self.n_states, F_d.shape[0]
@@ -96,7 +81,6 @@ class ModalFilterModel:
         self.A_a[:nx, :nx] = self.A_z
         self.A_a[:nx, nx:] = self.B_z @ self.H
         self.A_a[nx:, nx:] = F_d
-        return self
 
     @cached_property
     def Q_unit(self):

@@ -510,8 +510,8 @@ def detectability(structure: Structure, sensors: Layout, forces: Forces,
                                    force_model=force_model)
     A_c, B_c = continuous(structure, locs)
     G, D = observation(structure, layout, locs)
-    F, H_f = (np.zeros((len(locs), len(locs))), np.eye(len(locs))) if force_model is None else \
-        (force_model.continuous(len(locs))[0], force_model.output(len(locs)))
+    fm = force_model or ForceModel("random_walk", increment_cov=0.0)     # the random walk: F = 0, H = I
+    F, H_f = fm.continuous(len(locs))[0], fm.output(len(locs))
     n, ng = A_c.shape[0], F.shape[0]
     nu = structure.n
     A_ac = np.zeros((n + ng, n + ng))

@@ -242,7 +242,8 @@ class Estimator:
         return s.with_std(est, X, std)
 
     def _gain(self):
-        return self._L if self._L is not None else np.zeros(self.setup.G_a.shape[:0:-1])
+        n_a, m = self.setup.A_a.shape[0], self.setup.G_a.shape[1]      # m: the channels with any dummies
+        return self._L if self._L is not None else np.zeros((n_a, m))
 
     # ------------------------------------------------------------------ what is carried over
     def _digest(self):

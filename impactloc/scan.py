@@ -232,7 +232,8 @@ class ImpactModel:
             The observation rows of all installed sensors.
         """
         if loc not in self._systems:        # a Matérn model with unit std: Q_f scales with std^2
-            unit = None if self.force_model is None else Covariances(0.0, 1.0, {}).force_model(self.force_model)
+            unit = None if self.force_model is None else ForceModel(self.force_model.kind, std=1.0,
+                                                                    timescale=self.force_model.timescale)
             fm = ModalFilterModel(self.full, [loc], self.dt, self.n_modes, force_model=unit)
             self._systems[loc] = (fm, fm.observation(self.layout))
         return self._systems[loc]
