@@ -19,6 +19,7 @@ construction; :meth:`PlateGrid.repair` is the safety net.
 """
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
@@ -561,11 +562,26 @@ class CandidateSet:
         -------
         float
         """
-        a, b = list(a), list(b)
-        C = np.linalg.norm(self.position[a][:, None] - self.position[b][None, :], axis=2) / self.spacing
-        C = C + (self.kind[a][:, None] != self.kind[b][None, :])
+        C = self.costs(np.asarray(list(a), int)[None], np.asarray(list(b), int)[None])[0]
         r, c = linear_sum_assignment(C)
         return float(C[r, c].sum())
+
+    def costs(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Matching costs of pairs of layouts: distance in units of the candidate spacing, + 1 for
+        a different kind.
+
+        Parameters
+        ----------
+        a, b : ndarray (P, k) of int
+            P pairs of layouts of k sensors (candidate indices).
+
+        Returns
+        -------
+        ndarray (P, k, k)
+            ``C[p, i, j]``: the cost of matching sensor i of ``a[p]`` with sensor j of ``b[p]``.
+        """
+        C = np.linalg.norm(self.position[a][:, :, None] - self.position[b][:, None, :], axis=-1) / self.spacing
+        return C + (self.kind[a][:, :, None] != self.kind[b][:, None, :])
 
     def diversity(self, layouts: Sequence[Sequence[int]]) -> float:
         """Mean distance of each layout to its nearest *other* individual (TH's diversity).
@@ -588,14 +604,32 @@ class CandidateSet:
             layouts = [layouts[i] for i in np.linspace(0, n - 1, DIVERSITY_SAMPLE).astype(int)]
             n = DIVERSITY_SAMPLE
         D = np.full((n, n), np.inf)
-        for i in range(n):
-            for j in range(i + 1, n):
-                D[i, j] = D[j, i] = self.distance(layouts[i], layouts[j])
+        i, j = np.triu_indices(n, 1)
+        sizes = {len(l) for l in layouts}
+        k = sizes.pop() if len(sizes) == 1 else 0
+        if 1 <= k <= _ENUMERATE_UP_TO:
+            # every pair at once: the cheapest of the k! matchings (what linear_sum_assignment finds
+            # one pair at a time), summed in row order as it does
+            L = np.array([list(l) for l in layouts], int)
+            perms = np.array(list(itertools.permutations(range(k))), int)         # (k!, k)
+            step = max(1, _ENTRIES_PER_CALL // perms.size)
+            for s in range(0, i.size, step):
+                C = self.costs(L[i[s:s + step]], L[j[s:s + step]])                # (p, k, k)
+                D[i[s:s + step], j[s:s + step]] = C[:, np.arange(k), perms].sum(axis=-1).min(axis=-1)
+        else:
+            for a, b in zip(i, j):
+                D[a, b] = self.distance(layouts[a], layouts[b])
+        D = np.minimum(D, D.T)
         return float(np.mean(D.min(axis=1)))
 
 
 #: the diversity of a larger population is measured on this many of its layouts
 DIVERSITY_SAMPLE = 500
+#: layouts of up to this many sensors are matched by enumerating the k! matchings of all pairs at
+#: once (120 at 5); larger ones pair by pair with linear_sum_assignment
+_ENUMERATE_UP_TO = 5
+#: (pairs x k! x k) entries per batched call: bounds its memory to ~16 MB
+_ENTRIES_PER_CALL = 2_000_000
 
 
 class PlateGrid(CandidateSet):
@@ -820,11 +854,24 @@ class PlateGrid(CandidateSet):
         -------
         float
         """
-        a, b = list(a), list(b)
-        C = np.hypot(self.ix[a][:, None] - self.ix[b][None, :], self.iy[a][:, None] - self.iy[b][None, :])
-        C = C + (self.kind[a][:, None] != self.kind[b][None, :])
+        C = self.costs(np.asarray(list(a), int)[None], np.asarray(list(b), int)[None])[0]
         r, c = linear_sum_assignment(C)
         return float(C[r, c].sum())
+
+    def costs(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Matching costs of pairs of layouts: grid distance, + 1 for a different kind.
+
+        Parameters
+        ----------
+        a, b : ndarray (P, k) of int
+            P pairs of layouts of k sensors (candidate indices).
+
+        Returns
+        -------
+        ndarray (P, k, k)
+        """
+        C = np.hypot(self.ix[a][:, :, None] - self.ix[b][:, None, :], self.iy[a][:, :, None] - self.iy[b][:, None, :])
+        return C + (self.kind[a][:, :, None] != self.kind[b][:, None, :])
 
 
 #: the old name of :class:`PlateGrid` (kept so that scripts written against it still run)

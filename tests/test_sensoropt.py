@@ -291,3 +291,24 @@ def test_place_for_fatigue_from_a_job(tmp_path, capsys):
     assert d["units"]["window_error"].startswith("%")
     with pytest.raises(AKFInputError, match="objective_kind"):
         _truss_fatigue_problem("damage").objective()
+
+
+@pytest.mark.parametrize("k", [1, 3, 5, 6])
+def test_batched_diversity_is_the_pairwise_matching(k):
+    """The population's diversity (every pair matched at once, by enumerating the matchings up to
+    5 sensors) equals the mean nearest distance from one linear_sum_assignment per pair, on the
+    plate grid and on a candidate set, with repeated and mixed-kind layouts."""
+    from core_akf.models import s17_truss
+    from sensoropt.encoding import make_encoding
+
+    rng = np.random.default_rng(k)
+    for enc in (make_encoding(th_plate(), n_sensors=k), make_encoding(s17_truss(), kinds=("strain", "acc:y"),
+                                                                      n_sensors=k)):
+        pop = [enc.random_layout(rng) for _ in range(40)]
+        pop += pop[:4]                                    # duplicates: distance 0
+        n = len(pop)
+        D = np.full((n, n), np.inf)
+        for i, j in itertools.combinations(range(n), 2):
+            D[i, j] = D[j, i] = enc.distance(pop[i], pop[j])
+        assert enc.diversity(pop) == pytest.approx(float(np.mean(D.min(axis=1))), rel=1e-12)
+        assert enc.diversity(pop[:1]) == 0.0
