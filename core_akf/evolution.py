@@ -334,11 +334,14 @@ class GeneticAlgorithm:
         The progress bar's label (None: no bar).
     hall_of_fame : int
         How many of the best genomes the result lists.
+    on_generation : callable, optional
+        Called with each generation's logbook row (a dict: ``generation``, ``best``, ...,
+        ``evaluations``, ``seconds``) once it is recorded; e.g. to report the cost of generation 0.
     """
 
     def __init__(self, algorithm, evaluator, *, generations, seed=0, stall_generations=0, stall_tol=1e-6,
                  stall_column="mean", checkpoint=None, checkpoint_every=5, resume=False, settings=None,
-                 progress=None, hall_of_fame=5):
+                 progress=None, hall_of_fame=5, on_generation=None):
         if generations < 0:
             raise AKFInputError(f"generations must be >= 0, got {generations}")
         if isinstance(seed, (bool, np.bool_)) or int(seed) != seed or seed < 0:
@@ -350,6 +353,7 @@ class GeneticAlgorithm:
         self.settings = json.loads(json.dumps(dict(settings or {}, generations=self.generations, seed=self.seed),
                                               default=_plain))
         self.progress, self.n_hall = progress, int(hall_of_fame)
+        self.on_generation = on_generation
 
     # -- evaluation of individuals
     def _evaluate(self, individuals):
@@ -420,6 +424,8 @@ class GeneticAlgorithm:
                                  infeasible=ev.infeasible, seconds=time.perf_counter() - t0))
                 if bar is not None and gen > 0:
                     bar.update(1)
+                if self.on_generation is not None:
+                    self.on_generation(dict(rows[-1]))
                 if self.checkpoint and (gen % self.checkpoint_every == 0 or gen == self.generations):
                     self._save(pop, rows, gen, rng, pyrng)
                 if self.stall_generations > 0 and gen >= self.stall_generations:

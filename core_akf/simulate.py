@@ -15,7 +15,7 @@ if TYPE_CHECKING:
 from .checks import as_finite_array
 from .exceptions import AKFInputError
 from .sensors import as_layout, parse_force_locations
-from .statespace import continuous, observation, strain_feedthrough, zoh
+from .statespace import continuous, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
 
 #: standard gravity (m/s^2), for levels given in g or mg
 G0 = 9.80665
@@ -170,19 +170,47 @@ def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: Force
         P = P[:, None]
     if P.shape[1] != len(locs):
         raise AKFInputError(f"loads have {P.shape[1]} columns for {len(locs)} force locations")
-    A_c, B_c = continuous(structure, locs)
-    A, B = zoh(A_c, B_c, dt)
     G, D = observation(structure, layout, locs)
-    N, nx = P.shape[0], A.shape[0]
-    X = np.empty((N, nx))
+    nx = 2 * structure.n
     x = np.zeros(nx) if x0 is None else as_finite_array(x0, "x0", shape=(nx,))
-    BP = P @ B.T
-    At = A.T
-    for k in range(N):
-        X[k] = x
-        x = x @ At + BP[k]
+    X = _march(structure, locs, P, float(dt), x)
     clean = X @ G.T + P @ D.T
     std = noise_levels(clean, layout, relative_noise, absolute_noise)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     noisy = clean + rng.normal(size=clean.shape) * std
     return Simulation(structure, layout, locs, float(dt), P, X, clean, noisy, std)
+
+
+def _march(structure, locs, P, dt, x):
+    """The states ``[u; u']`` (N, 2n) at the steps of the loads ``P`` (N, n_p) from ``x``.
+
+    A classically damped structure is marched mode by mode (:func:`~core_akf.statespace.modal_zoh`:
+    n decoupled 2 x 2 systems, O(N n) work, no exponential of size 2n), then taken back to
+    ``[u; u']`` in one product; any other one by the ZOH of the whole state (O(N n^2)).  The two
+    agree to rounding (``tests/test_simulate_loads.py``); on the 1011-DOF footbridge the modal
+    march takes 0.3 s against 7 s.
+    """
+    N = P.shape[0]
+    AB = modal_zoh(structure, locs, dt)
+    if AB is None:
+        A, B = zoh(*continuous(structure, locs), dt)
+        X = np.empty((N, A.shape[0]))
+        BP = P @ B.T
+        At = A.T
+        for k in range(N):
+            X[k] = x
+            x = x @ At + BP[k]
+        return X
+    A_z, B_z = AB
+    n = structure.n
+    T, T_inv = modal_state_transform(structure)
+    a, b = np.diag(A_z[:n, :n]).copy(), np.diag(A_z[:n, n:]).copy()
+    c, d = np.diag(A_z[n:, :n]).copy(), np.diag(A_z[n:, n:]).copy()
+    Bq, Bv = P @ B_z[:n].T, P @ B_z[n:].T             # (N, n) each
+    Zq, Zv = np.empty((N, n)), np.empty((N, n))
+    z = T_inv @ x
+    q, v = z[:n].copy(), z[n:].copy()
+    for k in range(N):
+        Zq[k], Zv[k] = q, v
+        q, v = a * q + b * v + Bq[k], c * q + d * v + Bv[k]
+    return np.hstack([Zq @ T[:n, :n].T, Zv @ T[n:, n:].T])     # T is block diagonal

@@ -6,6 +6,7 @@ on 1 or many workers, and a resumed run continues exactly).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -133,7 +134,8 @@ def place(objective: Objective, encoding: CandidateSet, *, population: int = 50,
           crossover: float = 0.8, mutation: float = 0.16, tournament: int = 4, stall_generations: int = 50,
           stall_tol: float = 1e-6, operators: str = "set", seed: int = 0, n_jobs: int = 1,
           checkpoint: str | None = None, checkpoint_every: int = 5, resume: bool = False, progress: bool = False,
-          hall_of_fame: int = 5, penalty: float = PENALTY, initial: list[list[str]] | None = None) -> PlacementResult:
+          hall_of_fame: int = 5, penalty: float = PENALTY, initial: list[list[str]] | None = None,
+          on_generation: Callable[[dict], None] | None = None) -> PlacementResult:
     """Search a sensor layout minimising ``objective`` with a GA (TH defaults), on the engine of
     :mod:`core_akf.evolution`.
 
@@ -170,6 +172,8 @@ def place(objective: Objective, encoding: CandidateSet, *, population: int = 50,
         The fitness of an infeasible layout (undetectable, a failing filter, NaN).
     initial : list of list of str, optional
         Layouts (sensor lists) seeded into the first population.
+    on_generation : callable, optional
+        Called with each generation's logbook row (dict) as it is recorded.
 
     Returns
     -------
@@ -207,7 +211,8 @@ def place(objective: Objective, encoding: CandidateSet, *, population: int = 50,
                            stall_generations=stall_generations, stall_tol=stall_tol, checkpoint=checkpoint,
                            checkpoint_every=checkpoint_every, resume=resume,
                            progress="placement GA" if progress else None,
-                           settings=dict(settings, candidates=encoding.candidates), hall_of_fame=hall_of_fame).run()
+                           settings=dict(settings, candidates=encoding.candidates), hall_of_fame=hall_of_fame,
+                           on_generation=on_generation).run()
     best_layout, (best_f,) = res.hall_of_fame[0]
     return PlacementResult(best_layout, best_f, encoding.sensors(best_layout), encoding.records(best_layout),
                            res.logbook, [(encoding.sensors(l), f[0]) for l, f in res.hall_of_fame], res.evaluations,

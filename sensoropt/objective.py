@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from core_akf.defaults import auto_modes, default
+from core_akf.defaults import band_modes, default
 from core_akf.exceptions import AKFInputError
 from core_akf.forcemodels import ForceModel
 from core_akf.reduced import ModalFilterModel, steady_outputs
@@ -130,12 +130,12 @@ class StrainErrorObjective:
         Q and S levels of the filter.
     n_modes : int, "auto" or None
         Filter modes with static correction (None: the full model).  ``"auto"``:
-        :func:`core_akf.defaults.auto_modes` (thesis plate at 2 kHz: 80 modes when only strain
-        gauges are placed, 101 when accelerometers may be: they see higher modes).  Measured on
-        the thesis plate (0.1 s window): the case-2 gauges 3.077 (80 modes) against 3.080 µε
-        (full); the case-3 layout with its accelerometer 4.448 (100 modes) and 4.869 (80) against
-        4.506 µε (full); 41 random 3-gauge layouts rank as with the full model (Spearman 0.997 at
-        80 modes, 0.93 at 40 modes, where some layouts are 2.6x off).
+        :func:`core_akf.defaults.band_modes`, the inner-loop rule (thesis plate at 2 kHz: 32
+        modes when only strain gauges are placed, 101 when accelerometers may be: they see higher
+        modes).  Measured on the thesis plate (0.1 s window): the case-2 gauges 3.077 (80 modes)
+        against 3.080 µε (full); the case-3 layout with its accelerometer 4.448 (100 modes) and
+        4.869 (80) against 4.506 µε (full); of 80 random 3-gauge layouts, the best the same at 32
+        and 80 modes and the 15 best within 16 % of their 80-mode fitness.
     seed : int
         The noise draw.
     targets : sequence of str, optional
@@ -160,7 +160,7 @@ class StrainErrorObjective:
         if not 2 <= n <= loads.shape[0]:
             raise AKFInputError(f"window {window} s must hold at least 2 steps of the {loads.shape[0] * dt:.3g} s loads")
         if n_modes == "auto":
-            n_modes = auto_modes(structure, dt, accelerations="acc" in set(encoding.type))
+            n_modes = band_modes(structure, dt, accelerations="acc" in set(encoding.type))
         n_modes = min(int(n_modes), structure.n) if n_modes is not None else None
         self.encoding = encoding
         self.labels = encoding.sensors(range(len(encoding.candidates)))

@@ -146,3 +146,27 @@ def test_imported_large_model_is_reduced_and_checked(monkeypatch):
         from_matrices(K.tocsr(), parts["M"], **common, n_modes=10)
     with pytest.raises(AKFInputError, match="n_modes must be between 1 and"):
         from_matrices(parts["K"], parts["M"], **common, n_modes=10 ** 6)
+
+
+def test_cholesky_and_lu_give_the_same_reduced_model(plates, monkeypatch):
+    """The sparse Cholesky (CHOLMOD with nested dissection, the ``large`` extra) and SuperLU's LU,
+    the fallback, give the same modes and the same static correction; a K that is not positive
+    definite falls back to LU, whose singular case is the clear error it always was."""
+    pytest.importorskip("cholespy")
+    from core_akf.models import sparse
+
+    assert sparse.factorise(scipy.sparse.csc_matrix(np.diag([2.0, 3.0]))).method == "cholmod"
+    chol = plates[1]
+
+    def no_cholmod(K):
+        raise ImportError("cholespy blocked for this test")
+
+    monkeypatch.setattr(sparse, "CholeskyFactor", no_cholmod)
+    lu = plate(*ARGS, n_modes=25)
+    np.testing.assert_allclose(chol.frequencies(), lu.frequencies(), rtol=1e-10)
+    a, b = _static_outputs(chol, SENSORS[:4], FORCES), _static_outputs(lu, SENSORS[:4], FORCES)
+    assert np.all(np.abs(a - b) <= 1e-9 * np.max(np.abs(b), axis=1, keepdims=True))   # each output to its size
+    monkeypatch.undo()
+    singular = scipy.sparse.csc_matrix(np.array([[1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
+    with pytest.raises(AKFInputError, match="singular"):
+        sparse.factorise(singular)

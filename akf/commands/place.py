@@ -6,6 +6,7 @@ problems are ``akf/examples/jobs/th-*.toml``.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import sys
@@ -16,6 +17,8 @@ from core_akf.outputs import write_csv
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, check_scheduler
 from .common import add_print_job, print_written, seed
+
+log = logging.getLogger("akf")
 
 
 def _place(args):
@@ -72,7 +75,7 @@ def _run_place(args, problem, settings, out):
               "command with --resume to continue from it")
     with scheduler(args.scheduler, resume=resume):
         res = place(obj, enc, seed=args.seed, n_jobs=workers(args), checkpoint=checkpoint, resume=args.resume,
-                    progress=not args.json, **settings)
+                    progress=not args.json, on_generation=_cost_report(problem, obj, settings, args.json), **settings)
     if not math.isfinite(obj.evaluate([res.sensors])[0]):       # the GA's best is a penalty: nothing admissible
         kinds = {str(k).split(":")[0] for k in (problem.kinds or ())} or {str(s).split(":")[0] for s in res.sensors}
         hint = ("accelerometer-only layouts cannot see the static response under the random-walk force model: set "
@@ -136,6 +139,26 @@ def _run_place(args, problem, settings, out):
         return 0
     print_written(files, notes)
     return 0
+
+
+def _cost_report(problem, objective, settings, json_output):
+    """What the run costs, told once generation 0 is evaluated: the model, the filter's states and
+    the seconds per generation (on a model of one's own the first thing to know).  On the
+    terminal through the ``akf`` logger (``-q`` hides it); with ``--json`` on stderr."""
+    def report(row):
+        if row["generation"] != 0:
+            return
+        fm = objective.model
+        modes = f"{fm.n_modes} modes + static correction" if fm.n_modes is not None else "all modes"
+        message = (f"akf: {problem.name}: model of {problem.structure.n} DOFs, filter {modes} = {fm.n_a} states; "
+                   f"generation 0: {row['evaluations']} evaluations in {row['seconds']:.1f} s (with the workers' "
+                   f"start); a later generation evaluates only its new layouts, {settings.get('generations')} "
+                   "generations at most ([place] n_modes sets the filter's modes)")
+        if json_output:
+            print(message, file=sys.stderr)
+        else:
+            log.info(message)
+    return report
 
 
 def window_notes(problem):

@@ -120,7 +120,13 @@ def check_symmetric(A, name, rtol):
 
 
 def factorise(K, name="model"):
-    """Sparse LU factorisation (SuperLU).
+    """Sparse factorisation of a stiffness matrix, for ``K^-1 B``.
+
+    A sparse Cholesky factorisation with a nested-dissection ordering (CHOLMOD with METIS, from
+    the ``cholespy`` wheel, which carries SuiteSparse: no system library) when it is installed
+    (``pip install "akf-toolkit[large]"``) and ``K`` is positive definite; else SuperLU's LU with
+    COLAMD.  Measured on a plate of 101 016 DOFs (2 cores): Cholesky 2.5 s to factorise and 0.04 s
+    per solve, LU 10.8 s and 0.11-0.14 s, with the same residual (8e-10 relative).
 
     Parameters
     ----------
@@ -131,22 +137,103 @@ def factorise(K, name="model"):
 
     Returns
     -------
-    scipy.sparse.linalg.SuperLU
+    CholeskyFactor or LUFactor
+        With ``solve(B)`` for B of shape (n,) or (n, k), and ``method`` (``"cholmod"`` or
+        ``"superlu"``).
 
     Raises
     ------
     AKFInputError
         For a singular ``K`` (a model free to move as a rigid body).
     """
-    import scipy.sparse.linalg
-
     try:
-        # COLAMD: on a plate of 1e5 DOFs 7e7 nonzeros in L + U, 11 s (MMD on A^T + A: 10x the fill)
-        lu = scipy.sparse.linalg.splu(K.tocsc(), permc_spec="COLAMD")
+        return CholeskyFactor(K)
+    except (ImportError, ValueError):        # not installed, or K not positive definite: LU decides
+        pass
+    try:
+        return LUFactor(K)
     except RuntimeError as exc:
         raise AKFInputError(f"{name}: K is singular ({exc}): the model has a rigid-body mode; constrain it "
                             "(fixed = [...]) so that it cannot move freely") from None
-    return lu
+
+
+class LUFactor:
+    """``K = L U`` by SuperLU with the COLAMD ordering (on a plate of 1e5 DOFs 7e7 non-zeros in
+    L + U, 11 s; MMD on ``A^T + A``: 10x the fill).
+
+    Parameters
+    ----------
+    K : scipy.sparse matrix (n, n)
+
+    Raises
+    ------
+    RuntimeError
+        For a singular ``K``.
+    """
+
+    method = "superlu"
+
+    def __init__(self, K):
+        import scipy.sparse.linalg
+
+        self._lu = scipy.sparse.linalg.splu(K.tocsc(), permc_spec="COLAMD")
+
+    def solve(self, B):
+        """``K^-1 B``.
+
+        Parameters
+        ----------
+        B : array_like (n,) or (n, k)
+
+        Returns
+        -------
+        ndarray, the shape of ``B``
+        """
+        return self._lu.solve(np.asarray(B, dtype=np.float64))
+
+
+class CholeskyFactor:
+    """``K = L L^T`` by CHOLMOD (``cholespy``; its own METIS nested-dissection ordering).
+
+    Parameters
+    ----------
+    K : scipy.sparse matrix (n, n)
+        Symmetric positive definite.
+
+    Raises
+    ------
+    ImportError
+        Without ``cholespy``.
+    ValueError
+        For a ``K`` that is not positive definite.
+    """
+
+    method = "cholmod"
+
+    def __init__(self, K):
+        import cholespy
+
+        K = K.tocsc()
+        self.n = K.shape[0]
+        self._solver = cholespy.CholeskySolverD(self.n, K.indptr.astype(np.int32), K.indices.astype(np.int32),
+                                                np.ascontiguousarray(K.data, dtype=np.float64),
+                                                cholespy.MatrixType.CSC)
+
+    def solve(self, B):
+        """``K^-1 B``.
+
+        Parameters
+        ----------
+        B : array_like (n,) or (n, k)
+
+        Returns
+        -------
+        ndarray, the shape of ``B``
+        """
+        B = np.ascontiguousarray(B, dtype=np.float64)
+        X = np.empty_like(B)
+        self._solver.solve(B, X)
+        return X
 
 
 def lowest_modes(K, M, n_modes, name="model"):
