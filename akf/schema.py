@@ -342,7 +342,8 @@ class Place(Section):
     operators: Literal["set", "thesis"] = key("\"set\" or \"thesis\"", "set-based operators or the "
                                                         "thesis' intermediate crossover", used_by=PLACE)
     n_modes: Modes = key("an integer >= 1, \"auto\" or \"full\"", "filter modes (with static "
-                                   "correction); \"auto\": core_akf.defaults.auto_modes", used_by=PLACE)
+                                   "correction) of the fitness; \"auto\": core_akf.defaults.band_modes (the layout's "
+                                   "reported error: core_akf.defaults.auto_modes)", used_by=PLACE)
     objective: Literal["strain", "fatigue"] = key(
         "\"strain\" or \"fatigue\"", "what the GA minimises: the average strain error of the targets (the "
         "thesis' fitness, default) or the mean relative error of their damage-equivalent stress range (fatigue)",

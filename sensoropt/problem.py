@@ -52,7 +52,8 @@ class PlacementProblem:
     model_error_cov, force_increment_cov : float
         Q and S levels of the filter.
     n_modes : int, "auto" or None
-        Filter modes with static correction.
+        Filter modes with static correction.  ``"auto"``: :func:`core_akf.defaults.band_modes` for
+        the fitness, :func:`core_akf.defaults.auto_modes` for :meth:`full_record_error`.
     seed : int
         The noise draw.
     reference_layouts : dict
