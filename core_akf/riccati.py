@@ -22,6 +22,8 @@ import warnings
 
 import numpy as np
 import scipy.linalg
+from scipy.linalg.lapack import dgetrf as _getrf
+from scipy.linalg.lapack import dgetri as _getri
 
 from .exceptions import AKFInputError
 from .threads import split_stack
@@ -63,6 +65,51 @@ def _solve_each(S, B):
         return out
 
 
+def frobenius(X):
+    """Frobenius norms of a stack of matrices, ``sqrt(sum x_ij^2)`` (as :func:`numpy.linalg.norm`
+    computes it, unscaled, at a tenth of its time on stacks of small matrices).
+
+    Parameters
+    ----------
+    X : ndarray (..., n, k)
+
+    Returns
+    -------
+    ndarray (...)
+    """
+    return np.sqrt(np.einsum("...ij,...ij->...", X, X))
+
+
+def inverse_stack(W):
+    """Inverses of a stack of matrices by LAPACK's ``getrf`` + ``getri``, one matrix at a time.
+
+    Twice as fast as :func:`numpy.linalg.inv` on a stack of 67 x 67 matrices (2.5 against 5.3 ms
+    for 35 of them on one thread) and 1.4x at 162 x 162: numpy inverts by ``gesv`` with n
+    right-hand sides, whose small triangular solves run at a tenth of the product rate.
+
+    Parameters
+    ----------
+    W : ndarray (B, n, n)
+
+    Returns
+    -------
+    ndarray (B, n, n)
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        For a singular matrix (a non-finite one gives a non-finite inverse, as numpy's does).
+    """
+    out = np.empty_like(W)
+    for b in range(W.shape[0]):
+        lu, piv, info = _getrf(W[b], overwrite_a=False)
+        if info == 0:
+            out[b], info = _getri(lu, piv, overwrite_lu=True)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"singular matrix in a stack (problem {b})")
+    return out
+
+
 def dare_residual(A, G, Q, R, P):
     """Relative residual of the filter DARE for each problem in a stack.
 
@@ -84,8 +131,8 @@ def dare_residual(A, G, Q, R, P):
     S = G @ P @ np.swapaxes(G, -1, -2) + R
     with np.errstate(all="ignore"):
         rhs = A @ P @ np.swapaxes(A, -1, -2) - APGt @ _solve_each(S, np.swapaxes(APGt, -1, -2)) + Q
-        num = np.linalg.norm(rhs - P, axis=(-2, -1))
-        den = np.maximum(np.linalg.norm(P, axis=(-2, -1)), np.finfo(float).tiny)
+        num = frobenius(rhs - P)
+        den = np.maximum(frobenius(P), np.finfo(float).tiny)
         res = num / den
     return np.where(np.isfinite(res), res, np.inf)
 
@@ -172,34 +219,41 @@ def _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps):
     Hk = Qs.copy()
     eye = np.eye(n)
     converged = np.zeros(nb, dtype=bool)
-    active = np.arange(nb)      # problems still iterating: a converged one is left as it is, so each
-    for _ in range(max_iter):   # result is the same whatever else shares its batch
-        A_k, G_k, H_k = Ak[active], Gk[active], Hk[active]
+    # the problems still iterating, kept packed (A_k, G_k, H_k): a converged one leaves the pack
+    # with its solution and is not touched again, so each result is the same whatever else shares
+    # its batch, and no iteration gathers or scatters the whole stack
+    active = np.arange(nb)
+    A_k, G_k, H_k = Ak, Gk, Hk.copy()
+    for _ in range(max_iter):
         try:
             # the explicit inverse and two products: 1.5x faster than a solve with 2n right-hand
             # sides for these sizes (OpenBLAS's small triangular solves are slow), as accurate
             # (W = I + G H has eigenvalues >= 1), and checked by the DARE residual below
-            Wi = np.linalg.inv(eye + G_k @ H_k)
+            Wi = inverse_stack(eye + G_k @ H_k)
         except np.linalg.LinAlgError:
             break
         A_kt = np.swapaxes(A_k, -1, -2)
         WiA = Wi @ A_k
         H_new = H_k + A_kt @ H_k @ WiA
         G_new = G_k + A_k @ (Wi @ (G_k @ A_kt))
-        Ak[active] = A_k @ WiA
+        A_k = A_k @ WiA
         H_new = 0.5 * (H_new + np.swapaxes(H_new, -1, -2))
-        Gk[active] = 0.5 * (G_new + np.swapaxes(G_new, -1, -2))
+        G_k = 0.5 * (G_new + np.swapaxes(G_new, -1, -2))
         with np.errstate(over="ignore", invalid="ignore"):     # a diverging problem: caught just below
-            diff = np.linalg.norm(H_new - H_k, axis=(-2, -1))
-            size = np.linalg.norm(H_new, axis=(-2, -1))
-        Hk[active] = H_new
+            diff = frobenius(H_new - H_k)
+            size = frobenius(H_new)
+        H_k = H_new
         if not np.all(np.isfinite(H_new)):
             break
         done = diff <= tol * np.maximum(size, np.finfo(float).tiny)
-        converged[active[done]] = True
-        active = active[~done]
+        if np.any(done):
+            Hk[active[done]] = H_new[done]
+            converged[active[done]] = True
+            keep = ~done
+            active, A_k, G_k, H_k = active[keep], A_k[keep], G_k[keep], H_k[keep]
         if not active.size:
             break
+    Hk[active] = H_k                     # the problems that did not converge: their last iterate
     P = Hk * t[..., :, None] * t[..., None, :]
     if check:
         ok = converged & np.all(np.isfinite(P), axis=(-2, -1))
@@ -285,7 +339,7 @@ def stein_doubling(F, E, tol=1e-14, max_iter=60):
         inc = F_a @ X[active] @ np.swapaxes(F_a, -1, -2)
         X[active] += inc
         Fj[active] = F_a @ F_a
-        done = np.linalg.norm(inc, axis=(-2, -1)) <= tol * np.linalg.norm(X[active], axis=(-2, -1))
+        done = frobenius(inc) <= tol * frobenius(X[active])
         active = active[~done]
         if not active.size:
             break
