@@ -13,6 +13,14 @@ dask[distributed]).  Prints one table and writes it as CSV (default ``bench/resu
    ``dask.distributed.LocalCluster``: the jobs' own stage totals ("work") and the process
    time including imports.
 
+4. Placement on a 3-D frame of one's own (147 DOFs read from Matrix Market files, 161 members as
+   extensometers, 200 Hz, 4 strain gauges, a 30 x 30 GA): the whole command, the filter's modes
+   under the ``"auto"`` rule, and the found layout's fitness on the full model against the rule's.
+5. The footbridge jobs (``akf place --example footbridge-place``, ``akf estimate --example
+   footbridge-walk``): whole processes.
+6. The 1e5-DOF plate: load and 100-mode reduction with static correction, in a fresh process
+   (``bench/large_model_bench.py --sizes 183``): seconds and peak memory.
+
 Each row carries its target and whether it is met; where a target is missed the row names
 the stage that takes the time and the measured reason (operation counts and rates).  Times are
 the best of a few repeats on a shared machine: read the ratios, they move less than the times.
@@ -274,6 +282,165 @@ def job_rows(repeat=2):
     return rows
 
 
+FRAME_JOB = """name = "frame3d"
+description = "a 3-D frame of one's own: 4 strain gauges on 161 members"
+dt = 0.005
+forces = ["27:z", "39:z"]
+
+[structure]
+model = "matrices"
+K = "K.mtx"
+M = "M.mtx"
+dofs = "dofs.csv"
+nodes = "nodes.csv"
+fixed = {fixed}
+damping = 0.01
+extensometers = "members.csv"
+
+[place]
+kinds = ["strain"]
+sensors = 4
+window = 1.0
+population = 30
+generations = 30
+
+[filter]
+stiffness_factor = 1.02
+model_error_cov = 1e-14
+force_increment_cov = 1e3
+
+[simulation]
+duration = 10.0
+relative_noise = 0.02
+seed = 0
+
+[[simulation.loads]]
+components = [{{type = "constant", value = -700.0}}, {{type = "sine", frequency = 2.0, amplitude = 280.0}}]
+
+[[simulation.loads]]
+components = [{{type = "band_noise", rms = 150.0, f_low = 1.0, f_high = 6.0, seed = 7}}]
+"""
+
+
+def write_frame(folder):
+    """A 3-D frame of one's own in ``folder`` (the footbridge's box truss with 12 panels: 147 free
+    DOFs, 161 members) as an FE program leaves it: K.mtx, M.mtx, dofs.csv, nodes.csv, members.csv
+    and the place job ``frame.toml``."""
+    import scipy.io
+    import scipy.sparse
+
+    from core_akf.models.footbridge import footbridge_matrices
+
+    m = footbridge_matrices(n_panels=12)
+    scipy.io.mmwrite(os.path.join(folder, "K.mtx"), scipy.sparse.coo_matrix(m["K"]), symmetry="symmetric")
+    scipy.io.mmwrite(os.path.join(folder, "M.mtx"), scipy.sparse.coo_matrix(m["M"]), symmetry="symmetric")
+    with open(os.path.join(folder, "dofs.csv"), "w") as fh:
+        fh.write("node,direction\n" + "".join(f"{n},{d}\n" for n, d in m["dofs"]))
+    with open(os.path.join(folder, "nodes.csv"), "w") as fh:
+        fh.write("node,x,y,z\n" + "".join(f"{i},{x!r},{y!r},{z!r}\n" for i, (x, y, z) in m["nodes"].items()))
+    with open(os.path.join(folder, "members.csv"), "w") as fh:
+        fh.write("a,b\n" + "".join(f"{a},{b}\n" for a, b in m["members"]))
+    fixed = "[" + ", ".join(f'"{n}:{d}"' for n, d in m["fixed"]) + "]"
+    path = os.path.join(folder, "frame.toml")
+    with open(path, "w") as fh:
+        fh.write(FRAME_JOB.format(fixed=fixed))
+    return path
+
+
+def run_job(args, cwd=None):
+    """``python -m akf ARGS --json --no-plot``: (process seconds, parsed JSON, stderr)."""
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "akf", *args, "--json", "--no-plot", "--out", out]
+        env = dict(os.environ, PYTHONWARNINGS="ignore")
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False, cwd=cwd)
+        wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+    return wall, json.loads(proc.stdout), proc.stderr
+
+
+def frame_rows():
+    """4. Placement on a 3-D frame of one's own (about 150 modes)."""
+    from akf.job import load_job
+    from akf.placement import problem_from_job
+    from core_akf.defaults import auto_modes, band_modes
+    from sensoropt.objective import StrainErrorObjective
+
+    print("4. placement on a 3-D frame of one's own")
+    with tempfile.TemporaryDirectory() as folder:
+        path = write_frame(folder)
+        wall, data, _ = run_job(["place", path, "--seed", "1", "--n-jobs", "1"], cwd=folder)
+        problem, _ = problem_from_job(load_job(path, "place"))
+        enc = problem.encoding()
+        s = problem.structure
+        k_band, k_auto = band_modes(s, problem.dt), auto_modes(s, problem.dt, accelerations=False)
+        settings = dict(window=problem.window, stiffness_factor=problem.stiffness_factor,
+                        relative_noise=problem.relative_noise, model_error_cov=problem.model_error_cov,
+                        force_increment_cov=problem.force_increment_cov, seed=problem.seed)
+        fits, per_layout = {}, {}
+        for label, k in (("rule", "auto"), ("full", None)):
+            obj = StrainErrorObjective(s, problem.forces, problem.loads, problem.dt, enc, n_modes=k, **settings)
+            t, f = best_of(lambda obj=obj: obj.evaluate([data["sensors"]])[0], 2)
+            fits[label], per_layout[label] = f, t
+    diff = fits["rule"] / fits["full"] - 1
+    row = dict(section="frame", case="akf place frame.toml (147 DOFs, 4 gauges, 30 x 30)", workers="1 worker",
+               seconds=data["seconds"], process_seconds=wall, target_s=30.0, target_process_s=30.0,
+               result=(f"{' '.join(data['sensors'])}: {data['error']:.4f} µε (whole record, {k_auto} modes); fitness "
+                       f"{fits['rule']:.4f} ({k_band} modes) against {fits['full']:.4f} µε (all {s.n}): {100 * diff:+.1f} %"),
+               stages=(f"{data['evaluations']} evaluations, {1e3 * per_layout['rule']:.0f} ms per layout on {k_band} "
+                       f"modes against {1e3 * per_layout['full']:.0f} ms on all {s.n}"))
+    print(f"  {row['case']}: work {row['seconds']:.2f} s, process {wall:.2f} s; {row['result']}; {row['stages']}")
+    return [row]
+
+
+def footbridge_rows():
+    """5. The footbridge jobs, whole processes."""
+    print("5. the footbridge jobs")
+    rows = []
+    for command, example in (("place", "footbridge-place"), ("estimate", "footbridge-walk")):
+        wall, data, _ = run_job([command, "--example", example] + (["--n-jobs", "1"] if command == "place" else []))
+        secs = data.get("seconds")
+        work = secs["total"] if isinstance(secs, dict) else float(secs or 0.0)
+        if command == "place":
+            result = f"{' '.join(data['sensors'])}: {data['error']:.4f} µε, {data['evaluations']} evaluations"
+        else:
+            m = data.get("metrics", {})
+            result = ", ".join(f"{k} {v:.4g}" for k, v in m.items() if isinstance(v, (int, float)))[:200]
+        rows.append(dict(section="footbridge", case=f"akf {command} --example {example}", workers="1 worker",
+                         seconds=work, process_seconds=wall, target_s=30.0, target_process_s=30.0, result=result))
+        print(f"  akf {command} --example {example}: work {work:.2f} s, process {wall:.2f} s  {result}")
+    return rows
+
+
+def large_rows():
+    """6. The 1e5-DOF plate: load and 100-mode reduction with static correction, fresh process."""
+    print("6. 1e5 DOFs: load and 100-mode reduction (bench/large_model_bench.py --sizes 183)")
+    with tempfile.TemporaryDirectory() as out:
+        csv_path = os.path.join(out, "large.csv")
+        proc = subprocess.run([sys.executable, os.path.join(HERE, "large_model_bench.py"), "--sizes", "183",
+                               "--csv", csv_path], capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            raise RuntimeError(f"large_model_bench.py failed:\n{proc.stderr[-2000:]}")
+        with open(csv_path, newline="", encoding="utf-8") as fh:
+            r = next(csv.DictReader(fh))
+    import scipy.sparse
+
+    from core_akf.models.sparse import factorise
+    method = factorise(scipy.sparse.csc_matrix(np.eye(2))).method
+    model_s, peak = float(r["model_s"]), float(r["peak_rss_gib"])
+    row = dict(section="large", case=f"{int(r['dofs'])} DOFs: load + 100 modes + static correction", workers="",
+               seconds=model_s, target_s=15.0, memory_gib=peak, target_memory_gib=2.0,
+               result=f"load {float(r['load_s']):.2f} s, reduction {float(r['reduce_s']):.2f} s, static correction "
+                      f"{float(r['static_s']):.2f} s, peak {peak:.2f} GiB, factorisation {method}",
+               limit=("the reduction is ~200 single-vector solves of the shift-invert Lanczos (ARPACK), each two "
+                      "triangular solves with the Cholesky factor, bound by memory bandwidth (0.04 s each), plus ARPACK's "
+                      "own reorthogonalisation (~5 s); PARDISO (MKL) factorises in 0.4 s but solves in 0.06 s; a block "
+                      "Krylov of 240 vectors (20-vector solves at 0.015 s each) left the 100th frequency 1e-4 off"))
+    print(f"  {row['case']}: {model_s:.2f} s, {peak:.2f} GiB  ({row['result']})")
+    return [row]
+
+
 def scan_reason(name):
     """Where the time of a location scan goes: the batched Riccati solves against the rest."""
     from akf.examples.impact import example_scenario
@@ -312,6 +479,7 @@ def main(argv=None):
     rows = filter_rows()
     if not args.skip_jobs:
         rows += job_rows()
+        rows += frame_rows() + footbridge_rows() + large_rows()
         for r in rows:
             if r["section"] == "job" and "target_s" in r and r["seconds"] > r["target_s"]:
                 example = r["case"].split()[-1]
@@ -323,6 +491,8 @@ def main(argv=None):
                 met = met or r["ratio_vs_filterpy"] >= r["target_ratio"]   # the ratio is what a shared machine keeps
             if r.get("target_process_s") and r.get("process_seconds"):
                 met = met and r["process_seconds"] <= r["target_process_s"]
+            if r.get("target_memory_gib") and r.get("memory_gib"):
+                met = met and r["memory_gib"] <= r["target_memory_gib"]
             r["met"] = "yes" if met else "no"
     print(f"\n{'section':7s} {'case':46s} {'workers':22s} {'time (s)':>9s} {'vs filterpy':>11s} {'target':>14s} "
           f"{'met':>4s}  diff to textbook (steady: to the textbook steady-state loop)")
@@ -340,7 +510,7 @@ def main(argv=None):
         for r in missed:
             print(f"- {r['case']} ({r.get('workers', '')}): {r.get('limit', r.get('stages', ''))}")
     keys = ["section", "case", "workers", "seconds", "process_seconds", "ratio_vs_filterpy", "diff", "target_s",
-            "target_ratio", "target_process_s", "met", "result", "stages", "limit"]
+            "target_ratio", "target_process_s", "memory_gib", "target_memory_gib", "met", "result", "stages", "limit"]
     with open(args.csv, "w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
         w.writeheader()

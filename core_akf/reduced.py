@@ -24,6 +24,9 @@ from .sensors import as_layout, parse_force_locations
 from .statespace import continuous, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
 from .steady import steady_outputs  # noqa: F401  (re-exported here for the optimisers)
 
+#: mode pairs per row chunk of the dropped-mode covariance: bounds its (rows, n_d, 4, 4) arrays
+_PAIR_ROWS = 64
+
 
 class ModalFilterModel:
     """Augmented AKF model of ``structure`` with forces at ``forces``, in modal coordinates: the
@@ -134,6 +137,76 @@ class ModalFilterModel:
         out = np.zeros((len(self.forces), self.n_a))
         out[:, self.n_states:] = self.H
         return out
+
+    def residual_noise(self, sensors, model_error_cov):
+        """Covariance of the dropped modes' response to the model-error noise, at the sensors.
+
+        The full model's process noise (``model_error_cov`` per physical DOF,
+        :func:`~core_akf.covariances.state_covariance`) also drives the modes a reduced model
+        drops; a filter on the full model sees that response in its measurements.  Its stationary
+        covariance ``Sigma_d = A_d Sigma_d A_d^T + q Q_dd`` is exact mode pair by mode pair (``A_d``
+        is block diagonal in modal coordinates: one 4 x 4 solve per pair), and ``C_d Sigma_d
+        C_d^T`` is what a reduced filter adds to its measurement noise ``R`` to behave like the full
+        one.  Measured on a 147-DOF frame of one's own at 200 Hz (63 of 147 modes, ``q = 1e-14``):
+        30 random 4-gauge layouts ranked like the full model with Spearman 0.985 (median error
+        2 %) instead of 0.58 (30 %); the dropped modes' noise was 660x the sensor noise.  On the
+        thesis plate with an accelerometer (``th-multi``, 101 of 330 modes, whole record): 3.2326
+        µε against the full filter's 3.2363, where the reduced filter without it gave 2.1912.
+
+        Parameters
+        ----------
+        sensors : sequence of sensor specs
+            m sensors.
+        model_error_cov : float
+            The level ``q``.
+
+        Returns
+        -------
+        ndarray (m, m)
+            Zero for the full model, a model already reduced on import (its dropped modes are not
+            known), or non-classical damping.
+        """
+        layout = as_layout(sensors)
+        sigma = None if self.n_modes is None else self.full.memo(
+            ("dropped-mode noise", self.n_modes, self.dt), self._dropped_mode_covariance)
+        if sigma is None:
+            return np.zeros((len(layout), len(layout)))
+        T, C_rows = sigma[1], sigma[2]
+        G = observation(self.full, layout, self.forces)[0] @ T
+        C = G[:, C_rows]
+        out = float(model_error_cov) * (C @ sigma[0] @ C.T)
+        return 0.5 * (out + out.T)
+
+    def _dropped_mode_covariance(self):
+        """``(Sigma_d for q = 1, T of the full model, the dropped columns)``, or None."""
+        full, k = self.full, self.n_modes
+        if full.is_reduced:
+            return None
+        AB = modal_zoh(full, self.forces, self.dt)
+        if AB is None:
+            return None
+        n = full.n
+        T, T_inv = modal_state_transform(full)
+        Qm = T_inv @ state_covariance(full, 1.0) @ T_inv.T
+        d = np.arange(k, n)                                  # the dropped modes
+        A = AB[0]
+        blocks = np.stack([np.stack([np.diag(A[:n, :n])[d], np.diag(A[:n, n:])[d]], -1),
+                           np.stack([np.diag(A[n:, :n])[d], np.diag(A[n:, n:])[d]], -1)], -2)  # (n_d, 2, 2)
+        cols = np.r_[d, n + d]
+        Q = 0.5 * (Qm[np.ix_(cols, cols)] + Qm[np.ix_(cols, cols)].T)
+        nd = d.size
+        # pair (i, j): X = A_i X A_j^T + Q_ij, i.e. (I - A_j kron A_i) vec(X) = vec(Q_ij) (column-major)
+        Qp = Q.reshape(2, nd, 2, nd).transpose(1, 3, 0, 2)  # (i, j, 2, 2): Q_ij
+        sigma = np.empty_like(Qp)
+        eye = np.eye(4)
+        for i0 in range(0, nd, _PAIR_ROWS):
+            Ai = blocks[i0:i0 + _PAIR_ROWS]
+            kron = np.einsum("jab,icd->ijacbd", blocks, Ai).reshape(Ai.shape[0], nd, 4, 4)
+            rhs = np.swapaxes(Qp[i0:i0 + _PAIR_ROWS], -1, -2).reshape(Ai.shape[0], nd, 4, 1)
+            x = np.linalg.solve(eye - kron, rhs)[..., 0]
+            sigma[i0:i0 + _PAIR_ROWS] = np.swapaxes(x.reshape(Ai.shape[0], nd, 2, 2), -1, -2)
+        Sigma = sigma.transpose(2, 0, 3, 1).reshape(2 * nd, 2 * nd)
+        return 0.5 * (Sigma + Sigma.T), T, cols
 
     def Q_a(self, model_error_cov, force_increment_cov=None):
         """The augmented process covariance ``blockdiag(q Q_unit, Q_f)`` in modal coordinates.

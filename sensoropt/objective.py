@@ -105,8 +105,11 @@ class StrainErrorObjective:
     every admissible sensor channel (each channel with its own fixed noise draw,
     ``relative_noise`` of its RMS), so the fitness of a layout is deterministic.  The filter uses
     the structure scaled by ``stiffness_factor`` (model error), reduced to ``n_modes`` modes with
-    a static correction (:class:`core_akf.reduced.ModalFilterModel`), the true noise variances,
-    and runs the layouts of a batch in one call (one batched Riccati solve).
+    a static correction (:class:`core_akf.reduced.ModalFilterModel`), the true noise variances
+    plus what the dropped modes' response to the model-error noise adds at the sensors
+    (:meth:`~core_akf.reduced.ModalFilterModel.residual_noise`, so that a reduced fitness ranks
+    layouts like the full model), and runs the layouts of a batch in one call (one batched
+    Riccati solve).
 
     Parameters
     ----------
@@ -178,6 +181,9 @@ class StrainErrorObjective:
         self.G = self.model.observation(self.labels)   # (n_candidates, n_a)
         self.H = self.model.strain_rows() if rows is None else self.model.strain_rows()[rows]
         self.Q = self.model.Q_a(model_error_cov)
+        # what the dropped modes' model-error response adds to each channel (ModalFilterModel.residual_noise):
+        # with it the reduced fitness ranks layouts like the full model
+        self.residual_noise = self.model.residual_noise(self.labels, model_error_cov)
         self._detectability = SubsetDetectability(structure, self.labels, self.model.forces, force_model)
         self.n_forces = len(self.model.forces)
 
@@ -221,7 +227,7 @@ class StrainErrorObjective:
     def _batch(self, idx, ks, out):
         sel = np.array([list(i) for i in idx])
         G = self.G[sel]
-        R = np.stack([np.diag(self.var[s]) for s in sel])
+        R = np.stack([np.diag(self.var[s]) + self.residual_noise[np.ix_(s, s)] for s in sel])
         Y = np.ascontiguousarray(np.swapaxes(self.Y[:, sel], 0, 1))
         try:
             est = steady_outputs(self.model.A_a, G, self.Q, R, Y, self.H)

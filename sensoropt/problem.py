@@ -213,7 +213,7 @@ class PlacementProblem:
         force_model = self.force_model or ForceModel("random_walk", increment_cov=self.force_increment_cov)
         fm = ModalFilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt,
                               None if n_modes is None else min(int(n_modes), self.structure.n), force_model=force_model)
-        R = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2)
+        R = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2) + fm.residual_noise(sensors, self.model_error_cov)
         est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov),
                              R[None], sim.measurements[None], rows_of(fm))[0]
         return est, sim

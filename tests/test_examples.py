@@ -80,12 +80,16 @@ def test_placement_examples_reproduce_the_thesis_gain():
         "strain:6:ey strain:6:gxy strain:24:gxy strain:36:ey strain:54:ex strain:73:gxy strain:79:gxy "
         "strain:87:gxy".split())
     rtol = pin_rtol(p5.structure)
-    assert (case2, best3, best8) == pytest.approx((3.597588656845015, 1.8776701086864456, 1.0247476521926375), rel=rtol)
+    # (3.59759, 1.87767, 1.02475) before the reduced filter carried its dropped modes' model-error
+    # response in R (ModalFilterModel.residual_noise): +0.06 % at most, towards the full filter's
+    assert (case2, best3, best8) == pytest.approx((3.599569321126156, 1.8776835146599353, 1.025246289978517), rel=rtol)
     assert case2 / best3 > 0.9 * 0.00666 / 0.00360 and case2 / best8 > 0.9 * 0.00666 / 0.00183
     multi = example_problem("th-multi")
     assert multi.budget == {"strain": 2, "acc": 1}
+    # 2.1912 before the reduced filter added its dropped modes' model-error response to R
+    # (ModalFilterModel.residual_noise): the full 330-DOF filter gives 3.2363, the 101 modes now 3.2326
     assert multi.full_record_error(["strain:62:ey", "strain:93:gxy", "acc:112:w"]) == pytest.approx(
-        2.191177786614433, rel=rtol)
+        3.2326072581373446, rel=rtol)
 
 
 @pytest.mark.parametrize("name, node", [("imp-truss-case1", 14), ("imp-truss-case2", 14), ("imp-plate", 21)])

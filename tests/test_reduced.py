@@ -53,3 +53,31 @@ def test_steady_outputs_equal_estimate_on_the_full_model():
     # the same steady filter through two code paths (modal model vs estimate()); the DARE
     # solutions agree to ~1e-10 and the strains through the stiff truss (condition ~1e3) to 1e-7
     np.testing.assert_allclose(out[0], est.strains, rtol=1e-7, atol=1e-9 * np.abs(est.strains).max())
+
+
+def test_residual_noise_is_the_dropped_modes_stationary_response():
+    """``ModalFilterModel.residual_noise``: the pairwise closed form equals the stationary
+    covariance of the dropped modes under the model-error noise, from Smith's doubling on the
+    whole dropped block (an independent route), at strain, acceleration, displacement and
+    velocity sensors; it scales with q, and is zero for the full model."""
+    from core_akf.covariances import state_covariance
+    from core_akf.riccati import stein_doubling
+    from core_akf.statespace import modal_state_transform, modal_zoh, observation
+
+    s = s17_truss()
+    sensors = ["strain:5", "acc:6:y", "disp:8:y", "vel:12:y"]
+    k, dt = 20, 1e-3
+    fm = ModalFilterModel(s, ["8:y"], dt, k)
+    got = fm.residual_noise(sensors, 1e-12)
+    n = s.n
+    T, T_inv = modal_state_transform(s)
+    A = modal_zoh(s, fm.forces, dt)[0]
+    Qm = T_inv @ state_covariance(s, 1.0) @ T_inv.T
+    drop = np.r_[np.arange(k, n), n + np.arange(k, n)]
+    sigma = stein_doubling(A[np.ix_(drop, drop)], 0.5 * (Qm + Qm.T)[np.ix_(drop, drop)], tol=1e-17, max_iter=200)
+    C = (observation(s, sensors, fm.forces)[0] @ T)[:, drop]
+    ref = 1e-12 * C @ sigma @ C.T
+    assert np.all(np.abs(got - ref) <= 1e-9 * np.sqrt(np.outer(np.diag(ref), np.diag(ref))))
+    assert np.all(np.diag(got) > 0)
+    assert np.allclose(fm.residual_noise(sensors, 2e-12), 2 * got, rtol=1e-12)
+    assert not ModalFilterModel(s, ["8:y"], dt).residual_noise(sensors, 1e-12).any()
