@@ -470,8 +470,9 @@ def scan_reason(name):
             f"{1e3 * t_gain:.0f} ms ({1e3 * t_gain / len(splits):.1f} ms each: ~12 doubling iterations of "
             f"an {n}x{n} inverse (getrf + getri) and 8 products, each squaring the closed loop's spectral radius "
             f"~0.98); the tuning adds as many solves again. Not cut further: the layouts hold accelerometers, "
-            f"which see the modes a reduced model drops (band_modes keeps them all), and a neighbouring "
-            f"location's solution is no warm start (its residual is 0.2 and Newton diverges from it)")
+            f"which see the modes a reduced model drops (with them band_modes is auto_modes: {n} states here), "
+            f"and a neighbouring location's solution is no warm start (on the truss its DARE residual is 0.2 "
+            f"and Newton diverges from it)")
 
 
 def main(argv=None):

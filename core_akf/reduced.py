@@ -167,8 +167,9 @@ class ModalFilterModel:
             known), or non-classical damping.
         """
         layout = as_layout(sensors)
-        sigma = None if self.n_modes is None else self.full.memo(
-            ("dropped-mode noise", self.n_modes, self.dt), self._dropped_mode_covariance)
+        if self.n_modes is not None and "_dropped" not in self.__dict__:
+            self._dropped = self._dropped_mode_covariance()
+        sigma = None if self.n_modes is None else self._dropped
         if sigma is None:
             return np.zeros((len(layout), len(layout)))
         T, C_rows = sigma[1], sigma[2]
@@ -176,6 +177,11 @@ class ModalFilterModel:
         C = G[:, C_rows]
         out = float(model_error_cov) * (C @ sigma[0] @ C.T)
         return 0.5 * (out + out.T)
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_dropped", None)        # a cache of (2 n_d)^2 numbers, rebuilt where it is needed
+        return state
 
     def _dropped_mode_covariance(self):
         """``(Sigma_d for q = 1, T of the full model, the dropped columns)``, or None."""
