@@ -188,7 +188,7 @@ def _march(structure, locs, P, dt, x):
     n decoupled 2 x 2 systems, O(N n) work, no exponential of size 2n), then taken back to
     ``[u; u']`` in one product; any other one by the ZOH of the whole state (O(N n^2)).  The two
     agree to rounding (``tests/test_simulate_loads.py``); on the 1011-DOF footbridge the modal
-    march takes 0.3 s against 7 s.
+    march takes 0.8 s against 6.5 s.
     """
     N = P.shape[0]
     AB = modal_zoh(structure, locs, dt)
