@@ -237,23 +237,26 @@ JOBS = [
 ]
 
 
-def run_cli(command, example, n_jobs=None, scheduler=None, seed=None):
-    """One job through the command line; returns (process seconds, parsed JSON)."""
+def run_job(args, cwd=None):
+    """``python -m akf ARGS --json --no-plot --out TMP``; returns (process seconds, parsed JSON)."""
     with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "akf", command, "--example", example, "--json", "--no-plot", "--out", out]
-        if seed is not None:
-            cmd += ["--seed", str(seed)]
-        if n_jobs is not None:
-            cmd += ["--n-jobs", str(n_jobs)]
-        if scheduler is not None:
-            cmd += ["--scheduler", scheduler]
+        cmd = [sys.executable, "-m", "akf", *args, "--json", "--no-plot", "--out", out]
         env = dict(os.environ, PYTHONWARNINGS="ignore")
         t0 = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False, cwd=cwd)
         wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
     return wall, json.loads(proc.stdout)
+
+
+def run_cli(command, example, n_jobs=None, scheduler=None, seed=None):
+    """One built-in example through the command line (:func:`run_job`)."""
+    args = [command, "--example", example]
+    for flag, value in (("--seed", seed), ("--n-jobs", n_jobs), ("--scheduler", scheduler)):
+        if value is not None:
+            args += [flag, str(value)]
+    return run_job(args)
 
 
 def job_rows(repeat=2):
@@ -350,40 +353,24 @@ def write_frame(folder):
     return path
 
 
-def run_job(args, cwd=None):
-    """``python -m akf ARGS --json --no-plot``: (process seconds, parsed JSON, stderr)."""
-    with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "akf", *args, "--json", "--no-plot", "--out", out]
-        env = dict(os.environ, PYTHONWARNINGS="ignore")
-        t0 = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False, cwd=cwd)
-        wall = time.perf_counter() - t0
-    if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
-    return wall, json.loads(proc.stdout), proc.stderr
-
-
 def frame_rows():
     """4. Placement on a 3-D frame of one's own (about 150 modes)."""
     from akf.job import load_job
     from akf.placement import problem_from_job
     from core_akf.defaults import auto_modes, band_modes
-    from sensoropt.objective import StrainErrorObjective
 
     print("4. placement on a 3-D frame of one's own")
     with tempfile.TemporaryDirectory() as folder:
         path = write_frame(folder)
-        wall, data, _ = run_job(["place", path, "--seed", "1", "--n-jobs", "1"], cwd=folder)
+        wall, data = run_job(["place", path, "--seed", "1", "--n-jobs", "1"], cwd=folder)
         problem, _ = problem_from_job(load_job(path, "place"))
         enc = problem.encoding()
         s = problem.structure
         k_band, k_auto = band_modes(s, problem.dt), auto_modes(s, problem.dt, accelerations=False)
-        settings = dict(window=problem.window, stiffness_factor=problem.stiffness_factor,
-                        relative_noise=problem.relative_noise, model_error_cov=problem.model_error_cov,
-                        force_increment_cov=problem.force_increment_cov, seed=problem.seed)
         fits, per_layout = {}, {}
         for label, k in (("rule", "auto"), ("full", None)):
-            obj = StrainErrorObjective(s, problem.forces, problem.loads, problem.dt, enc, n_modes=k, **settings)
+            problem.n_modes = k
+            obj = problem.objective(enc)
             t, f = best_of(lambda obj=obj: obj.evaluate([data["sensors"]])[0], 2)
             fits[label], per_layout[label] = f, t
     diff = fits["rule"] / fits["full"] - 1
@@ -402,7 +389,7 @@ def footbridge_rows():
     print("5. the footbridge jobs")
     rows = []
     for command, example in (("place", "footbridge-place"), ("estimate", "footbridge-walk")):
-        wall, data, _ = run_job([command, "--example", example] + (["--n-jobs", "1"] if command == "place" else []))
+        wall, data = run_job([command, "--example", example] + (["--n-jobs", "1"] if command == "place" else []))
         if command == "place":
             result = f"{' '.join(data['sensors'])}: {data['error']:.4f} µε, {data['evaluations']} evaluations"
             work = float(data["seconds"])

@@ -22,6 +22,7 @@ import math
 import os
 import random
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -337,6 +338,7 @@ class GeneticAlgorithm:
     on_generation : callable, optional
         Called with each generation's logbook row (a dict: ``generation``, ``best``, ...,
         ``evaluations``, ``seconds``) once it is recorded; e.g. to report the cost of generation 0.
+        One that raises is reported as a :class:`RuntimeWarning` and not called again: the run goes on.
     """
 
     def __init__(self, algorithm, evaluator, *, generations, seed=0, stall_generations=0, stall_tol=1e-6,
@@ -412,6 +414,7 @@ class GeneticAlgorithm:
             from tqdm.auto import tqdm
             bar = tqdm(total=self.generations, initial=max(start - 1, 0), desc=self.progress, unit="gen", leave=False)
         stopped = "generations"
+        on_generation = self.on_generation
         try:
             for gen in range(start, self.generations + 1):
                 if gen == 0:
@@ -424,8 +427,13 @@ class GeneticAlgorithm:
                                  infeasible=ev.infeasible, seconds=time.perf_counter() - t0))
                 if bar is not None and gen > 0:
                     bar.update(1)
-                if self.on_generation is not None:
-                    self.on_generation(dict(rows[-1]))
+                if on_generation is not None:
+                    try:
+                        on_generation(dict(rows[-1]))
+                    except Exception as exc:  # noqa: BLE001 -- an observer must not cost the run its result
+                        warnings.warn(f"on_generation failed at generation {gen} and is not called again: "
+                                      f"{type(exc).__name__}: {exc}", RuntimeWarning, stacklevel=2)
+                        on_generation = None
                 if self.checkpoint and (gen % self.checkpoint_every == 0 or gen == self.generations):
                     self._save(pop, rows, gen, rng, pyrng)
                 if self.stall_generations > 0 and gen >= self.stall_generations:

@@ -21,7 +21,7 @@ from .defaults import auto_modes
 from .exceptions import AKFInputError
 from .forcemodels import ForceModel
 from .sensors import as_layout, parse_force_locations
-from .statespace import continuous, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
+from .statespace import continuous, modal_blocks, modal_state_transform, modal_zoh, observation, strain_feedthrough, zoh
 from .steady import steady_outputs  # noqa: F401  (re-exported here for the optimisers)
 
 #: mode pairs per row chunk of the dropped-mode covariance: bounds its (rows, n_d, 4, 4) arrays
@@ -188,16 +188,14 @@ class ModalFilterModel:
         full, k = self.full, self.n_modes
         if full.is_reduced:
             return None
-        AB = modal_zoh(full, self.forces, self.dt)
-        if AB is None:
+        parts = modal_blocks(full, self.forces, self.dt)
+        if parts is None:
             return None
         n = full.n
         T, T_inv = modal_state_transform(full)
         Qm = T_inv @ state_covariance(full, 1.0) @ T_inv.T
         d = np.arange(k, n)                                  # the dropped modes
-        A = AB[0]
-        blocks = np.stack([np.stack([np.diag(A[:n, :n])[d], np.diag(A[:n, n:])[d]], -1),
-                           np.stack([np.diag(A[n:, :n])[d], np.diag(A[n:, n:])[d]], -1)], -2)  # (n_d, 2, 2)
+        blocks = parts[0][d]                                 # (n_d, 2, 2)
         cols = np.r_[d, n + d]
         Q = 0.5 * (Qm[np.ix_(cols, cols)] + Qm[np.ix_(cols, cols)].T)
         nd = d.size

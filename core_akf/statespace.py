@@ -311,6 +311,41 @@ def modal_zoh(structure, forces, dt, rtol=1e-10):
     tuple or None
         ``(A_z (2n, 2n), B_z (2n, n_p))``, or None for non-classical damping.
     """
+    parts = modal_blocks(structure, forces, dt, rtol)
+    if parts is None:
+        return None
+    blocks, B_z = parts
+    n = blocks.shape[0]
+    A_z = np.zeros((2 * n, 2 * n))
+    idx = np.arange(n)
+    A_z[idx, idx] = blocks[:, 0, 0]
+    A_z[idx, n + idx] = blocks[:, 0, 1]
+    A_z[n + idx, idx] = blocks[:, 1, 0]
+    A_z[n + idx, n + idx] = blocks[:, 1, 1]
+    return A_z, B_z
+
+
+def modal_blocks(structure, forces, dt, rtol=1e-10):
+    """The mode-by-mode ZOH of :func:`modal_zoh` as its 2 x 2 blocks, for work that runs on each
+    mode separately (a simulation, the dropped modes of a reduced filter).
+
+    Parameters
+    ----------
+    structure : Structure
+    forces : sequence of force specs
+        n_p locations.
+    dt : float
+        Time step (s).
+    rtol : float
+        Tolerance of the classical-damping test (:func:`modal_damping`).
+
+    Returns
+    -------
+    tuple or None
+        ``(blocks (n, 2, 2), B_z (2n, n_p))``: mode j's transition on ``[w q_j; q_j']`` and the
+        input matrix (displacement rows first, as in :func:`modal_zoh`); None for non-classical
+        damping.
+    """
     c = modal_damping(structure, rtol)
     if c is None:
         return None
@@ -326,14 +361,7 @@ def modal_zoh(structure, forces, dt, rtol=1e-10):
     blk[:, 1, 1] = -c
     blk[:, 1, 2:] = p
     E = scipy.linalg.expm(blk * dt)
-    A_z = np.zeros((2 * n, 2 * n))
-    idx = np.arange(n)
-    A_z[idx, idx] = E[:, 0, 0]
-    A_z[idx, n + idx] = E[:, 0, 1]
-    A_z[n + idx, idx] = E[:, 1, 0]
-    A_z[n + idx, n + idx] = E[:, 1, 1]
-    B_z = np.vstack([E[:, 0, 2:], E[:, 1, 2:]])
-    return A_z, B_z
+    return E[:, :2, :2].copy(), np.vstack([E[:, 0, 2:], E[:, 1, 2:]])
 
 
 # ---------------------------------------------------------------------------- detectability

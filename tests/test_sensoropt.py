@@ -137,6 +137,22 @@ def test_custom_objective_and_nan_penalty():
     assert res.infeasible >= 1 and res.best_error == 1.0
 
 
+def test_a_failing_generation_report_does_not_cost_the_run_its_result():
+    """``on_generation`` is an observer: one that raises is warned about once and the GA finishes
+    with the same layout as without it."""
+    enc = PlateGrid(th_plate(), kinds=("ex",), n_sensors=2)
+    calls = []
+
+    def broken(row):
+        calls.append(row["generation"])
+        raise KeyError("model")
+
+    plain = place(FunctionObjective(_corner_distance), enc, population=10, generations=4, seed=3)
+    with pytest.warns(RuntimeWarning, match="on_generation failed at generation 0"):
+        res = place(FunctionObjective(_corner_distance), enc, population=10, generations=4, seed=3, on_generation=broken)
+    assert calls == [0] and res.sensors == plain.sensors and res.best_error == plain.best_error
+
+
 def test_bad_input_is_reported():
     s = th_plate()
     with pytest.raises(AKFInputError, match="admissible positions"):
