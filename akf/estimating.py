@@ -1,5 +1,5 @@
 """The estimate pipeline: one job, simulated or measured, through one
-:class:`core_akf.streaming.Estimator`, to one result, one set of files and one set of figures.
+:class:`core_akf.filter.streaming.Estimator`, to one result, one set of files and one set of figures.
 
 A simulated job is one chunk: its whole record, with the truth beside the estimate.  A measured
 record is read in chunks and filtered with the state carried over (constant memory), the results
@@ -31,7 +31,7 @@ from core_akf.metrics import average_strain_error, rms_error
 from core_akf.outputs import atomic_path, confined, write_csv
 from core_akf.simulate import MICROSTRAIN
 from core_akf.statespace import strain_feedthrough
-from core_akf.streaming import CheckpointError, Estimator
+from core_akf.filter import CheckpointError, Estimator
 
 from .job import Job
 from .plots import plot_estimate, plot_sensors
@@ -98,7 +98,7 @@ class EstimateResult:
     metrics : dict
         ``detectable``, ``n_steps``, ``units`` (:data:`METRIC_UNITS`), ``calibration`` (with
         ``[filter] calibrate``: :func:`calibrate_job`), ``loglik`` (the Gaussian
-        log-likelihood of the innovations, :mod:`core_akf.likelihood`), ``forces`` and ``sensors``
+        log-likelihood of the innovations, :mod:`core_akf.filter.likelihood`), ``forces`` and ``sensors``
         (per channel, :mod:`core_akf.diagnostics`, each with its ``loglik``), ``warnings``; for a simulated job also
         ``rms_force`` (N per force), ``rms_strain`` (m/m per output), ``avg_strain_error`` (m/m)
         and ``avg_strain_error_microstrain``.  Empty for a run stopped before its end.
@@ -366,7 +366,7 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     n_jobs : int or None
         Filter a measured record of many files time-parallel, a file per task on this many joblib
         workers (-1: all; a dask cluster inside :func:`akf.parallel.scheduler`): the steady-state
-        filter's pieces at the same time (:func:`core_akf.streaming.estimate_in_parallel`), each
+        filter's pieces at the same time (:func:`core_akf.filter.parallel.estimate_in_parallel`), each
         worker reading, filtering and writing its file.  The results equal the sequential run's
         (forces to round-off, fatigue counts exactly).  None: sequential.
 
@@ -396,7 +396,7 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         if out is None:           # in memory: the record is one chunk
             check_memory(n_total, 4 * n_a + 3 * structure.n_strain + 4 * len(sensors),
                          f"the record of {n_total} steps", "give an output folder (akf estimate streams measured "
-                         "records in chunks) or use core_akf.streaming.Estimator")
+                         "records in chunks) or use core_akf.filter.streaming.Estimator")
     else:
         # float64 values held per time step: simulated states, filter states and their products
         # (about 4 copies of the augmented state), strains of the truth and the estimate, channels
@@ -463,7 +463,7 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
         done += 1
         progress_bar(Y.shape[0])
         if job.smooth and lag is None:        # one piece: the smoothed estimate replaces the filtered one
-            est = estimator.setup.smooth(est, 0, Y, estimator.steady)
+            est = estimator.smooth(est, Y)
         take(est)
         if run is not None and step + Y.shape[0] < n_total:     # after the last chunk the summary follows
             run.checkpoint(estimator, diag, step + Y.shape[0], {} if fatigue is None else fatigue.state())
@@ -507,7 +507,7 @@ def _estimate_in_pieces(job, out, record, model, Q, fm, noise_cov, tidy, calibra
     """:func:`estimate_job` of a measured record of many files, time-parallel: a file per task."""
     import joblib
 
-    from core_akf.streaming import estimate_in_parallel
+    from core_akf.filter import estimate_in_parallel
 
     if out is None:
         raise AKFInputError("a time-parallel run writes each file's results where it is filtered: give an output folder")
@@ -642,7 +642,7 @@ def _metrics(job, estimator, diag, last, n_total, t0, whole, sim, model, sensors
     if estimator.report.detectable and any(d["consistency"] > CONSISTENCY_LIMIT for d in metrics["sensors"]):
         # some channel does not fit: on the record's first chunk, find out whether a unit or a sign is wrong
         found = scale_check(model, sensors, forces, first_chunk(), job.dt, model_error_cov=estimator.model_error_cov,
-                            force_model=estimator.setup.force_model, noise_cov=noise_cov)
+                            force_model=estimator.force_model, noise_cov=noise_cov)
         metrics["warnings"] = found + metrics["warnings"]
         if sim is None:
             metrics["warnings"].append("check the channel map in [measurements]: units, invert (sign) and "

@@ -115,6 +115,6 @@ class FatigueRun:
                 self.reference.restore({k[4:]: v for k, v in saved.items() if k.startswith("ref_fatigue")})
             self.steps = int(saved["fatigue_steps"])
         except (KeyError, AKFInputError) as exc:
-            from core_akf.streaming import CheckpointError
+            from core_akf.filter import CheckpointError
 
             raise CheckpointError(f"the checkpoint lacks the fatigue counts ({exc}); start anew with --overwrite") from None

@@ -130,7 +130,7 @@ class Job:
     calibrate_modes : list of int or None
         The modes whose frequencies ``calibrate = ["frequencies"]`` learns (None: the default).
     smooth : bool
-        Smooth the estimate (:mod:`core_akf.smoother`).
+        Smooth the estimate (:mod:`core_akf.filter.smoother`).
     smooth_lag : float, "auto" or None
         The smoother's lag (s); None: the whole record when it is held in one piece, "auto" when
         it is filtered in chunks.

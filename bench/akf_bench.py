@@ -14,8 +14,9 @@ from akf.estimating import estimate_job
 from akf.examples import S17_FORCES, S17_MULTI, example_job
 from akf.job import Job
 from core_akf import filter as akf
+from core_akf.covariances import augmented_covariance
 from core_akf.models import s17_truss
-from core_akf.riccati import solve_filter_dare
+from core_akf.filter.riccati import solve_filter_dare
 from core_akf.simulate import simulate
 from core_akf.statespace import state_space
 
@@ -40,7 +41,7 @@ def main():
     t_ss, est_ss = best_of(lambda: akf.estimate(model, S17_MULTI, S17_FORCES, Y, DT, noise_cov=R, steady=True, **KW))
 
     ss = state_space(model, S17_MULTI, S17_FORCES, DT)
-    Q_a = akf.augmented_covariance(ss.n_states, ss.n_forces, KW["model_error_cov"], KW["force_increment_cov"])
+    Q_a = augmented_covariance(ss.n_states, ss.n_forces, KW["model_error_cov"], KW["force_increment_cov"])
     t_loop, states_loop = best_of(lambda: textbook_loop(ss.A_a, ss.G_a, Q_a, R, Y), 1)
     t_run, states_run = best_of(lambda: akf.run(ss.A_a, ss.G_a, Q_a, R, Y), 1)
     diff = np.max(np.abs(states_run - states_loop)) / np.max(np.abs(states_loop))

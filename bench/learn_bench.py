@@ -4,7 +4,7 @@ Needs statsmodels (a test extra).  On the S17 case-4 record (9 channels, 4 force
 states, 8192 steps) it prints and writes (default ``bench/learn_results.csv``):
 
 1. The log-likelihood of one parameter set: ours (the steady filter straight to the innovations,
-   :func:`core_akf.calibration.steady_logliks`; and the time-varying :func:`core_akf.filter.run`
+   :func:`core_akf.filter.kernels.steady_logliks`; and the time-varying :func:`core_akf.filter.run`
    path, which holds the gain once the covariance has converged, as statsmodels does) against
    statsmodels' ``KalmanFilter.loglike`` on the same matrices, with the relative difference.
 2. Calibration time per parameter set (``core_akf.calibration.calibrate``): the stiffness factor
@@ -32,13 +32,13 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 def _problem():
     from akf.examples import example
-    from core_akf.filter import FilterSetup
+    from core_akf.filter import Filter
 
     job = example("s17-case4")
     sim = job.simulate()
     R = job.noise_cov(sim)
-    setup = FilterSetup(job.filter_model(), [job.sensors], job.forces, job.dt, job.model_error_cov,
-                        job.force_increment_cov, R)
+    setup = Filter(job.filter_model(), [job.sensors], job.forces, job.dt, model_error_cov=job.model_error_cov,
+                   force_increment_cov=job.force_increment_cov, noise_cov=R)
     return job, sim, R, setup
 
 
@@ -55,10 +55,11 @@ def _statsmodels(kind, A, G, Q, R, Y, P0):
 
 
 def main(argv=None):
-    from core_akf.calibration import calibrate, steady_logliks
+    from core_akf.calibration import calibrate
+    from core_akf.filter.kernels import steady_logliks
     from core_akf.filter import estimate, filter_states
     from core_akf.metrics import rms_error
-    from core_akf.smoother import smooth
+    from core_akf.filter.smoother import smooth
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--csv", default=os.path.join(HERE, "learn_results.csv"))
@@ -75,7 +76,7 @@ def main(argv=None):
     t_sm, ll_sm = best_of(lambda: sm.loglike())
     rows.append({"what": "loglik, steady (one parameter set)", "ours_s": t_ours, "statsmodels_s": t_sm,
                  "ratio": t_sm / t_ours, "difference": abs(ll - ll_sm) / abs(ll_sm)})
-    t_tv, res = best_of(lambda: filter_states(A, G, Q, Rm, Y).loglik_terms.sum(), repeat=1)
+    t_tv, res = best_of(lambda: filter_states(A, G, Q, Rm, Y, loglik=True).loglik_terms.sum(), repeat=1)
     sm = _statsmodels("filter", A, G, Q, Rm, Y, Q)
     t_sm, ll_sm = best_of(lambda: sm.loglike(), repeat=1)
     rows.append({"what": "loglik, time-varying (P0 = Q_a)", "ours_s": t_tv, "statsmodels_s": t_sm,
@@ -117,7 +118,7 @@ def main(argv=None):
                      "statsmodels_steps_per_s": N / t_sm})
     # the fixed-lag smoother of a streamed record (chunks of 1024 steps, the automatic lag), with the
     # standard deviations of the forces and every strain output
-    from core_akf.streaming import Estimator
+    from core_akf.filter import Estimator
 
     def streamed(lag):
         est = Estimator(job.structure, job.sensors, job.forces, job.dt, model_error_cov=job.model_error_cov,

@@ -125,9 +125,10 @@ def filter_rows():
     from akf.examples import S17_FORCES, S17_MULTI, example_job
     from akf.job import Job
     from core_akf import filter as akf
+    from core_akf.covariances import augmented_covariance
     from core_akf.models import s17_truss
-    from core_akf.recursion import lti_response
-    from core_akf.riccati import steady_gain
+    from core_akf.filter.recursion import lti_response
+    from core_akf.filter.riccati import steady_gain
     from core_akf.simulate import simulate
     from core_akf.statespace import state_space
 
@@ -140,7 +141,7 @@ def filter_rows():
     model = s17_truss().scaled(1.05)
     ss = state_space(model, S17_MULTI, S17_FORCES, dt)
     A, G = ss.A_a, ss.G_a
-    Q = akf.augmented_covariance(ss.n_states, ss.n_forces, 1e-16, 1e5)
+    Q = augmented_covariance(ss.n_states, ss.n_forces, 1e-16, 1e5)
     n, m = A.shape[0], G.shape[0]
     print(f"1. one filter pass: S17 case 4, {m} channels, {n} augmented states, {n_steps} steps")
 
@@ -210,7 +211,7 @@ def filter_rows():
 
 def _switch_step(akf, A, G, Q, R, Y):
     """Step at which the time-varying filter switches to its converged gain."""
-    from core_akf import filter as mod
+    from core_akf.filter import kernels as mod
     calls = []
     original = mod.lti_response
 
@@ -434,7 +435,7 @@ def large_rows():
 def scan_reason(name):
     """Where the time of a location scan goes: the batched Riccati solves against the rest."""
     from akf.examples.impact import example_scenario
-    from core_akf.riccati import steady_gain
+    from core_akf.filter.riccati import steady_gain
     from impactloc import candidate_locations, default_covariances, role_splits
     from impactloc.scan import ImpactModel, location_errors
 

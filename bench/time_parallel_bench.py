@@ -1,7 +1,7 @@
 """Months of data on many cores (run by hand: ``python bench/time_parallel_bench.py [--hours H]``).
 
 The steady-state AKF over a record cut into pieces (10-minute files), the pieces filtered at the
-same time (:func:`core_akf.streaming.estimate_in_parallel`): every piece's zero-state end state,
+same time (:func:`core_akf.filter.parallel.estimate_in_parallel`): every piece's zero-state end state,
 a pass over the boundaries, then every piece from its start state, with the fatigue of all 34
 members counted per piece and merged.  The S17 case-4 set at 1 kHz; each worker reads its own
 piece from a ``.npy`` file.  Printed: the sequential stream (one process, which already keeps
@@ -53,7 +53,7 @@ def main(argv=None):
     from core_akf.fatigue import FatigueAccumulator, SNCurve, stress_operator
     from core_akf.loads import band_limited_white_noise
     from core_akf.models import s17_truss
-    from core_akf.streaming import Estimator, TimeParallel, estimate_in_parallel
+    from core_akf.filter import Estimator, TimeParallel, estimate_in_parallel
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=1.0)
@@ -128,7 +128,7 @@ def main(argv=None):
     check(out, "pieces, builtin map (1 process)", time.perf_counter() - t0)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
             distributed.Client(cluster) as client:
-        client.run(lambda: __import__("core_akf.streaming") and __import__("core_akf.fatigue"))   # warm workers
+        client.run(lambda: __import__("core_akf.filter.streaming") and __import__("core_akf.fatigue"))   # warm workers
         t0 = time.perf_counter()
         out = estimate_in_parallel(estimator(), pieces, lambda f, xs: client.gather(client.map(f, xs, pure=False)),
                                    on_piece=_Fatigue(W))

@@ -1,7 +1,7 @@
 """Learning the model and the covariances from a record: maximum likelihood over the stiffness
 factor and the covariance levels (Q, S, R per sensor kind).
 
-The log-likelihood of the innovations (:mod:`core_akf.likelihood`) says how probable a record is
+The log-likelihood of the innovations (:mod:`core_akf.filter.likelihood`) says how probable a record is
 under a filter's model and covariances; it peaks at the model that made the record.  Each
 evaluation runs the steady-state filter straight to the innovations (one batched Riccati solve
 and the lifted recursion to the predicted channels, :func:`steady_logliks`), so a whole stack of
@@ -25,20 +25,14 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg
 
 from .checks import as_finite_array
 from .covariances import noise_covariance
 from .defaults import default
 from .exceptions import AKFInputError
-from .filter import FilterSetup, innovation_covariance
+from .filter.kernels import steady_logliks
+from .filter.model import Filter
 from .forcemodels import DummyMeasurements, ForceModel, as_force_model
-from .likelihood import loglik_terms
-from .recursion import lti_response
-from .riccati import RiccatiError
-from .sensors import as_layout, parse_force_locations
-from .statespace import check_detectable
-from .steady import steady_filter
 from .types import Covariance, Forces, Layout, Measurements, NoiseCovariance
 
 if TYPE_CHECKING:
@@ -52,58 +46,6 @@ LOG_STEP = 1e-4
 #: a parameter whose log-likelihood changes by less than this over its whole search range is not
 #: identifiable from the record
 FLAT = 1e-3
-
-
-def steady_logliks(A, G, Q, R, Y):
-    """The log-likelihood of a record under a stack of steady-state filters.
-
-    Parameters
-    ----------
-    A : ndarray (B, n, n)
-        Augmented transitions.
-    G : ndarray (B, m, n)
-        Augmented observations.
-    Q : ndarray (B, n, n)
-        Process covariances.
-    R : ndarray (B, m, m)
-        Measurement-noise covariances.
-    Y : ndarray (N, m)
-        The record (SI), the same for every filter.
-
-    Returns
-    -------
-    ndarray (B,)
-        One log-likelihood per filter; ``-inf`` where the steady-state gain does not exist.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> A, G = np.array([[[1.0]]]), np.array([[[1.0]]])
-    >>> Y = np.random.default_rng(0).normal(size=(500, 1))
-    >>> ll = steady_logliks(np.repeat(A, 2, 0), np.repeat(G, 2, 0), np.array([[[1e-6]], [[1e-6]]]),
-    ...                     np.array([[[1.0]], [[4.0]]]), Y)
-    >>> bool(ll[0] > ll[1])              # unit-variance data: R = 1 is likelier than R = 4
-    True
-    """
-    Y = np.asarray(Y, float)
-    B = A.shape[0]
-    out = np.full(B, -np.inf)
-    ok = np.arange(B)
-    Ys = np.broadcast_to(Y, (B,) + Y.shape)
-    try:
-        P, L, F, first = steady_filter(A, G, Q, R, Ys)
-    except RiccatiError as exc:                        # the filters that have a steady state
-        ok = np.array([b for b in range(B) if b not in set(exc.problems)], int)
-        if not ok.size:
-            return out
-        A, G, Q, R, Ys = A[ok], G[ok], Q[ok], R[ok], Ys[ok]
-        P, L, F, first = steady_filter(A, G, Q, R, Ys)
-    predicted = lti_response(F, L, Ys, first, G @ A)            # G A X_k: the next step's predicted channels
-    E = np.empty_like(Ys)
-    E[:, 0] = Ys[:, 0]
-    E[:, 1:] = Ys[:, 1:] - predicted[:, :-1]
-    out[ok] = loglik_terms(E, innovation_covariance(G, P, R)).sum(axis=(1, 2))
-    return out
 
 
 @dataclass
@@ -136,6 +78,8 @@ class CalibrationResult:
     force_model : ForceModel or None
         The fitted force model (the starting one with ``force_std``/``force_timescale`` applied);
         None for the random walk (its ``S`` is in :meth:`apply`).
+    layout : tuple of Sensor
+        The layout of the fit.
     """
 
     values: dict
@@ -147,6 +91,7 @@ class CalibrationResult:
     evaluations: int = 0
     seconds: float = 0.0
     force_model: object = None
+    layout: tuple = ()
 
     def apply(self, structure: Structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance) -> tuple:
@@ -177,9 +122,11 @@ class CalibrationResult:
             model = model.with_frequency_factors(frequency_factors(m))
         if "damping" in m:
             model = model.with_damping(np.asarray(structure.damping, float) * m["damping"])
-        layout = as_layout(sensors)
-        scale = noise_scale(layout, m)
-        R = noise_covariance(layout, noise_cov) * np.outer(scale, scale)
+        R = noise_covariance(sensors, noise_cov)
+        if R.shape[0] != len(self.layout):
+            raise AKFInputError(f"the fit was made for {len(self.layout)} sensors; got {R.shape[0]}")
+        scale = noise_scale(self.layout, m)
+        R = R * np.outer(scale, scale)
         Q = np.asarray(model_error_cov, float) * m.get("model_error_cov", 1.0)
         S = None if force_increment_cov is None else np.asarray(force_increment_cov, float) * m.get("force_increment_cov", 1.0)
         return model, Q, S, R
@@ -225,13 +172,13 @@ def frequency_factors(multipliers: dict) -> np.ndarray:
 
 
 class _Problem:
-    """The log-likelihood as a function of the log-factors ``u`` of the chosen parameters."""
+    """The log-likelihood as a function of the log-factors ``u`` of the chosen parameters: an
+    optimiser over :meth:`Filter.with_structure` and :meth:`Filter.with_levels` of one filter."""
 
-    def __init__(self, structure, layout, locs, Y, dt, Q, force_model, R, names, modes=(), dummy=None):
-        self.structure, self.layout, self.locs, self.dt = structure, layout, locs, dt
-        self.modes = tuple(modes)
-        self.Q, self.force_model, self.dummy = Q, force_model, dummy
-        self.R = noise_covariance(layout, R)
+    def __init__(self, base, Y, names, modes=()):
+        self.base, self.modes = base, tuple(modes)
+        layout, locs = base.layouts[0], base.locs
+        self.layout, self.locs = layout, locs
         self.kinds = sorted({s.kind for s in layout})
         self.names = []
         for name in names:
@@ -245,48 +192,37 @@ class _Problem:
                 self.names += [f"{name.split(':')[0]}:{node}:{d}" for node, d in locs]
             else:
                 self.names.append(name)
-        self._setups = {}
+        self._filters = {}
         self.evaluations = 0
-        self.Y = self.setup({}).extend(Y)
+        self.Y = base.extend(Y)
 
-    def setup(self, p):
-        """The filter matrices of the model parameters in ``p`` (log-factors by name), kept per set."""
+    def model_filter(self, p):
+        """The filter of the model parameters in ``p`` (log-factors by name), kept per set."""
         freq = tuple(round(float(p.get(f"frequencies:{k}", 0.0)), 12) for k in self.modes)
         key = (round(float(p.get("stiffness_factor", 0.0)), 12), round(float(p.get("damping", 0.0)), 12), freq)
-        if key not in self._setups:
-            model = self.structure if key[0] == 0.0 else self.structure.scaled(float(np.exp(key[0])))
+        if key == (0.0, 0.0, (0.0,) * len(freq)):
+            return self.base
+        if key not in self._filters:
+            structure = self.base.structure
+            model = structure if key[0] == 0.0 else structure.scaled(float(np.exp(key[0])))
             if any(freq):
                 model = model.with_frequency_factors(
                     frequency_factors({f"frequencies:{k}": np.exp(x) for k, x in zip(self.modes, freq)}))
             if key[1] != 0.0:
-                model = model.with_damping(np.asarray(self.structure.damping, float) * np.exp(key[1]))
-            self._setups[key] = FilterSetup(model, [self.layout], self.locs, self.dt, self.Q, None, self.R,
-                                            force_model=self.force_model, dummy=self.dummy)
-            if len(self._setups) > 64:
-                self._setups.pop(next(iter(self._setups)))
-        return self._setups[key]
+                model = model.with_damping(np.asarray(structure.damping, float) * np.exp(key[1]))
+            self._filters[key] = self.base.with_structure(model)
+            if len(self._filters) > 64:
+                self._filters.pop(next(iter(self._filters)))
+        return self._filters[key]
 
     def matrices(self, u):
         """``(A_a, G_a, Q_a, R)`` of the log-factors ``u``."""
         p = dict(zip(self.names, u))
-        setup = self.setup(p)
-        nx, A_a = setup.nx, setup.A_a
-        Q_a = setup.Q_a.copy()             # blockdiag(Q, S) in modal coordinates: each block is linear in its level
-        Q_a[:nx, :nx] *= np.exp(p.get("model_error_cov", 0.0))
-        Q_a[nx:, nx:] *= np.exp(p.get("force_increment_cov", 0.0))
         std, scale_t = self.force_factors(p)
-        if np.any(scale_t != 1.0):         # the force block of A and Q (the coupling B H does not change)
-            F_d, Q_a[nx:, nx:] = self.force_model.scaled(1.0, scale_t).discrete(len(self.locs), self.dt)
-            A_a = A_a.copy()
-            A_a[nx:, nx:] = F_d
-        k = self.force_model.states_per_force                    # Q_f is linear in std^2, force by force
-        s_states = np.repeat(std, k)
-        Q_a[nx:, nx:] *= np.outer(s_states, s_states)
-        scale = noise_scale(self.layout, {n: np.exp(x) for n, x in p.items()})
-        R = self.R * np.outer(scale, scale)
-        if setup.dummy_layout:
-            R = scipy.linalg.block_diag(R, setup.R[0][self.R.shape[0]:, self.R.shape[0]:])
-        return A_a, setup.G_a[0], Q_a, R
+        f = self.model_filter(p).with_levels(
+            q=np.exp(p.get("model_error_cov", 0.0)), s=np.exp(p.get("force_increment_cov", 0.0)) * std ** 2,
+            r=noise_scale(self.layout, {n: np.exp(x) for n, x in p.items()}), timescale=scale_t)
+        return f.A_a, f.G_a[0], f.Q_a, f.R[0]
 
     def force_factors(self, p):
         """The factors on each force's std and time scale of the log-factors ``p`` (by name): one
@@ -380,13 +316,14 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     from scipy.optimize import minimize
 
     start_time = time.perf_counter()
-    layout = as_layout(sensors)
-    names = _check_parameters(parameters, layout)
-    locs = parse_force_locations(structure, forces)
     Y = as_finite_array(measurements, "measurements", ndim=2)
+    force_model = as_force_model(force_model, force_increment_cov)
+    base = Filter(structure, [sensors], forces, dt, model_error_cov=model_error_cov, noise_cov=noise_cov, steady=True,
+                  force_model=force_model, dummy=dummy)
+    layout, locs = base.layouts[0], base.locs
+    names = _check_parameters(parameters, layout)
     if Y.shape[1] != len(layout):
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
-    force_model = as_force_model(force_model, force_increment_cov)
     force_model.parameters(len(locs))
     if force_model.stationary and "force_increment_cov" in names:
         raise AKFInputError(f"force_increment_cov is the random walk's S; the {force_model.kind} force model learns "
@@ -394,18 +331,14 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     if not force_model.stationary and any(n.startswith(("force_std", "force_timescale")) for n in names):
         raise AKFInputError("force_std and force_timescale are the parameters of a Matérn force model "
                             "(force_model = matern12, matern32 or matern52); the random walk learns force_increment_cov")
-    check_detectable(structure, list(layout) + ([] if dummy is None else dummy.layout(structure, layout)), locs,
-                     force_model=force_model)
     if "damping" in names and not _modal_ratio(structure.damping):
         raise AKFInputError(f"damping is calibrated as a factor on the model's modal damping ratio; this model's damping "
                             f"is {structure.damping!r} (give it a modal ratio, e.g. 0.01)")
-    Q = _level(model_error_cov, "model_error_cov", "model_error_cov" in names)
+    _level(model_error_cov, "model_error_cov", "model_error_cov" in names)
     if not force_model.stationary:
-        force_model = ForceModel("random_walk",
-                                 increment_cov=_level(force_model.increment_cov, "force_increment_cov",
-                                                      "force_increment_cov" in names))
+        _level(force_model.increment_cov, "force_increment_cov", "force_increment_cov" in names)
     modes = _check_modes(structure, dt, modes) if "frequencies" in names else ()
-    problem = _Problem(structure, layout, locs, Y, dt, Q, force_model, noise_cov, names, modes, dummy)
+    problem = _Problem(base, Y, names, modes)
     if Y.shape[0] < 10 * (len(problem.names) + 1):
         raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(problem.names)} parameter(s)")
     ranges = {"stiffness_factor": default("calibration_stiffness_range", stiffness_range),
@@ -478,7 +411,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
                 value = np.asarray(value, float)
                 values[name] = float(value) if value.ndim == 0 else value.tolist()
     return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
-                             time.perf_counter() - start_time, fitted_force)
+                             time.perf_counter() - start_time, fitted_force, layout)
 
 
 def calibration_modes(structure: Structure, dt: float) -> list[int]:

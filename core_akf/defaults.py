@@ -116,7 +116,7 @@ def band_modes(structure, dt, accelerations=False):
     :func:`auto_modes` and at least ``auto_modes_minimum`` modes.
 
     The reduced filter also carries the dropped modes' response to the model-error noise in its
-    measurement noise (:meth:`~core_akf.reduced.ModalFilterModel.residual_noise`); without it the
+    measurement noise (:meth:`~core_akf.filter.model.FilterModel.residual_noise`); without it the
     model error that a full filter spreads over every mode is simply lost.
 
     Measured on the thesis plate at 2 kHz (3 strain gauges, 0.1 s window): 32 modes instead of

@@ -118,7 +118,7 @@ class RunningDiagnostics:
     """The diagnostics of a record estimated chunk by chunk, in constant memory.
 
     :func:`sensor_diagnostics` and :func:`force_statistics` of the whole record from the chunks of
-    a :class:`core_akf.streaming.Estimator`: sums, the extreme force, and the lag products of the
+    a :class:`core_akf.filter.streaming.Estimator`: sums, the extreme force, and the lag products of the
     innovations across chunk boundaries.  Feed each chunk's estimate to :meth:`update` in order.
 
     Parameters
@@ -436,26 +436,23 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     list of str
         One warning per channel or kind that looks scaled, naming the unit it looks like.
     """
-    from .covariances import noise_covariance
-    from .filter import FilterSetup
-    from .forcemodels import as_force_model
-    from .sensors import as_layout, parse_force_locations
+    from .filter.kernels import steady_outputs
+    from .filter.model import Filter
     from .statespace import detectability
-    from .steady import steady_outputs
 
-    layout = as_layout(sensors)
+    f = Filter(structure, [sensors], forces, dt, model_error_cov=model_error_cov,
+               force_increment_cov=force_increment_cov, noise_cov=noise_cov, allow_undetectable=True,
+               force_model=force_model)
+    layout, locs, R = f.layouts[0], f.locs, f.R[0]
     Y = np.asarray(measurements, float)
-    R = noise_covariance(layout, noise_cov)
     kinds = np.array([s.kind for s in layout])
     groups = [("kind", k, np.flatnonzero(kinds == k)) for k in dict.fromkeys(kinds)] if len(set(kinds)) > 1 else []
     groups += [("channel", s.label, np.array([j])) for j, s in enumerate(layout)]
     # a hold-out whose other sensors cannot see the forces has no steady-state filter (acceleration
     # only, say): nothing to compare with there
-    locs = parse_force_locations(structure, forces)
-    force_model = as_force_model(force_model, force_increment_cov)
     groups = [g for g in groups if len(g[2]) < len(layout)
               and detectability(structure, [s for j, s in enumerate(layout) if j not in g[2]], locs,
-                                force_model).detectable]
+                                f.force_model).detectable]
     if not groups:
         return []
     Rs = np.stack([R.copy() for _ in groups])
@@ -463,12 +460,10 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
         Rs[b, idx, idx] *= _IGNORE
     # one-step predictions y_k^- = G_a A_a X_{k-1} of every hold-out, straight from the lifted
     # recursion (no state histories: memory of the order of the data, also for a large model)
-    setup = FilterSetup(structure, [layout] * len(groups), locs, dt,
-                         model_error_cov, None, Rs, force_model=force_model)
-    H = setup.G_a @ setup.A_a
+    G = np.broadcast_to(f.G_a, (len(groups),) + f.G_a.shape[1:])
     predicted = np.zeros((len(groups),) + Y.shape)
-    predicted[:, 1:] = steady_outputs(setup.A_a, setup.G_a, setup.Q_a, setup.R,
-                                      np.broadcast_to(Y, (len(groups),) + Y.shape), H)[:, :-1]
+    predicted[:, 1:] = steady_outputs(f.A_a, G, f.Q_a, Rs, np.broadcast_to(Y, (len(groups),) + Y.shape),
+                                      f.G_a[0] @ f.A_a)[:, :-1]
     k0 = _skip(Y.shape[0])
     found = []                                   # (what, name, idx, c, r)
     for (what, name, idx), pred in zip(groups, predicted):

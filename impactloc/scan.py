@@ -17,7 +17,8 @@ from core_akf.defaults import auto_modes, default
 from core_akf.exceptions import AKFInputError
 from core_akf.forcemodels import ForceModel
 from core_akf.metrics import rms, rms_error
-from core_akf.reduced import ModalFilterModel, steady_outputs
+from core_akf.filter import FilterModel
+from core_akf.filter.kernels import steady_outputs
 from core_akf.sensors import as_layout, parse_force_locations
 from core_akf.statespace import SubsetDetectability
 from core_akf.types import FloatArray, ForceLocation, Layout, Measurements
@@ -178,7 +179,7 @@ def _free(structure, node, direction):
 class ImpactModel:
     """The filter model prepared once for a scan.
 
-    One :class:`core_akf.reduced.ModalFilterModel` per candidate location (cached), all sharing
+    One :class:`core_akf.filter.model.FilterModel` per candidate location (cached), all sharing
     the structure's modes.  Picklable.
 
     Parameters
@@ -217,7 +218,7 @@ class ImpactModel:
         self._systems = {}
         self._detectability = {}
 
-    def filter_model(self, loc: ForceLocation) -> tuple[ModalFilterModel, FloatArray]:
+    def filter_model(self, loc: ForceLocation) -> tuple[FilterModel, FloatArray]:
         """The filter model of a force location, built once.
 
         Parameters
@@ -227,14 +228,14 @@ class ImpactModel:
 
         Returns
         -------
-        fm : ModalFilterModel
+        fm : FilterModel
         G_a : ndarray (m, n_a)
             The observation rows of all installed sensors.
         """
         if loc not in self._systems:        # a Matérn model with unit std: Q_f scales with std^2
             unit = None if self.force_model is None else ForceModel(self.force_model.kind, std=1.0,
                                                                     timescale=self.force_model.timescale)
-            fm = ModalFilterModel(self.full, [loc], self.dt, self.n_modes, force_model=unit)
+            fm = FilterModel(self.full, [loc], self.dt, self.n_modes, force_model=unit)
             self._systems[loc] = (fm, fm.observation(self.layout))
         return self._systems[loc]
 

@@ -16,8 +16,9 @@ import numpy as np
 from core_akf.defaults import band_modes, default
 from core_akf.exceptions import AKFInputError
 from core_akf.forcemodels import ForceModel
-from core_akf.reduced import ModalFilterModel, steady_outputs
-from core_akf.riccati import RiccatiError
+from core_akf.filter import FilterModel
+from core_akf.filter.kernels import steady_outputs
+from core_akf.filter.riccati import RiccatiError
 from core_akf.simulate import simulate
 from core_akf.statespace import SubsetDetectability
 from core_akf.types import ForceHistories, Forces
@@ -105,9 +106,9 @@ class StrainErrorObjective:
     every admissible sensor channel (each channel with its own fixed noise draw,
     ``relative_noise`` of its RMS), so the fitness of a layout is deterministic.  The filter uses
     the structure scaled by ``stiffness_factor`` (model error), reduced to ``n_modes`` modes with
-    a static correction (:class:`core_akf.reduced.ModalFilterModel`), the true noise variances
+    a static correction (:class:`core_akf.filter.model.FilterModel`), the true noise variances
     plus what the dropped modes' response to the model-error noise adds at the sensors
-    (:meth:`~core_akf.reduced.ModalFilterModel.residual_noise`, so that a reduced fitness ranks
+    (:meth:`~core_akf.filter.model.FilterModel.residual_noise`, so that a reduced fitness ranks
     layouts like the full model), and runs the layouts of a batch in one call (one batched
     Riccati solve).
 
@@ -178,11 +179,11 @@ class StrainErrorObjective:
         self.reference = sim.strains if rows is None else sim.strains[:, rows]    # (n, n_targets)
         if force_model is None:
             force_model = ForceModel("random_walk", increment_cov=force_increment_cov)
-        self.model = ModalFilterModel(structure.scaled(stiffness_factor), forces, dt, n_modes, force_model=force_model)
+        self.model = FilterModel(structure.scaled(stiffness_factor), forces, dt, n_modes, force_model=force_model)
         self.G = self.model.observation(self.labels)   # (n_candidates, n_a)
         self.H = self.model.strain_rows() if rows is None else self.model.strain_rows()[rows]
         self.Q = self.model.Q_a(model_error_cov)
-        # what the dropped modes' model-error response adds to each channel (ModalFilterModel.residual_noise):
+        # what the dropped modes' model-error response adds to each channel (FilterModel.residual_noise):
         # with it the reduced fitness ranks layouts like the full model
         self.residual_noise = self.model.residual_noise(self.labels, model_error_cov)
         self._detectability = SubsetDetectability(structure, self.labels, self.model.forces, force_model)

@@ -11,7 +11,8 @@ from core_akf.defaults import auto_modes, default
 from core_akf.exceptions import AKFInputError
 from core_akf.forcemodels import ForceModel
 from core_akf.metrics import average_strain_error
-from core_akf.reduced import ModalFilterModel, steady_outputs
+from core_akf.filter import FilterModel
+from core_akf.filter.kernels import steady_outputs
 from core_akf.simulate import simulate
 
 from .encoding import CandidateSet, make_encoding
@@ -211,7 +212,7 @@ class PlacementProblem:
         if n_modes == "auto":
             n_modes = auto_modes(self.structure, self.dt, accelerations=any(str(s).startswith("acc") for s in sensors))
         force_model = self.force_model or ForceModel("random_walk", increment_cov=self.force_increment_cov)
-        fm = ModalFilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt,
+        fm = FilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt,
                               None if n_modes is None else min(int(n_modes), self.structure.n), force_model=force_model)
         R = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2) + fm.residual_noise(sensors, self.model_error_cov)
         est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov),

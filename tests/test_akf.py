@@ -14,9 +14,9 @@ import pytest
 import scipy.linalg
 
 from core_akf import filter as akf
-from core_akf import recursion
+from core_akf.filter import recursion
 from core_akf.models import s17_truss
-from core_akf.riccati import dare_residual, solve_filter_dare, steady_gain
+from core_akf.filter.riccati import dare_residual, solve_filter_dare, steady_gain
 from core_akf.simulate import simulate
 from core_akf.statespace import state_space
 
@@ -262,7 +262,7 @@ def test_reduced_structure_projection_inverts_basis():
 
 
 def test_riccati_falls_back_to_scipy_with_a_warning():
-    from core_akf.riccati import RiccatiWarning
+    from core_akf.filter.riccati import RiccatiWarning
     A, G, Q, R, *_ = _random_system(9, n=6, m=2)
     with pytest.warns(RiccatiWarning, match="falling back"):
         P = solve_filter_dare(A, G, Q, R, max_iter=1)
@@ -284,7 +284,7 @@ def test_riccati_stack_gives_the_same_bits_alone_batched_and_over_threads(monkey
     """Each problem of a stack iterates until it has converged and then stops, so its solution
     does not depend on what else is in the stack -- nor on how the stack is split over threads
     (the location scan and the GA rely on this for bit-identical runs on any number of workers)."""
-    from core_akf import riccati
+    from core_akf.filter import riccati
     systems = [_random_system(s, n=7, m=2) for s in range(7)]
     A, G, Q, R = (np.stack([s[i] for s in systems]) for i in range(4))
     monkeypatch.setenv("AKF_NUM_THREADS", "1")
@@ -321,7 +321,7 @@ def test_estimate_batch_with_noise_per_layout():
 def test_structured_time_varying_update_equals_dense():
     """ModalBlockTransition's A P A^T (used by estimate for classically damped structures)
     gives the same time-varying filter as the dense product."""
-    from core_akf.filter import ModalBlockTransition
+    from core_akf.filter.kernels import ModalBlockTransition
     from core_akf.models import th_plate
     from core_akf.statespace import augment, modal_state_transform, modal_zoh, observation
     s = th_plate().reduce(30)
@@ -389,7 +389,7 @@ def test_estimate_to_frame():
 
 
 def test_stein_doubling_matches_scipy_lyapunov():
-    from core_akf.riccati import stein_doubling
+    from core_akf.filter.riccati import stein_doubling
     rng = np.random.default_rng(11)
     F = rng.normal(size=(7, 7))
     F *= 0.98 / np.max(np.abs(np.linalg.eigvals(F)))
@@ -400,7 +400,7 @@ def test_stein_doubling_matches_scipy_lyapunov():
 
 
 def test_newton_step_polishes_a_perturbed_solution():
-    from core_akf.riccati import newton_step
+    from core_akf.filter.riccati import newton_step
     A, G, Q, R, *_ = _random_system(12, n=8, m=3)
     ref = scipy.linalg.solve_discrete_are(A.T, G.T, Q, R)
     P = ref * (1 + 1e-3 * np.random.default_rng(0).normal(size=ref.shape))

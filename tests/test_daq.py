@@ -18,7 +18,7 @@ from core_akf.filter import estimate
 from core_akf.io import Reader, Record, Timing, conversion, register_reader
 from core_akf.io import readers as readers_module
 from core_akf.models import s17_truss
-from core_akf.streaming import CheckpointError, Estimator
+from core_akf.filter import CheckpointError, Estimator
 
 DAQ = pathlib.Path(__file__).resolve().parents[1] / "examples" / "daq"
 FORMATS = ["record.csv", "record.parquet", "record.tdms", "record.uff", "record.h5"]

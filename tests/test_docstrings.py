@@ -157,7 +157,7 @@ def test_the_check_finds_an_undocumented_parameter():
 # ----------------------------------------------------------------------------- type hints
 #: the public API: what these modules export (``__all__``), and the classes a user builds beside them
 API_MODULES = ("core_akf", "core_akf.models", "core_akf.loads", "core_akf.io", "sensoropt", "impactloc")
-API_EXTRA = ("core_akf.streaming.Estimator", "core_akf.covariances.noise_covariance")
+API_EXTRA = ("core_akf.filter.streaming.Estimator", "core_akf.covariances.noise_covariance")
 
 
 def _api():
@@ -233,7 +233,7 @@ def test_the_annotations_name_real_types():
 
 # ----------------------------------------------------------------------------- examples
 #: the classes a user builds (results are shown by the examples of the functions that return them)
-BUILT_CLASSES = ("core_akf.Structure", "core_akf.streaming.Estimator", "core_akf.io.Record", "sensoropt.CandidateSet",
+BUILT_CLASSES = ("core_akf.Structure", "core_akf.filter.streaming.Estimator", "core_akf.io.Record", "sensoropt.CandidateSet",
                  "sensoropt.FunctionObjective", "sensoropt.PlacementProblem", "impactloc.Covariances")
 
 

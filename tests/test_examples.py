@@ -81,13 +81,13 @@ def test_placement_examples_reproduce_the_thesis_gain():
         "strain:87:gxy".split())
     rtol = pin_rtol(p5.structure)
     # (3.59759, 1.87767, 1.02475) before the reduced filter carried its dropped modes' model-error
-    # response in R (ModalFilterModel.residual_noise): +0.06 % at most, towards the full filter's
+    # response in R (FilterModel.residual_noise): +0.06 % at most, towards the full filter's
     assert (case2, best3, best8) == pytest.approx((3.599569321126156, 1.8776835146599353, 1.025246289978517), rel=rtol)
     assert case2 / best3 > 0.9 * 0.00666 / 0.00360 and case2 / best8 > 0.9 * 0.00666 / 0.00183
     multi = example_problem("th-multi")
     assert multi.budget == {"strain": 2, "acc": 1}
     # 2.1912 before the reduced filter added its dropped modes' model-error response to R
-    # (ModalFilterModel.residual_noise): the full 330-DOF filter gives 3.2363, the 101 modes now 3.2326
+    # (FilterModel.residual_noise): the full 330-DOF filter gives 3.2363, the 101 modes now 3.2326
     assert multi.full_record_error(["strain:62:ey", "strain:93:gxy", "acc:112:w"]) == pytest.approx(
         3.2326072581373446, rel=rtol)
 

@@ -286,7 +286,7 @@ def test_outputs_are_created_with_the_users_umask(tmp_path, capsys):
 def test_resume_after_the_output_strains_or_the_format_or_the_filter_changed(tmp_path, capsys):
     from akf.estimating import estimate_job
     from akf.job import load_job
-    from core_akf.streaming import CheckpointError
+    from core_akf.filter import CheckpointError
     path = str(_measured_job(tmp_path))
     out = str(tmp_path / "o")
     estimate_job(load_job(path, "estimate"), out, plot=False, stop_after=2)

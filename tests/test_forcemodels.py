@@ -15,11 +15,11 @@ from akf.locating import run_locate_job
 from core_akf import DummyMeasurements, ForceModel, detectability, estimate, simulate
 from core_akf.calibration import calibrate
 from core_akf.exceptions import AKFInputError, UndetectableError
-from core_akf.filter import FilterSetup
+from core_akf.filter import Filter
 from core_akf.loads import band_limited_white_noise
 from core_akf.models import s17_truss
 from core_akf.statespace import SubsetDetectability, continuous, zoh
-from core_akf.streaming import Estimator
+from core_akf.filter import Estimator
 from sensoropt.problem import PlacementProblem
 
 ACC = ["acc:2:y", "acc:4:y", "acc:5:y", "acc:6:y", "acc:7:y", "acc:9:y", "acc:12:y", "acc:14:y", "acc:4:x", "acc:9:x"]
@@ -59,8 +59,8 @@ def test_augmented_model_is_the_zoh_structure_driven_by_the_force_states():
     structure's own ZOH ``A, B``, and the observation ``[G, D H]``."""
     truss, locs = s17_truss(), ["6:y", "12:y"]
     fm = ForceModel("matern32", std=500.0, timescale=2e-3)
-    setup = FilterSetup(truss, [["strain:13", "acc:6:y"]], locs, DT, 1e-16, None, {"strain": 1e-12, "acc": 1e-4},
-                        force_model=fm)
+    setup = Filter(truss, [["strain:13", "acc:6:y"]], locs, DT, model_error_cov=1e-16,
+                   noise_cov={"strain": 1e-12, "acc": 1e-4}, force_model=fm)
     A_phys = setup.Ta @ setup.A_a @ setup.Ta_inv
     A, B = zoh(*continuous(truss, locs), DT)
     nx = A.shape[0]
@@ -84,7 +84,7 @@ def test_gp_filter_equals_filterpy_on_the_same_augmented_matrices():
     F, sim = _record(seconds=0.1)
     R = np.diag(sim.noise_std ** 2)
     fm = ForceModel("matern32", std=[600.0, 425.0], timescale=2e-3)
-    setup = FilterSetup(s17_truss(), [ACC], ["6:y", "12:y"], DT, 1e-16, None, R, force_model=fm)
+    setup = Filter(s17_truss(), [ACC], ["6:y", "12:y"], DT, model_error_cov=1e-16, noise_cov=R, force_model=fm)
     est = estimate(s17_truss(), ACC, ["6:y", "12:y"], sim.measurements, DT, model_error_cov=1e-16, noise_cov=R,
                    force_model=fm, steady=False)
     kf = filterpy.KalmanFilter(dim_x=setup.A_a.shape[0], dim_z=len(ACC))
@@ -423,7 +423,7 @@ def test_akf_place_searches_accelerometer_only_layouts(tmp_path, capsys):
 def test_time_parallel_pieces_equal_the_stream_under_force_models(kw):
     """The time-parallel steady filter (pieces at once) equals the sequential stream, with a
     Matérn-5/2 model (three states per force) and with dummies (a displacement and a strain)."""
-    from core_akf.streaming import estimate_in_parallel
+    from core_akf.filter import estimate_in_parallel
 
     F, sim = _record(seconds=0.5)
     R = np.diag(sim.noise_std ** 2)

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from core_akf import estimate, simulate
-from core_akf.filter import FilterSetup, estimate_batch, filter_states
+from core_akf.filter import Filter, estimate_batch, filter_states
 from core_akf.models import s17_truss
 from core_akf.sensors import as_layout, parse_force_locations
-from core_akf.streaming import Estimator
+from core_akf.filter import Estimator
 
 SENSORS = ["strain:13", "strain:26", "acc:8:y"]
 FORCES = ["8:y"]
@@ -41,15 +41,15 @@ def _statsmodels_loglik(A, G, Q, R, Y, P0):
 def _setup(R):
     s = s17_truss().scaled(1.05)
     layout = as_layout(SENSORS)
-    return FilterSetup(s, [layout], parse_force_locations(s, FORCES), DT, COV["model_error_cov"],
-                       COV["force_increment_cov"], R)
+    return Filter(s, [layout], parse_force_locations(s, FORCES), DT, model_error_cov=COV["model_error_cov"],
+                  force_increment_cov=COV["force_increment_cov"], noise_cov=R)
 
 
 @pytest.mark.parametrize("steady", [False, True])
 def test_loglik_equals_an_independent_kalman_filter(steady):
     Y, R = _record()
     setup = _setup(R)
-    res = filter_states(setup.A_a, setup.G_a, setup.Q_a, setup.R, Y[None], steady=steady)
+    res = filter_states(setup.A_a, setup.G_a, setup.Q_a, setup.R, Y[None], steady=steady, loglik=True)
     P0 = setup.Q_a if not steady else res.P_prior[0]
     ref, ref_steps = _statsmodels_loglik(setup.A_a, setup.G_a[0], setup.Q_a, setup.R[0], Y, P0)
     ours = res.loglik_terms[0]

@@ -8,8 +8,8 @@ import scipy.linalg
 from akf.examples import TH_CASE3
 from core_akf.filter import filter_states
 from core_akf.models import s17_truss, th_plate
-from core_akf.reduced import ModalFilterModel
-from core_akf.riccati import RiccatiError, RiccatiWarning, dare_residual, solve_filter_dare
+from core_akf.filter import FilterModel
+from core_akf.filter.riccati import RiccatiError, RiccatiWarning, dare_residual, solve_filter_dare
 
 EPS = np.finfo(float).eps
 
@@ -20,7 +20,7 @@ def test_long_time_varying_run_keeps_P_symmetric_psd_and_at_the_dare_solution():
     to rounding (smallest eigenvalue >= -n eps ||P||, the eigen-solver's own error) and equal to the
     steady-state DARE solution to 1e-8 relative (the DARE residual bound of the solver; the
     recursion itself converges geometrically and then only accumulates rounding)."""
-    fm = ModalFilterModel(s17_truss(), ["8:y"], 1 / 1024, 6)
+    fm = FilterModel(s17_truss(), ["8:y"], 1 / 1024, 6)
     G = fm.observation(["strain:13", "acc:8:y"])
     Q = fm.Q_a(1e-14, 1e2)
     R = np.diag([1e-14, 1e-2])
@@ -40,7 +40,7 @@ def test_riccati_is_polished_to_rounding_and_beats_scipy():
     """TH case 3 (two gauges + one accelerometer, 80 modes + static correction): the doubling
     iteration alone stops at a residual far above rounding; Newton polishing brings it to rounding
     level, at least as accurate as scipy's solver on the same problem."""
-    fm = ModalFilterModel(th_plate().scaled(1.05), ["121:w", "111:w"], 1 / 2000, 80)
+    fm = FilterModel(th_plate().scaled(1.05), ["121:w", "111:w"], 1 / 2000, 80)
     G = fm.observation(TH_CASE3)
     Q = fm.Q_a(1e-16, 1.0)
     R = np.diag([(2e-7) ** 2, (2e-7) ** 2, 0.01 ** 2])
@@ -57,7 +57,7 @@ def test_riccati_is_polished_to_rounding_and_beats_scipy():
 def test_fallback_result_is_checked(monkeypatch):
     """When doubling fails and scipy returns an inaccurate solution, the solver refuses it with a
     message naming the problem instead of passing it on."""
-    fm = ModalFilterModel(s17_truss(), ["8:y"], 1 / 1024, 6)
+    fm = FilterModel(s17_truss(), ["8:y"], 1 / 1024, 6)
     G = fm.observation(["strain:13", "acc:8:y"])
     Q, R = fm.Q_a(1e-14, 1e2), np.diag([1e-14, 1e-2])
     good = scipy.linalg.solve_discrete_are(fm.A_a.T, G.T, Q, R)

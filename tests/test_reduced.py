@@ -1,10 +1,11 @@
-"""Modal filter models with static correction (core_akf.reduced)."""
+"""Modal filter models with static correction (core_akf.filter.model)."""
 import numpy as np
 import pytest
 
 from core_akf.filter import estimate
 from core_akf.models import s17_truss, th_plate
-from core_akf.reduced import ModalFilterModel, steady_outputs
+from core_akf.filter import FilterModel
+from core_akf.filter.kernels import steady_outputs
 from core_akf.simulate import simulate
 from core_akf.statespace import force_selection
 
@@ -15,7 +16,7 @@ def test_static_correction_gives_exact_static_strains(n_modes):
     the full model's K^-1 strains exactly, however few modes are kept."""
     s = th_plate()
     forces = ["121:w", "111:w"]
-    fm = ModalFilterModel(s, forces, 1 / 2000, n_modes)
+    fm = FilterModel(s, forces, 1 / 2000, n_modes)
     f = np.array([30.0, -12.0])
     n = fm.n_states
     A, B = fm.A_a[:n, :n], fm.A_a[:n, n:]
@@ -47,7 +48,7 @@ def test_steady_outputs_equal_estimate_on_the_full_model():
     R = np.diag(sim.noise_std ** 2)
     est = estimate(s, sensors, forces, sim.measurements, dt, model_error_cov=1e-16, force_increment_cov=1e4,
                    noise_cov=R, steady=True)
-    fm = ModalFilterModel(s, forces, dt)
+    fm = FilterModel(s, forces, dt)
     out = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(1e-16, 1e4), R[None],
                          sim.measurements[None], fm.strain_rows())
     # the same steady filter through two code paths (modal model vs estimate()); the DARE
@@ -56,18 +57,18 @@ def test_steady_outputs_equal_estimate_on_the_full_model():
 
 
 def test_residual_noise_is_the_dropped_modes_stationary_response():
-    """``ModalFilterModel.residual_noise``: the pairwise closed form equals the stationary
+    """``FilterModel.residual_noise``: the pairwise closed form equals the stationary
     covariance of the dropped modes under the model-error noise, from Smith's doubling on the
     whole dropped block (an independent route), at strain, acceleration, displacement and
     velocity sensors; it scales with q, and is zero for the full model."""
     from core_akf.covariances import state_covariance
-    from core_akf.riccati import stein_doubling
+    from core_akf.filter.riccati import stein_doubling
     from core_akf.statespace import modal_state_transform, modal_zoh, observation
 
     s = s17_truss()
     sensors = ["strain:5", "acc:6:y", "disp:8:y", "vel:12:y"]
     k, dt = 20, 1e-3
-    fm = ModalFilterModel(s, ["8:y"], dt, k)
+    fm = FilterModel(s, ["8:y"], dt, k)
     got = fm.residual_noise(sensors, 1e-12)
     n = s.n
     T, T_inv = modal_state_transform(s)
@@ -80,4 +81,4 @@ def test_residual_noise_is_the_dropped_modes_stationary_response():
     assert np.all(np.abs(got - ref) <= 1e-9 * np.sqrt(np.outer(np.diag(ref), np.diag(ref))))
     assert np.all(np.diag(got) > 0)
     assert np.allclose(fm.residual_noise(sensors, 2e-12), 2 * got, rtol=1e-12)
-    assert not ModalFilterModel(s, ["8:y"], dt).residual_noise(sensors, 1e-12).any()
+    assert not FilterModel(s, ["8:y"], dt).residual_noise(sensors, 1e-12).any()

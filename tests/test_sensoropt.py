@@ -349,7 +349,7 @@ def test_band_rule_keeps_the_modes_the_sensors_see():
 def test_th_case5_on_the_band_model_finds_a_layout_as_good_as_the_full_models():
     """The proof that the reduced fitness holds on the thesis' case 5 (seed 7, thesis GA).  The
     fitness runs on 32 modes (band rule) with the dropped modes' model-error response added to R
-    (``ModalFilterModel.residual_noise``).  The 80-mode fitness without it found strain:7:ey,
+    (``FilterModel.residual_noise``).  The 80-mode fitness without it found strain:7:ey,
     88:gxy, 103:gxy at 1.8077 µε over the whole record; this one finds strain:5:ey, 79:gxy,
     87:gxy at 1.7857 µε, and the *full* 330-DOF filter agrees that it is better (1.7858 against
     1.8077 µε): the answer changed by -1.2 %, towards the full model's."""

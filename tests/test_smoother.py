@@ -6,10 +6,10 @@ import pytest
 
 from core_akf import simulate
 from core_akf.exceptions import AKFInputError
-from core_akf.filter import FilterSetup, filter_states
+from core_akf.filter import Filter, filter_states
 from core_akf.models import s17_truss
 from core_akf.sensors import as_layout, parse_force_locations
-from core_akf.smoother import smooth
+from core_akf.filter.smoother import smooth
 
 SENSORS = ["strain:13", "strain:26", "acc:8:y"]
 DT = 1e-3
@@ -20,8 +20,8 @@ def _problem(n=300):
     loads = 200.0 * rng.standard_normal((n, 1)).cumsum(axis=0) / np.sqrt(n)
     truss = s17_truss()
     sim = simulate(truss, SENSORS, ["8:y"], loads, DT, relative_noise=0.02, seed=0)
-    setup = FilterSetup(truss.scaled(1.02), [as_layout(SENSORS)], parse_force_locations(truss, ["8:y"]), DT, 1e-16, 1e4,
-                        np.diag(sim.noise_std ** 2))
+    setup = Filter(truss.scaled(1.02), [as_layout(SENSORS)], parse_force_locations(truss, ["8:y"]), DT,
+                   model_error_cov=1e-16, force_increment_cov=1e4, noise_cov=np.diag(sim.noise_std ** 2))
     return setup.A_a, setup.G_a[0], setup.Q_a, setup.R[0], sim.measurements
 
 
@@ -228,7 +228,7 @@ def test_a_lagged_smoothing_run_resumes_where_it_stopped(tmp_path):
 @pytest.mark.parametrize("bad, message", [({"lag": 0}, "whole number of steps"), ({"lag": 2.5}, "whole number"),
                                           ({"lag": "fast"}, "whole number"), ({"lag": True}, "whole number")])
 def test_the_fixed_lag_smoother_refuses_bad_input(bad, message):
-    from core_akf.smoother import FixedLagSmoother
+    from core_akf.filter.smoother import FixedLagSmoother
 
     with pytest.raises(AKFInputError, match=message):
         FixedLagSmoother(np.eye(1), np.eye(1), np.eye(1), np.eye(1), np.eye(1), **bad)
@@ -249,14 +249,15 @@ def test_fixed_lag_states_are_the_smoother_of_the_record_up_to_k_plus_lag():
     """Every step k of a lag-25 smoother fed in chunks of 37 equals the steady RTS smoother of the
     record up to k + 25 (states and output standard deviations), the held steps survive a
     state()/restore() round trip, and the last 25 steps are the smoother of the whole record."""
-    from core_akf.smoother import FixedLagSmoother
-    from core_akf.steady import steady_states
+    from core_akf.filter.smoother import FixedLagSmoother
+    from core_akf.filter.kernels import steady_states
 
     rng = np.random.default_rng(1)
     A = np.array([[0.9, 0.1, 0, 0], [-0.1, 0.9, 0, 0.05], [0, 0, 0.95, 0.1], [0, 0, 0, 1.0]])
     G, Q, R = rng.normal(size=(2, 4)), np.diag([1e-2, 1e-2, 1e-2, 1e-1]), 0.5 * np.eye(2)
     Y = 0.1 * rng.normal(size=(500, 2)).cumsum(0)
-    X, L, P = steady_states(A[None], G[None], Q[None], R[None], Y[None], np.zeros((1, 4)))
+    run = steady_states(A[None], G[None], Q[None], R[None], Y[None], np.zeros((1, 4)))
+    X, L, P = run.states, run.gain, run.P_prior
     E = Y - np.vstack([np.zeros((1, 4)), X[0, :-1] @ A.T]) @ G.T
     H = np.eye(4)[[0, 3]]
     lagged = FixedLagSmoother(A, G, R, P[0], L[0], lag=25, outputs=H)

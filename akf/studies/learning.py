@@ -36,9 +36,10 @@ def run(out=None, quick=False, seed=0):
     them, then draw the figures."""
     import pandas as pd
 
-    from core_akf.calibration import calibrate, steady_logliks
+    from core_akf.calibration import calibrate
     from core_akf.diagnostics import sensor_diagnostics
-    from core_akf.filter import FilterSetup, estimate
+    from core_akf.filter import Filter, estimate
+    from core_akf.filter.kernels import steady_logliks
     from core_akf.metrics import rms_error
 
     out = output_dir(NAME, out)
@@ -50,7 +51,8 @@ def run(out=None, quick=False, seed=0):
     progress = Progress(NAME, 3)
 
     progress.step("the log-likelihood against the stiffness factor")
-    setups = [FilterSetup(job.structure.scaled(float(f)), [sensors], forces, dt, **levels) for f in FACTORS]
+    base = Filter(job.structure, [sensors], forces, dt, **levels)
+    setups = [base.with_structure(job.structure.scaled(float(f))) for f in FACTORS]
     ll = steady_logliks(np.stack([s.A_a for s in setups]), np.stack([s.G_a[0] for s in setups]),
                         np.stack([s.Q_a for s in setups]), np.stack([s.R[0] for s in setups]), sim.measurements)
     scan = pd.DataFrame({"stiffness_factor": FACTORS, "loglik": ll})

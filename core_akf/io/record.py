@@ -417,7 +417,7 @@ class Record:
 
     def read_file(self, index: int, size: int = 65536) -> FloatArray:
         """One file of the record, in SI, checked as a chunk (the piece a worker reads in a
-        time-parallel run, :func:`core_akf.streaming.estimate_in_parallel`).
+        time-parallel run, :func:`core_akf.filter.parallel.estimate_in_parallel`).
 
         Parameters
         ----------

@@ -142,7 +142,7 @@ def lti_response(F, Bu, Y, x_first, H=None):
     """Outputs of ``x_k = F x_{k-1} + Bu y_k`` (k >= 1), ``x_0 = x_first``.
 
     The systems of a stack are independent: they run with single-threaded BLAS, split over
-    threads (:mod:`core_akf.threads`), and each gives the same bits whatever else is in the stack.
+    threads (:mod:`core_akf.filter.threads`), and each gives the same bits whatever else is in the stack.
 
     Parameters
     ----------

@@ -12,7 +12,7 @@ after k as well.  After the forward filter (posterior ``x_k|k``, ``P_k|k`` and p
 Both passes hold the covariances only while they change: once the forward covariance has
 converged (the steady-state filter from the start, or the time-varying one after its transient)
 the smoother gain ``C`` is constant, the states follow the lifted recursion
-``x_k|N = C x_k+1|N + (I - C A) x_k|k`` run backwards (:func:`core_akf.recursion.lti_response`),
+``x_k|N = C x_k+1|N + (I - C A) x_k|k`` run backwards (:func:`core_akf.filter.recursion.lti_response`),
 and the smoothed covariance is the backward recursion from ``P_N-1|N = P_N-1|k`` until it too has
 converged.
 """
@@ -22,11 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import as_finite_array, check_covariance
-from .exceptions import AKFInputError
+from ..checks import as_finite_array, check_covariance
+from ..exceptions import AKFInputError
+from .kernels import fixed_gain, steady_states
 from .recursion import lti_response
-from .steady import steady_states
-from .types import ArrayLike, FloatArray, Matrix, Measurements
+from ..types import ArrayLike, FloatArray, Matrix, Measurements
 
 #: a covariance counts as converged when it changes by less than this, relatively, over a step
 CONVERGED = 1e-14
@@ -126,8 +126,8 @@ def smooth(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements,
     if H is not None and H.shape[1] != n:
         raise AKFInputError(f"outputs must have {n} columns (the states), got shape {H.shape}")
     if steady:
-        X, L, P = steady_states(A[None], G[None], Q[None], Rm[None], Y[None], x[None])
-        forward = _Forward.steady(A, G, Rm, x, X[0], P[0], L[0])
+        res = steady_states(A[None], G[None], Q[None], Rm[None], Y[None], x[None])
+        forward = _Forward.steady(A, G, Rm, x, res.states[0], res.P_prior[0], res.gain[0])
     else:
         P = Q.copy() if P0 is None else check_covariance(P0, "P0")
         forward = _Forward.time_varying(A, G, Q, Rm, Y, x, P)
@@ -156,9 +156,7 @@ class _Forward:
             X_prior[k] = x
             S = G @ P @ G.T + R
             L = np.linalg.solve(S, G @ P).T
-            I_LG = np.eye(n) - L @ G
-            post = I_LG @ P @ I_LG.T + L @ R @ L.T
-            post = 0.5 * (post + post.T)
+            post = _posterior(P, L, G, R)
             x = x + L @ (Y[k] - G @ x)
             X[k] = x
             posts.append(post)
@@ -167,9 +165,7 @@ class _Forward:
             P_next = 0.5 * (P_next + P_next.T)
             if np.linalg.norm(P_next - P) <= CONVERGED * np.linalg.norm(P) and k + 1 < N:
                 # converged: the steady recursion from here on, with this gain
-                rest = Y[k + 1:]
-                first = L @ rest[0] + I_LG @ (A @ x)
-                X[k + 1:] = lti_response((I_LG @ A)[None], L[None], rest[None], first[None])[0]
+                X[k + 1:] = fixed_gain(A[None], G[None], L[None], Y[None, k + 1:], (A @ x)[None])[0]
                 X_prior[k + 1:] = X[k:-1] @ A.T
                 return cls(X, X_prior, posts, priors, k)
             x = A @ x
@@ -273,10 +269,11 @@ class FixedLagSmoother:
     the record up to each step + 40.
 
     >>> import numpy as np
-    >>> from core_akf.steady import steady_states
+    >>> from core_akf.filter.kernels import steady_states
     >>> y = np.cumsum(np.random.default_rng(0).normal(size=300))[:, None]
     >>> A = G = Q = R = np.eye(1)
-    >>> X, L, P = steady_states(A[None], G[None], Q[None], R[None], y[None], np.zeros((1, 1)))
+    >>> run = steady_states(A[None], G[None], Q[None], R[None], y[None], np.zeros((1, 1)))
+    >>> X, L, P = run.states, run.gain, run.P_prior
     >>> E = y - np.vstack([np.zeros((1, 1)), X[0, :-1]])                    # the innovations
     >>> lagged = FixedLagSmoother(A, G, R, P[0], L[0], lag=40)
     >>> parts = [lagged.update(X[0, i:i + 70], E[i:i + 70])[0] for i in range(0, 300, 70)]
@@ -324,7 +321,7 @@ class FixedLagSmoother:
         -------
         int
         """
-        from .defaults import default
+        from ..defaults import default
 
         tolerance, longest = default("smooth_lag_tolerance", tolerance), default("smooth_lag_longest", longest)
         W, first = self.CL, np.linalg.norm(self.CL)
