@@ -7,17 +7,18 @@ The most used names are importable from here::
 from . import loads, models
 from .exceptions import AKFInputError, ModelError, UndetectableError
 from .filter import Estimate, Filter, FilterModel, estimate, estimate_batch, run, smooth
+from .filter.smoother import SmoothResult
 from .forcemodels import DummyMeasurements, ForceModel
 from .metrics import average_strain_error, rms_error
 from .sensors import Sensor
 from .simulate import Simulation, simulate
-from .filter.smoother import SmoothResult
 from .statespace import detectability, state_space
 from .structure import Structure
 
 __version__ = "0.1.0"
 __all__ = [
-    "models", "loads", "Structure", "Sensor", "Filter", "FilterModel", "estimate", "estimate_batch", "run", "smooth", "SmoothResult", "Estimate",
+    "models", "loads", "Structure", "Sensor", "Filter", "FilterModel",
+    "estimate", "estimate_batch", "run", "smooth", "SmoothResult", "Estimate",
     "simulate", "Simulation", "detectability", "state_space", "rms_error", "average_strain_error",
     "AKFInputError", "ModelError", "UndetectableError", "ForceModel", "DummyMeasurements",
 ]

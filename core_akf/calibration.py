@@ -341,46 +341,13 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     problem = _Problem(base, Y, names, modes)
     if Y.shape[0] < 10 * (len(problem.names) + 1):
         raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(problem.names)} parameter(s)")
-    ranges = {"stiffness_factor": default("calibration_stiffness_range", stiffness_range),
-              "damping": default("calibration_damping_range"),
-              "frequencies": default("calibration_frequency_range")}
-    width = np.log(10.0) * default("calibration_decades", decades)
-    bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else (-width, width)
-              for n in problem.names]
-    if force_model.stationary:
-        ell = np.broadcast_to(np.asarray(force_model.timescale, float), (len(locs),))
-        for j, name in enumerate(problem.names):
-            if name.startswith("force_std"):       # a factor on a std: its variance spans the decades, as the others'
-                bounds[j] = (-width / 2, width / 2)
-            elif name.startswith("force_timescale"):   # between one step and a tenth of the record: what it resolves
-                own = ell if name == "force_timescale" else ell[[f"{n}:{d}" for n, d in locs].index(name.split(":", 1)[1])]
-                bounds[j] = (max(-width, float(np.log(dt / np.min(own)))),
-                             min(width, float(np.log(0.1 * Y.shape[0] * dt / np.max(own)))))
-                if bounds[j][0] >= bounds[j][1]:
-                    raise AKFInputError(f"force_timescale {force_model.timescale!r} s is outside what a record of "
-                                        f"{Y.shape[0]} steps of {dt:g} s can resolve (one step to a tenth of the record)")
+    bounds = _bounds(problem, force_model, Y.shape[0], stiffness_range, decades)
     u0 = np.zeros(len(problem.names))
     before = float(problem.logliks(u0)[0])
     if not np.isfinite(before):
         raise AKFInputError("the log-likelihood at the starting values is not finite (no steady-state filter): "
                             "check the covariances")
-    # a grid first for what sets a frequency, whose likelihood may have several peaks: the stiffness
-    # factor, or each mode's factor on its own (one batch; the modes' peaks barely interact), and
-    # a force model's time scale
-    scanned = [j for j, n in enumerate(problem.names)
-               if n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale"))]
-    if scanned:
-        grid = [np.linspace(*bounds[j], 25) for j in scanned]
-        U = np.tile(u0, (sum(g.size for g in grid), 1))
-        for i, (j, g) in enumerate(zip(scanned, grid)):
-            U[i * g.size:(i + 1) * g.size, j] = g
-        ll = problem.logliks(U).reshape(len(scanned), -1)
-        start = u0.copy()
-        for i, j in enumerate(scanned):
-            if np.max(ll[i]) > before:
-                start[j] = grid[i][int(np.argmax(ll[i]))]
-        if problem.logliks(start)[0] > before:
-            u0 = start
+    u0 = _grid_start(problem, u0, bounds, before)
 
     def negative(u):
         k = len(u)
@@ -399,19 +366,71 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         u, after = np.zeros(len(u)), before
     errors, warnings = _curvature(problem, u, bounds, before)
     multipliers = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
-    fitted_force = None
     values = _values(multipliers, names, noise_cov, model_error_cov, force_model.increment_cov, layout)
-    if force_model.stationary:
-        factors = problem.force_factors({n: np.log(v) for n, v in multipliers.items()})
-        # one factor for all forces keeps a single std or time scale single
-        factors = [f if f"{base}:forces" in names else float(f[0]) for base, f in zip(("force_std", "force_timescale"), factors)]
-        fitted_force = force_model.scaled(*factors)
-        for name, value in (("force_std", fitted_force.std), ("force_timescale", fitted_force.timescale)):
-            if name in names or f"{name}:forces" in names:
-                value = np.asarray(value, float)
-                values[name] = float(value) if value.ndim == 0 else value.tolist()
+    fitted_force = _fitted_force(problem, force_model, multipliers, names, values)
     return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
                              time.perf_counter() - start_time, fitted_force, layout)
+
+
+def _bounds(problem, force_model, n_steps, stiffness_range, decades):
+    """The search interval of every log-factor: the ranges of the model's factors, the decades of
+    the covariances (half of them for a std), and for a time scale what the record resolves."""
+    ranges = {"stiffness_factor": default("calibration_stiffness_range", stiffness_range),
+              "damping": default("calibration_damping_range"),
+              "frequencies": default("calibration_frequency_range")}
+    width = np.log(10.0) * default("calibration_decades", decades)
+    bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else (-width, width)
+              for n in problem.names]
+    if not force_model.stationary:
+        return bounds
+    dt, locs = problem.base.dt, problem.locs
+    ell = np.broadcast_to(np.asarray(force_model.timescale, float), (len(locs),))
+    for j, name in enumerate(problem.names):
+        if name.startswith("force_std"):       # a factor on a std: its variance spans the decades, as the others'
+            bounds[j] = (-width / 2, width / 2)
+        elif name.startswith("force_timescale"):   # between one step and a tenth of the record: what it resolves
+            own = ell if name == "force_timescale" else ell[[f"{n}:{d}" for n, d in locs].index(name.split(":", 1)[1])]
+            bounds[j] = (max(-width, float(np.log(dt / np.min(own)))),
+                         min(width, float(np.log(0.1 * n_steps * dt / np.max(own)))))
+            if bounds[j][0] >= bounds[j][1]:
+                raise AKFInputError(f"force_timescale {force_model.timescale!r} s is outside what a record of "
+                                    f"{n_steps} steps of {dt:g} s can resolve (one step to a tenth of the record)")
+    return bounds
+
+
+def _grid_start(problem, u0, bounds, before):
+    """The start of the local search: a grid first for what sets a frequency, whose likelihood may
+    have several peaks -- the stiffness factor, or each mode's factor on its own (one batch; the
+    modes' peaks barely interact), and a force model's time scale."""
+    scanned = [j for j, n in enumerate(problem.names)
+               if n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale"))]
+    if not scanned:
+        return u0
+    grid = [np.linspace(*bounds[j], 25) for j in scanned]
+    U = np.tile(u0, (sum(g.size for g in grid), 1))
+    for i, (j, g) in enumerate(zip(scanned, grid)):
+        U[i * g.size:(i + 1) * g.size, j] = g
+    ll = problem.logliks(U).reshape(len(scanned), -1)
+    start = u0.copy()
+    for i, j in enumerate(scanned):
+        if np.max(ll[i]) > before:
+            start[j] = grid[i][int(np.argmax(ll[i]))]
+    return start if problem.logliks(start)[0] > before else u0
+
+
+def _fitted_force(problem, force_model, multipliers, names, values):
+    """The fitted Matérn force model (None for the random walk); its std and time scale go into ``values``."""
+    if not force_model.stationary:
+        return None
+    factors = problem.force_factors({n: np.log(v) for n, v in multipliers.items()})
+    # one factor for all forces keeps a single std or time scale single
+    factors = [f if f"{base}:forces" in names else float(f[0]) for base, f in zip(("force_std", "force_timescale"), factors)]
+    fitted = force_model.scaled(*factors)
+    for name, value in (("force_std", fitted.std), ("force_timescale", fitted.timescale)):
+        if name in names or f"{name}:forces" in names:
+            value = np.asarray(value, float)
+            values[name] = float(value) if value.ndim == 0 else value.tolist()
+    return fitted
 
 
 def calibration_modes(structure: Structure, dt: float) -> list[int]:

@@ -376,38 +376,9 @@ class GeneticAlgorithm:
         """
         import pandas as pd
 
-        alg, Ind = self.algorithm, self.algorithm.individual
-        if self.checkpoint and not self.resume and os.path.exists(self.checkpoint):
-            try:
-                earlier = load_checkpoint(self.checkpoint)
-            except AKFInputError:
-                earlier = {}
-            if not earlier.get("finished"):      # a finished run's checkpoint is simply replaced
-                done = f" (generation {earlier['generation']} of {earlier['settings'].get('generations')})" \
-                    if "generation" in earlier else ""
-                raise AKFInputError(f"{self.checkpoint!r} holds the checkpoint of an interrupted run{done}; pass "
-                                    "resume=True to continue it, or remove the file to "
-                                    "start afresh")
-        if self.resume:
-            ck = load_checkpoint(self.checkpoint)
-            if ck["settings"] != self.settings:
-                raise AKFInputError("the checkpoint was written by a run with other settings or candidates")
-            rng = np.random.default_rng()
-            rng.bit_generator.state = ck["rng"]
-            pyrng = random.Random()
-            pyrng.setstate(_tuples(ck["pyrng"]))
-            pop = [Ind(g, f) for g, f in zip(ck["population"], ck["fitness"])]
-            rows, start = ck["rows"], ck["generation"] + 1
-            self._hof = {_key(k): tuple(v) for k, v in ck["hof"]}
-            ev = self.evaluator
-            ev.cache = {_key(k): tuple(v) for k, v in ck["cache"]}
-            ev.evaluations, ev.hits, ev.infeasible = ck["evaluations"], ck["hits"], ck["infeasible"]
-            t_offset = rows[-1]["seconds"] if rows else 0.0
-        else:
-            rng = np.random.default_rng(self.seed)
-            pyrng = random.Random(int(rng.integers(2 ** 31)))
-            pop = [Ind(g) for g in alg.initial(rng, pyrng)]
-            rows, start, t_offset, self._hof = [], 0, 0.0, {}
+        alg = self.algorithm
+        self._refuse_interrupted()
+        rng, pyrng, pop, rows, start, t_offset = self._start()
         t0 = time.perf_counter() - t_offset
         bar = None
         if self.progress:
@@ -436,12 +407,10 @@ class GeneticAlgorithm:
                         on_generation = None
                 if self.checkpoint and (gen % self.checkpoint_every == 0 or gen == self.generations):
                     self._save(pop, rows, gen, rng, pyrng)
-                if self.stall_generations > 0 and gen >= self.stall_generations:
-                    old, new = rows[gen - self.stall_generations][self.stall_column], rows[gen][self.stall_column]
-                    if abs(new - old) <= self.stall_tol * max(abs(old), 1e-300):
-                        stopped = (f"stall: {self.stall_column} fitness changed < {self.stall_tol:g} over "
-                                   f"{self.stall_generations} generations")
-                        break
+                if self._stalled(rows, gen):
+                    stopped = (f"stall: {self.stall_column} fitness changed < {self.stall_tol:g} over "
+                               f"{self.stall_generations} generations")
+                    break
         finally:
             if bar is not None:
                 bar.close()
@@ -451,6 +420,52 @@ class GeneticAlgorithm:
         ev = self.evaluator
         return GAResult(pop, pd.DataFrame(rows), ranked[:self.n_hall] if self.n_hall else ranked, ev.evaluations,
                         ev.hits, ev.infeasible, stopped, ev, self.seed, self.settings)
+
+    def _refuse_interrupted(self):
+        """Refuse to overwrite the checkpoint of an interrupted run without ``resume``."""
+        if not self.checkpoint or self.resume or not os.path.exists(self.checkpoint):
+            return
+        try:
+            earlier = load_checkpoint(self.checkpoint)
+        except AKFInputError:
+            earlier = {}
+        if not earlier.get("finished"):      # a finished run's checkpoint is simply replaced
+            done = f" (generation {earlier['generation']} of {earlier['settings'].get('generations')})" \
+                if "generation" in earlier else ""
+            raise AKFInputError(f"{self.checkpoint!r} holds the checkpoint of an interrupted run{done}; pass "
+                                "resume=True to continue it, or remove the file to "
+                                "start afresh")
+
+    def _start(self):
+        """``(rng, pyrng, population, logbook rows, first generation, seconds already spent)``: from the
+        checkpoint when resuming, else a fresh seeded start."""
+        Ind = self.algorithm.individual
+        if not self.resume:
+            rng = np.random.default_rng(self.seed)
+            pyrng = random.Random(int(rng.integers(2 ** 31)))
+            self._hof = {}
+            return rng, pyrng, [Ind(g) for g in self.algorithm.initial(rng, pyrng)], [], 0, 0.0
+        ck = load_checkpoint(self.checkpoint)
+        if ck["settings"] != self.settings:
+            raise AKFInputError("the checkpoint was written by a run with other settings or candidates")
+        rng = np.random.default_rng()
+        rng.bit_generator.state = ck["rng"]
+        pyrng = random.Random()
+        pyrng.setstate(_tuples(ck["pyrng"]))
+        pop = [Ind(g, f) for g, f in zip(ck["population"], ck["fitness"])]
+        rows = ck["rows"]
+        self._hof = {_key(k): tuple(v) for k, v in ck["hof"]}
+        ev = self.evaluator
+        ev.cache = {_key(k): tuple(v) for k, v in ck["cache"]}
+        ev.evaluations, ev.hits, ev.infeasible = ck["evaluations"], ck["hits"], ck["infeasible"]
+        return rng, pyrng, pop, rows, ck["generation"] + 1, rows[-1]["seconds"] if rows else 0.0
+
+    def _stalled(self, rows, gen):
+        """Whether the stall column changed by less than ``stall_tol`` over ``stall_generations``."""
+        if self.stall_generations <= 0 or gen < self.stall_generations:
+            return False
+        old, new = rows[gen - self.stall_generations][self.stall_column], rows[gen][self.stall_column]
+        return abs(new - old) <= self.stall_tol * max(abs(old), 1e-300)
 
     def _save(self, pop, rows, gen, rng, pyrng, finished=False):
         ev = self.evaluator

@@ -49,7 +49,6 @@ def _place(args):
 
 
 def _run_place(args, problem, settings, out):
-    import pandas as pd
 
     from core_akf.sensors import sensor_positions
     from sensoropt.ga import place
@@ -105,25 +104,7 @@ def _run_place(args, problem, settings, out):
         summary["fatigue_error"] = problem.full_record_fatigue_error(res.sensors)
         summary["units"]["fatigue_error"] = "% (mean relative DEL error of the targets, full record)"
     if not args.json:
-        print(f"{problem.name}: {enc.n_sensors} sensors from {len(enc.candidates)} admissible positions "
-              f"({', '.join(enc.kinds)}), seed {args.seed}")
-        print("  best layout:  " + ", ".join(res.sensors))
-        for r in positions.itertuples():
-            where = f"node {r.node}" if pd.isna(r.node_b) else f"nodes {r.node}-{r.node_b}"
-            print(f"    {r.sensor:>16s}  {r.source:<14s} " + ("(no place: a strain operator row)" if pd.isna(r.node)
-                  else f"{where} at x {r.x:.4g}, y {r.y:.4g}, z {r.z:.4g} m"))
-        if fatigue:
-            print(f"  DEL error (m = {problem.del_slope:g}): {summary['fatigue_error']:.3f} % over the "
-                  f"{problem.loads.shape[0] * problem.dt:.3g} s record ({res.best_error:.3f} % on the {problem.window:g} s "
-                  f"fitness window); average strain error {error:.4f} µε")
-        else:
-            print(f"  average strain error: {error:.4f} µε over the {problem.loads.shape[0] * problem.dt:.3g} s record "
-                  f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
-        for name, e in refs.items():
-            print(f"  {name}: {e:.4f} µε")
-        print(f"  {int(lb['generation'].iloc[-1])} generations ({res.stopped}), {res.evaluations} evaluations, "
-              f"{res.cache_hits} cache hits, {res.infeasible} infeasible, {lb['seconds'].iloc[-1]:.1f} s")
-        sys.stdout.flush()
+        _print_placement(problem, enc, res, positions, summary, args.seed)
     figure_notes = []
     if not args.no_plot:
         draw(files, "convergence", figure_notes, plot_convergence, res.logbook, os.path.join(out, "convergence.png"),
@@ -139,6 +120,33 @@ def _run_place(args, problem, settings, out):
         return 0
     print_written(files, notes)
     return 0
+
+
+def _print_placement(problem, enc, res, positions, summary, seed):
+    """The placement's console report (the numbers of ``summary``)."""
+    import pandas as pd
+
+    lb, error, refs = res.logbook, summary["error"], summary["reference_errors"]
+    fatigue = problem.objective_kind == "fatigue"
+    print(f"{problem.name}: {enc.n_sensors} sensors from {len(enc.candidates)} admissible positions "
+          f"({', '.join(enc.kinds)}), seed {seed}")
+    print("  best layout:  " + ", ".join(res.sensors))
+    for r in positions.itertuples():
+        where = f"node {r.node}" if pd.isna(r.node_b) else f"nodes {r.node}-{r.node_b}"
+        print(f"    {r.sensor:>16s}  {r.source:<14s} " + ("(no place: a strain operator row)" if pd.isna(r.node)
+              else f"{where} at x {r.x:.4g}, y {r.y:.4g}, z {r.z:.4g} m"))
+    if fatigue:
+        print(f"  DEL error (m = {problem.del_slope:g}): {summary['fatigue_error']:.3f} % over the "
+              f"{problem.loads.shape[0] * problem.dt:.3g} s record ({res.best_error:.3f} % on the {problem.window:g} s "
+              f"fitness window); average strain error {error:.4f} µε")
+    else:
+        print(f"  average strain error: {error:.4f} µε over the {problem.loads.shape[0] * problem.dt:.3g} s record "
+              f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
+    for name, e in refs.items():
+        print(f"  {name}: {e:.4f} µε")
+    print(f"  {int(lb['generation'].iloc[-1])} generations ({res.stopped}), {res.evaluations} evaluations, "
+          f"{res.cache_hits} cache hits, {res.infeasible} infeasible, {lb['seconds'].iloc[-1]:.1f} s")
+    sys.stdout.flush()
 
 
 def _cost_report(problem, objective, settings, json_output):

@@ -353,7 +353,7 @@ class Filter:
     def __init__(self, structure, layouts, forces, dt, *, model_error_cov, force_increment_cov=None, noise_cov,
                  steady=None, allow_undetectable=False, x0=None, P0=None, force_model=None, dummy=None):
         if not np.isfinite(dt) or dt <= 0:
-            raise AKFInputError(f"dt must be a positive time step in seconds, got {dt!r}")
+            raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
         self.layouts = [as_layout(layout) for layout in layouts]
         if not self.layouts:
             raise AKFInputError("no sensor layouts given")

@@ -257,48 +257,64 @@ def _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps):
     P = Hk * t[..., :, None] * t[..., None, :]
     if check:
         ok = converged & np.all(np.isfinite(P), axis=(-2, -1))
-        res = np.full(nb, np.inf)
-        if np.any(ok):
-            res[ok] = dare_residual(A[ok], G[ok], Q[ok], R[ok], P[ok])
-            # polish whenever the residual is above rounding level: a Newton step costs about as
-            # much as the doubling and brings e.g. 6.5e-10 to 1e-16; a step is kept only where it
-            # lowers the residual
-            for _ in range(newton_steps):
-                idx = np.flatnonzero(ok & (res > _RESIDUAL_POLISH))
-                if not idx.size:
-                    break
-                with np.errstate(all="ignore"):
-                    P_new = newton_step(A[idx], G[idx], Q[idx], R[idx], P[idx])
-                finite = np.all(np.isfinite(P_new), axis=(-2, -1))
-                res_new = np.full(idx.size, np.inf)
-                if np.any(finite):
-                    res_new[finite] = dare_residual(A[idx[finite]], G[idx[finite]], Q[idx[finite]], R[idx[finite]],
-                                                    P_new[finite])
-                better = res_new < res[idx]
-                P[idx[better]] = P_new[better]
-                res[idx[better]] = res_new[better]
-                if not np.any(better):
-                    break
-        bad = np.flatnonzero(~(res < _RESIDUAL_OK))
-        if bad.size:
-            warnings.warn(f"doubling Riccati solver did not converge for {bad.size} of {nb} problem(s); "
-                          "falling back to scipy.linalg.solve_discrete_are", RiccatiWarning, stacklevel=2)
-            for b in bad:
-                try:
-                    P[b] = scipy.linalg.solve_discrete_are(A[b].T, G[b].T, Q[b], R[b])
-                    res[b] = dare_residual(A[b], G[b], Q[b], R[b], P[b])
-                except (np.linalg.LinAlgError, ValueError):
-                    res[b] = np.inf
-            failed = bad[~(res[bad] < _RESIDUAL_OK)]
-            if failed.size:
-                worst = res[failed[0]]
-                raise RiccatiError(
-                    f"no accurate stabilising steady-state gain for problem(s) {failed.tolist()} of the batch "
-                    f"(relative DARE residual {worst:.2g} after doubling, Newton polishing and scipy; accepted "
-                    f"below {_RESIDUAL_OK:g}); the sensor set is probably undetectable or nearly so, or the covariance "
-                    "levels are far from the data's scale (check model_error_cov, force_increment_cov and "
-                    "noise_cov) -- run the time-varying filter (steady=False) to see the drift", problems=failed)
+        res = _polish(A, G, Q, R, P, ok, newton_steps)
+        _fall_back(A, G, Q, R, P, res)
     return P
+
+
+def _polish(A, G, Q, R, P, ok, newton_steps):
+    """The relative DARE residual of every solution (inf where ``ok`` is False), after Newton steps
+    on those above rounding level (``P`` is changed in place where a step lowers the residual)."""
+    res = np.full(P.shape[0], np.inf)
+    if not np.any(ok):
+        return res
+    res[ok] = dare_residual(A[ok], G[ok], Q[ok], R[ok], P[ok])
+    # polish whenever the residual is above rounding level: a Newton step costs about as
+    # much as the doubling and brings e.g. 6.5e-10 to 1e-16; a step is kept only where it
+    # lowers the residual
+    for _ in range(newton_steps):
+        idx = np.flatnonzero(ok & (res > _RESIDUAL_POLISH))
+        if not idx.size:
+            break
+        with np.errstate(all="ignore"):
+            P_new = newton_step(A[idx], G[idx], Q[idx], R[idx], P[idx])
+        finite = np.all(np.isfinite(P_new), axis=(-2, -1))
+        res_new = np.full(idx.size, np.inf)
+        if np.any(finite):
+            res_new[finite] = dare_residual(A[idx[finite]], G[idx[finite]], Q[idx[finite]], R[idx[finite]],
+                                            P_new[finite])
+        better = res_new < res[idx]
+        P[idx[better]] = P_new[better]
+        res[idx[better]] = res_new[better]
+        if not np.any(better):
+            break
+    return res
+
+
+def _fall_back(A, G, Q, R, P, res):
+    """scipy's solver for the problems whose residual is not accepted (``P`` changed in place);
+    a :class:`RiccatiError` naming those it cannot solve either."""
+    nb = P.shape[0]
+    bad = np.flatnonzero(~(res < _RESIDUAL_OK))
+    if not bad.size:
+        return
+    warnings.warn(f"doubling Riccati solver did not converge for {bad.size} of {nb} problem(s); "
+                  "falling back to scipy.linalg.solve_discrete_are", RiccatiWarning, stacklevel=3)
+    for b in bad:
+        try:
+            P[b] = scipy.linalg.solve_discrete_are(A[b].T, G[b].T, Q[b], R[b])
+            res[b] = dare_residual(A[b], G[b], Q[b], R[b], P[b])
+        except (np.linalg.LinAlgError, ValueError):
+            res[b] = np.inf
+    failed = bad[~(res[bad] < _RESIDUAL_OK)]
+    if failed.size:
+        worst = res[failed[0]]
+        raise RiccatiError(
+            f"no accurate stabilising steady-state gain for problem(s) {failed.tolist()} of the batch "
+            f"(relative DARE residual {worst:.2g} after doubling, Newton polishing and scipy; accepted "
+            f"below {_RESIDUAL_OK:g}); the sensor set is probably undetectable or nearly so, or the covariance "
+            "levels are far from the data's scale (check model_error_cov, force_increment_cov and "
+            "noise_cov) -- run the time-varying filter (steady=False) to see the drift", problems=failed)
 
 
 #: relative DARE residual accepted (after polishing) without falling back to scipy, and accepted

@@ -24,9 +24,9 @@ import numpy as np
 
 from ..checks import as_finite_array, check_covariance
 from ..exceptions import AKFInputError
+from ..types import ArrayLike, FloatArray, Matrix, Measurements
 from .kernels import fixed_gain, steady_states
 from .recursion import lti_response
-from ..types import ArrayLike, FloatArray, Matrix, Measurements
 
 #: a covariance counts as converged when it changes by less than this, relatively, over a step
 CONVERGED = 1e-14

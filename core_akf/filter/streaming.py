@@ -140,6 +140,11 @@ class Estimator:
         self._fingerprint = self._digest()
 
     @property
+    def model_error_cov(self):
+        """Q as given (per physical DOF, see :func:`~core_akf.covariances.state_covariance`)."""
+        return self.filter.model_error_cov
+
+    @property
     def force_model(self):
         """The forces' prior (:class:`~core_akf.forcemodels.ForceModel`)."""
         return self.filter.force_model

@@ -284,56 +284,14 @@ def from_matrices(K: ArrayLike | scipy.sparse.sparray, M: ArrayLike | scipy.spar
     """
     if n_modes is not None:
         n_modes = check_n_modes(n_modes)
-    large = n_modes is not None or max(np.shape(K)[0], np.shape(M)[0]) > DENSE_LIMIT
-    if large:
-        K, M = as_sparse(K, "K"), as_sparse(M, "M")
-    else:
-        K, M = _dense(K, "K"), _dense(M, "M")
-    if K.shape != M.shape:
-        raise AKFInputError(f"K is {K.shape[0]}x{K.shape[1]} but M is {M.shape[0]}x{M.shape[1]}")
-    if large:
-        K, M = check_symmetric(K, "K", SYMMETRY_RTOL), check_symmetric(M, "M", SYMMETRY_RTOL)
-    else:
-        K, M = _check_symmetric(K, "K"), _check_symmetric(M, "M")
+    K, M, large = _checked_matrices(K, M, n_modes)
     n = K.shape[0]
-    dofs = [(_node_id(d[0]), str(d[1]).strip().lower()) for d in dofs]
-    if len(dofs) != n:
-        raise AKFInputError(f"the DOF map has {len(dofs)} rows for matrices of {n} rows: it must name the node and "
-                            "direction of every row")
-    bad = [d for d in dofs if d[1] not in DIRECTIONS]
-    if bad:
-        raise AKFInputError(f"unknown direction {bad[0][1]!r} (node {bad[0][0]}) in the DOF map; use {DIRECTIONS}")
-    seen = {}
-    for r, d in enumerate(dofs):
-        if d in seen:
-            raise AKFInputError(f"DOF {d[0]}:{d[1]} appears twice in the DOF map (rows {seen[d] + 1} and {r + 1})")
-        seen[d] = r
-    pairs = list(nodes.items()) if isinstance(nodes, dict) else list(nodes)
-    coords = {}
-    for k, v in pairs:
-        if _node_id(k) in coords:
-            raise AKFInputError(f"node {_node_id(k)} is listed twice in the node coordinates; every node needs one place")
-        coords[_node_id(k)] = np.asarray(v, dtype=float)
-    dims = {c.size for c in coords.values()}
-    if not coords or dims - {2, 3} or len(dims) != 1:
-        raise AKFInputError(f"node coordinates must all be (x, y) or all (x, y, z); got sizes {sorted(dims)}")
-    unknown = sorted({d[0] for d in dofs} - set(coords))
-    if unknown:
-        raise AKFInputError(f"the DOF map names node(s) {unknown[:10]} that have no coordinates")
+    dofs, seen = _dof_map(dofs, n)
+    coords = _coordinates(nodes, dofs)
     ids = np.array(sorted(coords))
     row_of = {int(k): i for i, k in enumerate(ids)}
     dof_names = tuple(d for d in DIRECTIONS if any(x[1] == d for x in dofs))
-    keep = np.ones(n, bool)
-    for f in fixed or ():
-        if isinstance(f, str):
-            f = tuple(f.split(":")) if ":" in f else f
-        targets = [d for d in dofs if d[0] == _node_id(f)] if np.ndim(f) == 0 else [(_node_id(f[0]), str(f[1]).lower())]
-        for t in targets:
-            if t not in seen:
-                raise AKFInputError(f"fixed DOF {t[0]}:{t[1]} is not in the DOF map")
-            keep[seen[t]] = False
-        if not targets:
-            raise AKFInputError(f"fixed node {f} has no DOF in the DOF map")
+    keep = _free(fixed, dofs, seen)
     rows = np.flatnonzero(keep)
     diag_m = M.diagonal()
     massless = [f"{dofs[r][0]}:{dofs[r][1]}" for r in rows if diag_m[r] == 0]
@@ -345,20 +303,7 @@ def from_matrices(K: ArrayLike | scipy.sparse.sparray, M: ArrayLike | scipy.spar
         raise AKFInputError(f"every DOF of the model is fixed ({len(dofs)} of {len(dofs)}): nothing can move; fix only "
                             "the supports")
     free_dofs = np.array([row_of[dofs[r][0]] * len(dof_names) + dof_names.index(dofs[r][1]) for r in rows])
-    blocks, members, ends = [], None, {}
-    if strain_rows is not None:
-        blocks.append(_rows(strain_rows, n, keep_sparse=large)[:, rows])
-    if extensometers is not None and len(extensometers):
-        bad = [k for k, e in enumerate(extensometers, start=1) if np.ndim(e) != 1 or len(e) != 2]
-        if bad:
-            raise AKFInputError(f"extensometer {bad[0]} is {list(extensometers)[bad[0] - 1]!r}: an extensometer is a pair "
-                                "of node ids [a, b]")
-        members = np.array([[_node_id(a), _node_id(b)] for a, b in extensometers], dtype=int)
-        blocks.append(_extensometer_rows(members, coords, dofs, seen, rows, dof_names))
-        if strain_rows is not None:           # extensometer k is strain:(k_own + k): its ends by output number
-            first = blocks[0].shape[0] + 1
-            ends = {first + k: (int(a), int(b)) for k, (a, b) in enumerate(members)}
-            members = None
+    blocks, members, ends = _strain_blocks(strain_rows, extensometers, n, large, rows, coords, dofs, seen, dof_names)
     _check_coordinate_units(coords, name)
     strain = _stack(blocks)
     common = dict(nodes=np.array([coords[k] for k in ids]), dof_names=dof_names, free_dofs=free_dofs,
@@ -381,6 +326,92 @@ def from_matrices(K: ArrayLike | scipy.sparse.sparray, M: ArrayLike | scipy.spar
         raise AKFInputError(f"{name}: {exc}") from None
     _check_modes(structure)
     return structure
+
+
+def _checked_matrices(K, M, n_modes):
+    """K and M checked (sizes, symmetry, finite): sparse for a model to reduce, dense otherwise."""
+    large = n_modes is not None or max(np.shape(K)[0], np.shape(M)[0]) > DENSE_LIMIT
+    if large:
+        K, M = as_sparse(K, "K"), as_sparse(M, "M")
+    else:
+        K, M = _dense(K, "K"), _dense(M, "M")
+    if K.shape != M.shape:
+        raise AKFInputError(f"K is {K.shape[0]}x{K.shape[1]} but M is {M.shape[0]}x{M.shape[1]}")
+    if large:
+        K, M = check_symmetric(K, "K", SYMMETRY_RTOL), check_symmetric(M, "M", SYMMETRY_RTOL)
+    else:
+        K, M = _check_symmetric(K, "K"), _check_symmetric(M, "M")
+    return K, M, large
+
+
+def _dof_map(dofs, n):
+    """The DOF map as ``(node, direction)`` per row, checked, and the row of each DOF."""
+    dofs = [(_node_id(d[0]), str(d[1]).strip().lower()) for d in dofs]
+    if len(dofs) != n:
+        raise AKFInputError(f"the DOF map has {len(dofs)} rows for matrices of {n} rows: it must name the node and "
+                            "direction of every row")
+    bad = [d for d in dofs if d[1] not in DIRECTIONS]
+    if bad:
+        raise AKFInputError(f"unknown direction {bad[0][1]!r} (node {bad[0][0]}) in the DOF map; use {DIRECTIONS}")
+    seen = {}
+    for r, d in enumerate(dofs):
+        if d in seen:
+            raise AKFInputError(f"DOF {d[0]}:{d[1]} appears twice in the DOF map (rows {seen[d] + 1} and {r + 1})")
+        seen[d] = r
+    return dofs, seen
+
+
+def _coordinates(nodes, dofs):
+    """Node id -> coordinates (m), checked: one place per node, one dimension, every DOF's node."""
+    pairs = list(nodes.items()) if isinstance(nodes, dict) else list(nodes)
+    coords = {}
+    for k, v in pairs:
+        if _node_id(k) in coords:
+            raise AKFInputError(f"node {_node_id(k)} is listed twice in the node coordinates; every node needs one place")
+        coords[_node_id(k)] = np.asarray(v, dtype=float)
+    dims = {c.size for c in coords.values()}
+    if not coords or dims - {2, 3} or len(dims) != 1:
+        raise AKFInputError(f"node coordinates must all be (x, y) or all (x, y, z); got sizes {sorted(dims)}")
+    unknown = sorted({d[0] for d in dofs} - set(coords))
+    if unknown:
+        raise AKFInputError(f"the DOF map names node(s) {unknown[:10]} that have no coordinates")
+    return coords
+
+
+def _free(fixed, dofs, seen):
+    """Which rows stay free (bool, one per DOF) after the constraints ``fixed``."""
+    keep = np.ones(len(dofs), bool)
+    for f in fixed or ():
+        if isinstance(f, str):
+            f = tuple(f.split(":")) if ":" in f else f
+        targets = [d for d in dofs if d[0] == _node_id(f)] if np.ndim(f) == 0 else [(_node_id(f[0]), str(f[1]).lower())]
+        for t in targets:
+            if t not in seen:
+                raise AKFInputError(f"fixed DOF {t[0]}:{t[1]} is not in the DOF map")
+            keep[seen[t]] = False
+        if not targets:
+            raise AKFInputError(f"fixed node {f} has no DOF in the DOF map")
+    return keep
+
+
+def _strain_blocks(strain_rows, extensometers, n, large, rows, coords, dofs, seen, dof_names):
+    """The strain outputs' rows (one's own, then the extensometers'), the extensometers' members,
+    and their ends by output number when rows of one's own come first."""
+    blocks, members, ends = [], None, {}
+    if strain_rows is not None:
+        blocks.append(_rows(strain_rows, n, keep_sparse=large)[:, rows])
+    if extensometers is not None and len(extensometers):
+        bad = [k for k, e in enumerate(extensometers, start=1) if np.ndim(e) != 1 or len(e) != 2]
+        if bad:
+            raise AKFInputError(f"extensometer {bad[0]} is {list(extensometers)[bad[0] - 1]!r}: an extensometer is a pair "
+                                "of node ids [a, b]")
+        members = np.array([[_node_id(a), _node_id(b)] for a, b in extensometers], dtype=int)
+        blocks.append(_extensometer_rows(members, coords, dofs, seen, rows, dof_names))
+        if strain_rows is not None:           # extensometer k is strain:(k_own + k): its ends by output number
+            first = blocks[0].shape[0] + 1
+            ends = {first + k: (int(a), int(b)) for k, (a, b) in enumerate(members)}
+            members = None
+    return blocks, members, ends
 
 
 def from_files(K: str, M: str, dofs: str, nodes: str, fixed: Sequence | None = None, damping: Damping = None,
