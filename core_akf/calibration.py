@@ -318,6 +318,13 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     start_time = time.perf_counter()
     Y = as_finite_array(measurements, "measurements", ndim=2)
     force_model = as_force_model(force_model, force_increment_cov)
+    asked = [str(n) for n in ([parameters] if isinstance(parameters, str) else parameters)]
+    if force_model.stationary and "force_increment_cov" in asked:
+        raise AKFInputError(f"force_increment_cov is the random walk's S; the {force_model.kind} force model learns "
+                            "force_std and force_timescale")
+    if not force_model.stationary and any(n.startswith(("force_std", "force_timescale")) for n in asked):
+        raise AKFInputError("force_std and force_timescale are the parameters of a Matérn force model "
+                            "(force_model = matern12, matern32 or matern52); the random walk learns force_increment_cov")
     base = Filter(structure, [sensors], forces, dt, model_error_cov=model_error_cov, noise_cov=noise_cov, steady=True,
                   force_model=force_model, dummy=dummy)
     layout, locs = base.layouts[0], base.locs
@@ -325,12 +332,6 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     if Y.shape[1] != len(layout):
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
     force_model.parameters(len(locs))
-    if force_model.stationary and "force_increment_cov" in names:
-        raise AKFInputError(f"force_increment_cov is the random walk's S; the {force_model.kind} force model learns "
-                            "force_std and force_timescale")
-    if not force_model.stationary and any(n.startswith(("force_std", "force_timescale")) for n in names):
-        raise AKFInputError("force_std and force_timescale are the parameters of a Matérn force model "
-                            "(force_model = matern12, matern32 or matern52); the random walk learns force_increment_cov")
     if "damping" in names and not _modal_ratio(structure.damping):
         raise AKFInputError(f"damping is calibrated as a factor on the model's modal damping ratio; this model's damping "
                             f"is {structure.damping!r} (give it a modal ratio, e.g. 0.01)")

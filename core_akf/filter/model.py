@@ -19,7 +19,9 @@ give the filter of other covariance levels or another model without checking any
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg
@@ -28,7 +30,7 @@ from ..checks import as_finite_array
 from ..covariances import diag_levels, noise_covariance, state_covariance
 from ..defaults import auto_modes
 from ..exceptions import AKFInputError
-from ..forcemodels import ForceModel, as_force_model
+from ..forcemodels import DummyMeasurements, ForceModel, as_force_model
 from ..sensors import as_layout, parse_force_locations
 from ..statespace import (
     check_detectable,
@@ -40,8 +42,13 @@ from ..statespace import (
     strain_feedthrough,
     zoh,
 )
-from .kernels import ModalBlockTransition, innovation_covariance
+from ..types import ArrayLike, Covariance, FloatArray, Forces, Layout, Measurements, NoiseCovariance
+from .kernels import FilterRun, ModalBlockTransition, innovation_covariance
 from .riccati import RiccatiError
+
+if TYPE_CHECKING:
+    from ..structure import Structure
+    from .results import Estimate
 
 #: mode pairs per row chunk of the dropped-mode covariance: bounds its (rows, n_d, 4, 4) arrays
 _PAIR_ROWS = 64
@@ -71,7 +78,8 @@ class FilterModel:
     (``n_g = n_p`` for the random walk)
     """
 
-    def __init__(self, structure, forces, dt, n_modes=None, force_model=None):
+    def __init__(self, structure: Structure, forces: Forces, dt: float, n_modes: int | str | None = None,
+                 force_model: ForceModel | None = None):
         self.full = structure
         self.forces = parse_force_locations(structure, forces)
         self.dt = float(dt)
@@ -104,7 +112,7 @@ class FilterModel:
         self.A_a[:nx, nx:] = self.B_z @ self.H
         self.A_a[nx:, nx:] = F_d
 
-    def with_structure(self, structure):
+    def with_structure(self, structure: Structure) -> FilterModel:
         """The same filter model (forces, time step, force model, modes kept) of another structure.
 
         Parameters
@@ -118,7 +126,7 @@ class FilterModel:
         """
         return FilterModel(structure, self.forces, self.dt, self.n_modes, self.force_model if self._level_given else None)
 
-    def output_rows(self):
+    def output_rows(self) -> FloatArray:
         """Rows giving the forces, then every strain output, from the augmented state.
 
         Returns
@@ -137,7 +145,7 @@ class FilterModel:
     def n_a(self):
         return self.A_a.shape[0]
 
-    def observation(self, sensors):
+    def observation(self, sensors: Layout) -> FloatArray:
         """Augmented observation rows ``[G T, D]`` for a sensor layout.
 
         Strain and displacement rows carry the static correction of a reduced model.
@@ -154,7 +162,7 @@ class FilterModel:
         G, D = observation(self.structure, as_layout(sensors), self.forces)
         return np.hstack([G @ self.T, D @ self.H])
 
-    def strain_rows(self):
+    def strain_rows(self) -> FloatArray:
         """Rows giving every strain output from the augmented state (with the static correction).
 
         Returns
@@ -169,7 +177,7 @@ class FilterModel:
             out[:, self.n_states:] = extra @ self.H
         return out
 
-    def force_rows(self):
+    def force_rows(self) -> FloatArray:
         """Rows giving the forces from the augmented state, ``[0, H]``.
 
         Returns
@@ -180,7 +188,7 @@ class FilterModel:
         out[:, self.n_states:] = self.H
         return out
 
-    def residual_noise(self, sensors, model_error_cov):
+    def residual_noise(self, sensors: Layout, model_error_cov: float) -> FloatArray:
         """Covariance of the dropped modes' response to the model-error noise, at the sensors.
 
         The full model's process noise (``model_error_cov`` per physical DOF,
@@ -254,7 +262,7 @@ class FilterModel:
         Sigma = sigma.transpose(2, 0, 3, 1).reshape(2 * nd, 2 * nd)
         return 0.5 * (Sigma + Sigma.T), T, cols
 
-    def Q_a(self, model_error_cov, force_increment_cov=None):
+    def Q_a(self, model_error_cov: float, force_increment_cov: Covariance | None = None) -> FloatArray:
         """The augmented process covariance ``blockdiag(q Q_unit, Q_f)`` in modal coordinates.
 
         Parameters
@@ -350,8 +358,11 @@ class Filter:
     (True, (67, 67), (1, 2, 67))
     """
 
-    def __init__(self, structure, layouts, forces, dt, *, model_error_cov, force_increment_cov=None, noise_cov,
-                 steady=None, allow_undetectable=False, x0=None, P0=None, force_model=None, dummy=None):
+    def __init__(self, structure: Structure, layouts: Sequence[Layout], forces: Forces, dt: float, *,
+                 model_error_cov: Covariance, force_increment_cov: Covariance | None = None,
+                 noise_cov: NoiseCovariance | Sequence[NoiseCovariance], steady: bool | None = None,
+                 allow_undetectable: bool = False, x0: ArrayLike | None = None, P0: Covariance | None = None,
+                 force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None):
         if not np.isfinite(dt) or dt <= 0:
             raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
         self.layouts = [as_layout(layout) for layout in layouts]
@@ -420,7 +431,7 @@ class Filter:
         self.transition = None if self.steady else ModalBlockTransition.detect(self.A_a, self.structure.n)
 
     # ------------------------------------------------------------------ other filters of it
-    def with_structure(self, structure):
+    def with_structure(self, structure: Structure) -> Filter:
         """This filter (layouts, covariance levels, prior) on another model of the same DOFs.
 
         Nothing is checked again: the layouts and the detectability reports are this filter's.
@@ -438,7 +449,8 @@ class Filter:
         out._build(self.model.with_structure(structure))
         return out
 
-    def with_levels(self, q=1.0, s=1.0, r=None, timescale=None):
+    def with_levels(self, q: float = 1.0, s: float | ArrayLike = 1.0, r: ArrayLike | None = None,
+                    timescale: ArrayLike | None = None) -> Filter:
         """This filter with its covariances scaled (Q, the force prior, R), as calibration searches them.
 
         Parameters
@@ -477,7 +489,7 @@ class Filter:
         return out
 
     # ------------------------------------------------------------------ data in, estimates out
-    def extend(self, Y):
+    def extend(self, Y: FloatArray) -> FloatArray:
         """The measurements with the dummy channels' zeros appended (the filter's channels).
 
         Parameters
@@ -492,7 +504,7 @@ class Filter:
             return Y
         return np.concatenate([Y, np.zeros(Y.shape[:-1] + (len(self.dummy_layout),))], axis=-1)
 
-    def riccati_error(self, exc):
+    def riccati_error(self, exc: RiccatiError) -> RiccatiError:
         """A :class:`RiccatiError` naming the layouts whose gain failed.
 
         Parameters
@@ -507,7 +519,7 @@ class Filter:
         names = "; ".join(", ".join(s.label for s in self.layouts[b]) for b in exc.problems)
         return RiccatiError(f"steady-state gain failed for the layout(s) [{names}]: {exc}", exc.problems)
 
-    def estimates(self, run, Y, t0=0.0):
+    def estimates(self, run: FilterRun, Y: FloatArray, t0: float = 0.0) -> list[Estimate]:
         """One :class:`~core_akf.filter.Estimate` per layout from a kernel's run (modal coordinates).
 
         States go back to physical ``[u; u'; f]`` and gains to the physical state.
@@ -538,7 +550,7 @@ class Filter:
                          (self.A_a, self.G_a[b], run.gain[b]), t0=t0, loglik_terms=None if terms is None else terms[b])
                 for b, layout in enumerate(self.layouts)]
 
-    def smooth(self, est, b, Y):
+    def smooth(self, est: Estimate, b: int, Y: Measurements) -> Estimate:
         """The smoothed estimate of layout ``b`` (:func:`core_akf.filter.smoother.smooth` on the
         modal matrices): the filtered ``est`` with its states and forces ``x_k|N``, and
         :attr:`Estimate.force_std` and :attr:`Estimate.strain_std` their standard deviations; the
@@ -564,7 +576,7 @@ class Filter:
                      steady=self.steady, covariances=None, outputs=self.model.output_rows())
         return self.with_std(est, res.states, res.output_std)
 
-    def with_std(self, est, states, std):
+    def with_std(self, est: Estimate, states: FloatArray, std: FloatArray) -> Estimate:
         """A smoothed estimate.
 
         Parameters
