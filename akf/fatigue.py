@@ -79,6 +79,19 @@ class FatigueRun:
             self.reference.update(sim.strains[step:step + n] @ self.W.T)
         self.steps += n
 
+    def merge(self, counts, steps):
+        """Add the counts of the record's next piece, filtered elsewhere (a task of a time-parallel run).
+
+        Parameters
+        ----------
+        counts : FatigueAccumulator
+            The piece's estimated stresses counted (the same outputs and curve).
+        steps : int
+            The piece's steps.
+        """
+        self.estimated = counts if self.steps == 0 else self.estimated.merge(counts)
+        self.steps += steps
+
     def frame(self, dt):
         """``fatigue.csv``: one row per output (Pa, cycles, Miner's sum, per year at this record's rate)."""
         import pandas as pd

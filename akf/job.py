@@ -3,7 +3,7 @@ simulated scenario or measured data, from a TOML file or a built-in example, for
 
 :func:`load_job` (a file) or :meth:`Job.from_dict` (a dict) checks it against the schema
 (:mod:`akf.schema`) once, makes its data paths relative to the job file and applies every
-default once: the runners (:func:`akf.estimating.estimate_job`, :func:`akf.locating.run_locate_job`,
+default once: the runners (:func:`akf.estimate.estimate_job`, :func:`akf.locating.run_locate_job`,
 :func:`akf.placement.problem_from_job`) take the :class:`Job` and resolve nothing again.
 
 >>> from akf.examples import example
@@ -98,7 +98,7 @@ class Job:
 
     Build it with :func:`load_job` (a file) or :meth:`from_dict` (a dict as read from TOML, for
     instance a built-in example from :func:`akf.examples.load_example`); the runners
-    (:func:`akf.estimating.estimate_job`, :func:`akf.locating.run_locate_job`,
+    (:func:`akf.estimate.estimate_job`, :func:`akf.locating.run_locate_job`,
     :func:`akf.placement.problem_from_job`) take a :class:`Job`.
 
     Attributes

@@ -40,7 +40,7 @@ import numpy as np
 from core_akf.exceptions import AKFInputError
 from core_akf.outputs import confined, write_csv
 
-from .writers import draw
+from .figures import draw
 
 log = logging.getLogger("akf")
 

@@ -10,13 +10,13 @@ import numpy as np
 import scipy.linalg
 from run_all import best_of, textbook_loop  # bench/ is on the path when run as a script
 
-from akf.estimating import estimate_job
+from akf.estimate import estimate_job
 from akf.examples import S17_FORCES, S17_MULTI, example_job
 from akf.job import Job
 from core_akf import filter as akf
 from core_akf.covariances import augmented_covariance
-from core_akf.models import s17_truss
 from core_akf.filter.riccati import solve_filter_dare
+from core_akf.models import s17_truss
 from core_akf.simulate import simulate
 from core_akf.statespace import state_space
 

@@ -98,7 +98,7 @@ def _filter_keys(data, method, loads_rms, f_high, static_std):
 
 
 def main(argv=None):
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import Job
     from core_akf.statespace import detectability, static_gain
 

@@ -56,10 +56,10 @@ def _statsmodels(kind, A, G, Q, R, Y, P0):
 
 def main(argv=None):
     from core_akf.calibration import calibrate
-    from core_akf.filter.kernels import steady_logliks
     from core_akf.filter import estimate, filter_states
-    from core_akf.metrics import rms_error
+    from core_akf.filter.kernels import steady_logliks
     from core_akf.filter.smoother import smooth
+    from core_akf.metrics import rms_error
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--csv", default=os.path.join(HERE, "learn_results.csv"))

@@ -126,9 +126,9 @@ def filter_rows():
     from akf.job import Job
     from core_akf import filter as akf
     from core_akf.covariances import augmented_covariance
-    from core_akf.models import s17_truss
     from core_akf.filter.recursion import lti_response
     from core_akf.filter.riccati import steady_gain
+    from core_akf.models import s17_truss
     from core_akf.simulate import simulate
     from core_akf.statespace import state_space
 

@@ -8,7 +8,7 @@
 The S17 case-4 sensor set (5 accelerometers, 4 strain gauges; 4 unknown forces) sampled at 1 kHz
 is simulated file by file -- TDMS files of 10 minutes each, written by npTDMS with DAQ channel
 names and units (microstrain, g), as a monitoring system would leave them -- and then estimated by
-``akf.estimating.estimate_job``, the code behind ``akf estimate``: the files read in time order,
+``akf.estimate.estimate_job``, the code behind ``akf estimate``: the files read in time order,
 converted to SI through the channel map, filtered chunk by chunk (65536 steps) and written to
 ``timeseries.parquet`` (the four forces and one strain history per step).  A thread samples the
 process's resident memory (RSS) every 0.2 s.  Printed: the time to estimate, samples per second
@@ -103,7 +103,7 @@ def job(folder, fatigue=False):
 
 
 def run(hours, base, fatigue=False):
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import Job
 
     folder = os.path.join(base, f"record-{hours:g}h")
@@ -150,7 +150,7 @@ def run_plate(base, seconds=60.0, dt=5e-4):
     """The thesis plate, ``seconds`` at 1/dt Hz, streamed from one Parquet file."""
     import pandas as pd
 
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import Job
     from core_akf import simulate
     from core_akf.models import th_plate

@@ -51,9 +51,9 @@ def main(argv=None):
 
     from core_akf import simulate
     from core_akf.fatigue import FatigueAccumulator, SNCurve, stress_operator
+    from core_akf.filter import Estimator, TimeParallel, estimate_in_parallel
     from core_akf.loads import band_limited_white_noise
     from core_akf.models import s17_truss
-    from core_akf.filter import Estimator, TimeParallel, estimate_in_parallel
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=1.0)

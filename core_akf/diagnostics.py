@@ -14,104 +14,13 @@ from __future__ import annotations
 import numpy as np
 
 from .exceptions import AKFInputError
+from .filter.results import WHITENESS_LAGS, sensor_diagnostics, skipped
 from .sensors import UNITS
 
 #: a channel whose innovations are this many times their predicted size is flagged
 CONSISTENCY_LIMIT = 10.0
-#: lags of the innovation autocorrelation checked for whiteness
-WHITENESS_LAGS = 20
 #: a record should be this many filter time constants long (transient plus a useful part)
 TRANSIENT_MULTIPLE = 3.0
-
-
-def _skip(n):
-    """Samples left out of the statistics as the start-up transient: the first 5 %."""
-    return n // 20
-
-
-def whiteness(e, lags=WHITENESS_LAGS):
-    """How white a sequence of innovations is.
-
-    Parameters
-    ----------
-    e : ndarray (N,)
-        Innovations of one channel (its unit).
-    lags : int
-        Autocorrelation lags tested, ``1..lags``.
-
-    Returns
-    -------
-    share : float
-        Share of the lags inside the 95 % band ``+-1.96 / sqrt(N)`` of white noise (about 0.95
-        for white innovations); NaN for a constant sequence.
-    lag1 : float
-        The lag-1 autocorrelation.
-    """
-    e = np.asarray(e, float) - np.mean(e)
-    n = e.size
-    denom = float(e @ e)
-    lags = min(lags, n - 1)
-    if denom == 0 or lags < 1:
-        return float("nan"), float("nan")
-    rho = np.array([float(e[:-k] @ e[k:]) / denom for k in range(1, lags + 1)])
-    return float(np.mean(np.abs(rho) < 1.96 / np.sqrt(n))), float(rho[0])
-
-
-def sensor_diagnostics(est):
-    """Innovation statistics per sensor, over the record after its first 5 %.
-
-    Parameters
-    ----------
-    est : Estimate
-        An estimate (:func:`core_akf.filter.estimate`).
-
-    Returns
-    -------
-    list of dict
-        One per sensor: ``channel``, ``unit``, ``measured_rms``, ``innovation_rms``,
-        ``predicted_innovation_std`` (``sqrt(S_ii)``), ``consistency`` (their ratio, about 1 when
-        the model and the covariances fit the data), ``whiteness`` and ``lag1_autocorrelation``
-        (:func:`whiteness`), and ``loglik``, the channel's log-likelihood over the whole record
-        (:attr:`core_akf.filter.Estimate.loglik_channels`).
-    """
-    Y, E = est.measurements, est.innovations
-    k0 = _skip(Y.shape[0])
-    loglik = est.loglik_channels                      # over the whole record
-    out = []
-    for j, s in enumerate(est.sensors):
-        e = E[k0:, j]
-        irms = float(np.sqrt(np.mean(e ** 2)))
-        std = float(np.sqrt(max(est.innovation_cov[j, j], 0.0)))
-        white, lag1 = whiteness(e)
-        out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": float(np.sqrt(np.mean(Y[k0:, j] ** 2))),
-                    "innovation_rms": irms, "predicted_innovation_std": std,
-                    "consistency": irms / std if std > 0 else float("inf"), "whiteness": white,
-                    "lag1_autocorrelation": lag1, "loglik": float(loglik[j])})
-    return out
-
-
-def force_statistics(est):
-    """Statistics of the estimated forces, after the first 5 % of the record.
-
-    Parameters
-    ----------
-    est : Estimate
-        An estimate (:func:`core_akf.filter.estimate`).
-
-    Returns
-    -------
-    list of dict
-        One per force location: ``channel`` ("8:y"), ``unit`` (N), ``rms`` (N), ``peak`` (N, the
-        signed value of the largest magnitude) and ``time_of_peak`` (s).
-    """
-    k0 = _skip(est.forces.shape[0])
-    out = []
-    for j, (node, d) in enumerate(est.force_locations):
-        f = est.forces[k0:, j]
-        i = int(np.argmax(np.abs(f)))
-        out.append({"channel": f"{node}:{d}", "unit": "N", "rms": float(np.sqrt(np.mean(f ** 2))),
-                    "peak": float(f[i]), "time_of_peak": float((k0 + i) * est.dt)})
-    return out
 
 
 class RunningDiagnostics:
@@ -131,7 +40,7 @@ class RunningDiagnostics:
     """
 
     def __init__(self, n_steps=None, lags=WHITENESS_LAGS):
-        self.skip = 0 if n_steps is None else _skip(int(n_steps))
+        self.skip = 0 if n_steps is None else skipped(int(n_steps))
         self.lags = lags
         self.step = 0            # steps seen
         self.n = 0               # steps counted (after the skip)
@@ -464,7 +373,7 @@ def scale_check(structure, sensors, forces, measurements, dt, *, model_error_cov
     predicted = np.zeros((len(groups),) + Y.shape)
     predicted[:, 1:] = steady_outputs(f.A_a, G, f.Q_a, Rs, np.broadcast_to(Y, (len(groups),) + Y.shape),
                                       f.G_a[0] @ f.A_a)[:, :-1]
-    k0 = _skip(Y.shape[0])
+    k0 = skipped(Y.shape[0])
     found = []                                   # (what, name, idx, c, r)
     for (what, name, idx), pred in zip(groups, predicted):
         y, yh = Y[k0:, idx].ravel(), pred[k0:, idx].ravel()

@@ -9,10 +9,10 @@ import numpy as np
 
 from core_akf.defaults import auto_modes, default
 from core_akf.exceptions import AKFInputError
-from core_akf.forcemodels import ForceModel
-from core_akf.metrics import average_strain_error
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
+from core_akf.forcemodels import ForceModel
+from core_akf.metrics import average_strain_error
 from core_akf.simulate import simulate
 
 from .encoding import CandidateSet, make_encoding

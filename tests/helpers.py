@@ -1,10 +1,10 @@
 """What several test modules share: the estimate pipeline on a job dict, a simulated record as a file."""
-from akf.estimating import estimate_job
+from akf.estimate import estimate_job
 from akf.job import Job
 
 
 def run_estimate(job, out=None, *, steady=None, allow_undetectable=None, **run_options):
-    """:func:`akf.estimating.estimate_job` of a job dict (as read from TOML) into ``out`` (None: in
+    """:func:`akf.estimate.estimate_job` of a job dict (as read from TOML) into ``out`` (None: in
     memory), with ``[filter] steady`` / ``allow_undetectable`` overridden when given and the
     other options (``resume``, ``stop_after``, ``plot``, ...) passed on."""
     overrides = {f"filter.{k}": v for k, v in {"steady": steady, "allow_undetectable": allow_undetectable}.items()

@@ -15,8 +15,8 @@ import scipy.linalg
 
 from core_akf import filter as akf
 from core_akf.filter import recursion
-from core_akf.models import s17_truss
 from core_akf.filter.riccati import dare_residual, solve_filter_dare, steady_gain
+from core_akf.models import s17_truss
 from core_akf.simulate import simulate
 from core_akf.statespace import state_space
 
@@ -321,7 +321,7 @@ def test_estimate_batch_with_noise_per_layout():
 def test_structured_time_varying_update_equals_dense():
     """ModalBlockTransition's A P A^T (used by estimate for classically damped structures)
     gives the same time-varying filter as the dense product."""
-    from core_akf.filter.kernels import ModalBlockTransition
+    from core_akf.filter.recursion import ModalBlockTransition
     from core_akf.models import th_plate
     from core_akf.statespace import augment, modal_state_transform, modal_zoh, observation
     s = th_plate().reduce(30)
@@ -379,13 +379,42 @@ def test_estimate_to_frame():
     wide = est.to_frame(wide=True)
     assert list(wide.columns[:2]) == ["time", "force:8:y"] and wide.shape == (64, 2 + 34)
     assert np.allclose(wide["strain:13"], est.strains[:, 12])
-    tidy = est.to_frame()                     # one row per time step and channel
-    assert list(tidy.columns) == ["time", "quantity", "channel", "unit", "value"] and len(tidy) == 64 * 35
-    m13 = tidy.query("channel == 'strain:13'")
-    assert np.allclose(m13["value"], est.strains[:, 12]) and np.allclose(m13["time"], est.time)
-    assert set(tidy.query("quantity == 'force'")["unit"]) == {"N"}
-    assert np.allclose(tidy.pivot(index="time", columns="channel", values="value")["8:y"], est.forces[:, 0])
+    tidy = est.to_frame(reference=sim)        # one row per time step and channel, with the truth
+    assert list(tidy.columns) == ["time", "quantity", "channel", "unit", "estimated", "reference", "std"]
+    assert len(tidy) == 64 * 35
+    m13 = tidy[tidy["channel"] == "strain:13"]
+    assert np.allclose(m13["estimated"], est.strains[:, 12]) and np.allclose(m13["time"], est.time)
+    assert np.allclose(m13["reference"], sim.strains[:, 12]) and m13["std"].isna().all()      # filtered: no std
+    assert set(tidy[tidy["quantity"] == "force"]["unit"]) == {"N"}
+    forces = tidy[tidy["quantity"] == "force"]
+    assert np.allclose(forces["estimated"], est.forces[:, 0]) and np.allclose(forces["reference"], loads[:, 0])
+    few = est.to_frame(strains=[12, 0])       # the strain outputs asked for, after the forces
+    assert list(few["channel"].cat.categories) == ["8:y", "strain:13", "strain:1"] and len(few) == 64 * 3
+    assert np.allclose(few[few["channel"] == "strain:1"]["estimated"], est.strains[:, 0])
     assert est.detectability.detectable
+
+
+def test_estimate_summary_and_diagnostics():
+    """The estimate's own summary: a row per force and per sensor, the record's figures in attrs."""
+    s = s17_truss()
+    loads = np.random.default_rng(5).normal(0, 100, (2048, 1)).cumsum(axis=0)
+    sensors = ["strain:13", "acc:8:y"]
+    sim = simulate(s, sensors, ["8:y"], loads, 1 / 1024, relative_noise=0.02, seed=0)
+    kw = dict(model_error_cov=1e-16, force_increment_cov=1e4, noise_cov=np.diag(sim.noise_std ** 2))
+    est = akf.estimate(s, sensors, ["8:y"], sim.measurements, 1 / 1024, **kw)
+    table = est.summary()
+    assert list(table["channel"]) == ["8:y", "strain:13", "acc:8:y"]
+    assert list(table["quantity"]) == ["force", "sensor", "sensor"]
+    force = table.iloc[0]
+    assert force["unit"] == "N" and np.isclose(force["rms"], np.sqrt(np.mean(est.forces[102:, 0] ** 2)))
+    assert np.isclose(abs(force["peak"]), np.abs(est.forces[102:, 0]).max())
+    assert np.allclose(table["loglik"].iloc[1:], est.loglik_channels)
+    assert np.isclose(table.attrs["loglik"], est.loglik) and table.attrs["n_steps"] == 2048
+    assert 0 < table.attrs["transient_time"] < 2048 / 1024 and not table.attrs["smoothed"]
+    assert [d["channel"] for d in est.diagnostics()] == sensors
+    assert all(0.5 < d["consistency"] < 2 for d in est.diagnostics())        # the model that made the record
+    smoothed = akf.estimate(s, sensors, ["8:y"], sim.measurements, 1 / 1024, smooth=True, **kw).summary()
+    assert smoothed.attrs["smoothed"] and 0 < smoothed["mean_std"].iloc[0] < force["rms"]
 
 
 def test_stein_doubling_matches_scipy_lyapunov():

@@ -321,7 +321,7 @@ def test_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path, capsys, monkeypat
                 raise KeyboardInterrupt
         return real(frame, path, **kw)
 
-    monkeypatch.setattr("akf.estimating.write_csv", interrupted)
+    monkeypatch.setattr("akf.estimate.files.write_csv", interrupted)
     rc = main(["estimate", "--example", "s17-case4", "--duration", "0.05", "--no-plot", "--out", str(tmp_path)])
     assert rc == 130
     assert "interrupted" in capsys.readouterr().err

@@ -10,7 +10,7 @@ import tomlkit
 from helpers import write_record
 
 from akf.cli import main
-from akf.estimating import estimate_job
+from akf.estimate import estimate_job
 from akf.examples import example, example_job
 from akf.job import Job, load_job
 from core_akf import simulate

@@ -12,13 +12,13 @@ from helpers import run_estimate
 
 from akf.cli import main
 from akf.job import load_job_file
-from core_akf.diagnostics import RunningDiagnostics, force_statistics, sensor_diagnostics
+from core_akf.diagnostics import RunningDiagnostics
 from core_akf.exceptions import AKFInputError
-from core_akf.filter import estimate
+from core_akf.filter import CheckpointError, Estimator, estimate
+from core_akf.filter.results import force_statistics, sensor_diagnostics
 from core_akf.io import Reader, Record, Timing, conversion, register_reader
 from core_akf.io import readers as readers_module
 from core_akf.models import s17_truss
-from core_akf.filter import CheckpointError, Estimator
 
 DAQ = pathlib.Path(__file__).resolve().parents[1] / "examples" / "daq"
 FORMATS = ["record.csv", "record.parquet", "record.tdms", "record.uff", "record.h5"]

@@ -7,7 +7,7 @@ import pytest
 import rainflow as reference_rainflow
 from helpers import measured_s17_files
 
-from akf.estimating import estimate_job
+from akf.estimate import estimate_job
 from akf.examples import example
 from akf.job import Job
 from core_akf.exceptions import AKFInputError

@@ -284,7 +284,7 @@ def test_outputs_are_created_with_the_users_umask(tmp_path, capsys):
 
 
 def test_resume_after_the_output_strains_or_the_format_or_the_filter_changed(tmp_path, capsys):
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import load_job
     from core_akf.filter import CheckpointError
     path = str(_measured_job(tmp_path))
@@ -300,7 +300,7 @@ def test_resume_after_the_output_strains_or_the_format_or_the_filter_changed(tmp
 
 
 def test_plain_rerun_into_an_interrupted_runs_folder(tmp_path, capsys):
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import load_job
     path = _measured_job(tmp_path)
     out = tmp_path / "o"
@@ -315,7 +315,7 @@ def test_plain_rerun_into_an_interrupted_runs_folder(tmp_path, capsys):
 
 @pytest.mark.parametrize("damage", ["truncated", "foreign", "nan"])
 def test_resume_from_a_damaged_checkpoint(tmp_path, capsys, damage):
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import load_job
     path = _measured_job(tmp_path)
     out = tmp_path / "o"
@@ -579,7 +579,7 @@ def test_figures_of_a_measured_record_include_every_sensor_in_microstrain(tmp_pa
 
 
 def test_sensor_figure_labels_strain_in_microstrain_and_draws_every_sensor(tmp_path):
-    from akf.plots import plot_sensors
+    from akf.figures import plot_sensors
     from core_akf.sensors import as_layout
 
     sensors = as_layout([f"strain:{m}" for m in range(1, 15)] + ["acc:4:y"])
@@ -592,7 +592,7 @@ def test_sensor_figure_labels_strain_in_microstrain_and_draws_every_sensor(tmp_p
 
 
 def test_error_panel_at_a_thousand_outputs_ranks_the_worst(tmp_path, monkeypatch):
-    import akf.plots as plots
+    import akf.figures as plots
 
     seen = {}
     original = plots._strain_error_panel

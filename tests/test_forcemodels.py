@@ -8,18 +8,17 @@ import scipy.linalg
 from scipy.special import gamma, kv
 
 from akf.cli import main
-from akf.estimating import estimate_job
+from akf.estimate import estimate_job
 from akf.examples import example, example_job, load_example
 from akf.job import Job
 from akf.locating import run_locate_job
 from core_akf import DummyMeasurements, ForceModel, detectability, estimate, simulate
 from core_akf.calibration import calibrate
 from core_akf.exceptions import AKFInputError, UndetectableError
-from core_akf.filter import Filter
+from core_akf.filter import Estimator, Filter
 from core_akf.loads import band_limited_white_noise
 from core_akf.models import s17_truss
 from core_akf.statespace import SubsetDetectability, continuous, zoh
-from core_akf.filter import Estimator
 from sensoropt.problem import PlacementProblem
 
 ACC = ["acc:2:y", "acc:4:y", "acc:5:y", "acc:6:y", "acc:7:y", "acc:9:y", "acc:12:y", "acc:14:y", "acc:4:x", "acc:9:x"]

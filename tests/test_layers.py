@@ -236,3 +236,29 @@ def test_no_module_writes_into_another_objects_dict():
                 if "__dict__" in line and "self.__dict__" not in line:
                     offences.append(f"{path.relative_to(ROOT)}:{k}: {line.strip()}")
     assert not offences, offences
+
+
+def test_the_filter_kernels_know_no_structure_or_sensors():
+    """The kernels are pure functions over matrices and a built Filter: they import neither the
+    structures nor the sensors (those are the Filter's business, once)."""
+    kernels = ROOT / "core_akf" / "filter" / "kernels.py"
+    imported = {module for path, module, names in _imports("core_akf") if path == kernels}
+    imported |= {f"{module}.{n}" for path, module, names in _imports("core_akf") if path == kernels for n in names}
+    assert imported, "the kernels' imports were not read"
+    assert not {m for m in imported if m.split(".")[:2] in (["core_akf", "sensors"], ["core_akf", "structure"])}
+
+
+def test_no_module_reaches_into_an_estimator():
+    """An Estimator is used through its methods (update, smooth, state, restore, ...): no module
+    outside the filter package reads its filter set-up or its private state."""
+    offences = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            if path.parent == ROOT / "core_akf" / "filter":
+                continue
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                        and "estimator" in node.value.id.lower()
+                        and (node.attr in ("setup", "filter") or node.attr.startswith("_"))):
+                    offences.append(f"{path.relative_to(ROOT)}:{node.lineno}: {node.value.id}.{node.attr}")
+    assert not offences, offences

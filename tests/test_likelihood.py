@@ -6,10 +6,9 @@ import numpy as np
 import pytest
 
 from core_akf import estimate, simulate
-from core_akf.filter import Filter, estimate_batch, filter_states
+from core_akf.filter import Estimator, Filter, estimate_batch, filter_states
 from core_akf.models import s17_truss
 from core_akf.sensors import as_layout, parse_force_locations
-from core_akf.filter import Estimator
 
 SENSORS = ["strain:13", "strain:26", "acc:8:y"]
 FORCES = ["8:y"]

@@ -6,10 +6,9 @@ import pytest
 import scipy.linalg
 
 from akf.examples import TH_CASE3
-from core_akf.filter import filter_states
-from core_akf.models import s17_truss, th_plate
-from core_akf.filter import FilterModel
+from core_akf.filter import FilterModel, filter_states
 from core_akf.filter.riccati import RiccatiError, RiccatiWarning, dare_residual, solve_filter_dare
+from core_akf.models import s17_truss, th_plate
 
 EPS = np.finfo(float).eps
 

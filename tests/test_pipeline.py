@@ -11,7 +11,7 @@ from helpers import write_record
 
 import akf.schema
 from akf.cli import main
-from akf.estimating import estimate_job
+from akf.estimate import estimate_job
 from akf.examples import example, example_job
 from akf.job import Job, load_job
 

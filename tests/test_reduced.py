@@ -2,10 +2,9 @@
 import numpy as np
 import pytest
 
-from core_akf.filter import estimate
-from core_akf.models import s17_truss, th_plate
-from core_akf.filter import FilterModel
+from core_akf.filter import FilterModel, estimate
 from core_akf.filter.kernels import steady_outputs
+from core_akf.models import s17_truss, th_plate
 from core_akf.simulate import simulate
 from core_akf.statespace import force_selection
 

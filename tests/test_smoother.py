@@ -7,9 +7,9 @@ import pytest
 from core_akf import simulate
 from core_akf.exceptions import AKFInputError
 from core_akf.filter import Filter, filter_states
+from core_akf.filter.smoother import smooth
 from core_akf.models import s17_truss
 from core_akf.sensors import as_layout, parse_force_locations
-from core_akf.filter.smoother import smooth
 
 SENSORS = ["strain:13", "strain:26", "acc:8:y"]
 DT = 1e-3
@@ -135,7 +135,7 @@ def test_a_calibrated_and_smoothed_job_beats_the_filter():
 
     import pandas as pd
 
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.examples import example
 
     out = tempfile.mkdtemp()
@@ -149,7 +149,7 @@ def test_a_calibrated_and_smoothed_job_beats_the_filter():
 
 
 def test_smoothing_a_model_the_data_disagree_with_is_a_warning():
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.examples import example
 
     res = estimate_job(example("s17-case4", overrides={"filter.smooth": True, "simulation.duration": 0.5}))
@@ -179,7 +179,7 @@ def test_a_streamed_record_is_smoothed_with_a_fixed_lag(tmp_path):
     whole record, and both beat the filter."""
     import pandas as pd
 
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import Job
 
     measured, sim = _measured_job(tmp_path)
@@ -211,7 +211,7 @@ def test_a_streamed_record_is_smoothed_with_a_fixed_lag(tmp_path):
 def test_a_lagged_smoothing_run_resumes_where_it_stopped(tmp_path):
     """Interrupted after two chunks and resumed, the fixed-lag run writes what an uninterrupted run
     writes (the steps the smoother held are in the checkpoint)."""
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import Job
 
     measured, _ = _measured_job(tmp_path)
@@ -235,7 +235,7 @@ def test_the_fixed_lag_smoother_refuses_bad_input(bad, message):
 
 
 def test_smooth_lag_needs_smooth_and_the_steady_filter():
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.examples import example
 
     with pytest.raises(AKFInputError, match="set smooth = true"):
@@ -249,8 +249,8 @@ def test_fixed_lag_states_are_the_smoother_of_the_record_up_to_k_plus_lag():
     """Every step k of a lag-25 smoother fed in chunks of 37 equals the steady RTS smoother of the
     record up to k + 25 (states and output standard deviations), the held steps survive a
     state()/restore() round trip, and the last 25 steps are the smoother of the whole record."""
-    from core_akf.filter.smoother import FixedLagSmoother
     from core_akf.filter.kernels import steady_states
+    from core_akf.filter.smoother import FixedLagSmoother
 
     rng = np.random.default_rng(1)
     A = np.array([[0.9, 0.1, 0, 0], [-0.1, 0.9, 0, 0.05], [0, 0, 0.95, 0.1], [0, 0, 0, 1.0]])

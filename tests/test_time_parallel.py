@@ -111,7 +111,7 @@ def test_akf_estimate_of_many_files_in_parallel_equals_the_sequential_run(tmp_pa
     forces and strains to 1e-9, the fatigue counts exactly, the same diagnostics."""
     import pandas as pd
 
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import Job
     from akf.parallel import scheduler
 
@@ -140,7 +140,7 @@ def test_akf_estimate_of_many_files_in_parallel_equals_the_sequential_run(tmp_pa
 
 
 def test_a_time_parallel_run_refuses_what_it_cannot_do(tmp_path):
-    from akf.estimating import estimate_job
+    from akf.estimate import estimate_job
     from akf.job import Job
 
     data = _measured_files(tmp_path, files=3)

@@ -14,7 +14,7 @@ from .common import add_print_job, print_written
 
 
 def _calibrate(args):
-    from ..estimating import calibrate_job, calibration_record
+    from ..calibrating import calibrate_job, calibration_record
     from ..examples import example_path
     from ..job import Job
     from .common import job_data, listing_or_template

@@ -13,7 +13,7 @@ from .common import add_print_job, print_written, seed
 
 
 def _estimate(args):
-    from ..estimating import estimate_job
+    from ..estimate import estimate_job
     from ..job import Job
     from .common import job_data, listing_or_template
 

@@ -54,8 +54,8 @@ def _run_place(args, problem, settings, out):
     from sensoropt.ga import place
     from sensoropt.plots import plot_convergence, plot_layout
 
+    from ..figures import draw
     from ..parallel import scheduler, workers
-    from ..writers import draw
 
     checkpoint = args.checkpoint or os.path.join(out, "checkpoint.json")
     if args.overwrite and args.resume:

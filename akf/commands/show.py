@@ -68,7 +68,7 @@ def _show(args):
         _print(info, structure)
         sys.stdout.flush()
     if not args.no_plot:
-        from ..writers import draw
+        from ..figures import draw
 
         out = args.out or os.path.join("akf-out", "show")
         with OutputFolder(out, "--out"):

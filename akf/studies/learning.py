@@ -37,7 +37,6 @@ def run(out=None, quick=False, seed=0):
     import pandas as pd
 
     from core_akf.calibration import calibrate
-    from core_akf.diagnostics import sensor_diagnostics
     from core_akf.filter import Filter, estimate
     from core_akf.filter.kernels import steady_logliks
     from core_akf.metrics import rms_error
@@ -70,7 +69,7 @@ def run(out=None, quick=False, seed=0):
         for smoothed in (False, True):
             est = estimate(model, sensors, forces, sim.measurements, dt, steady=True, smooth=smoothed, **levels)
             estimates[model_name, smoothed] = est
-            gauges = [d["consistency"] for d in sensor_diagnostics(est) if d["channel"].startswith("strain")]
+            gauges = [d["consistency"] for d in est.diagnostics() if d["channel"].startswith("strain")]
             row = {"model": model_name, "stiffness_factor": factor, "estimator": "smoothed" if smoothed else "filtered",
                    "loglik": est.loglik, "force_rms_error_N": float(np.mean(rms_error(est.forces, sim.loads))),
                    "gauge_consistency_min": min(gauges), "gauge_consistency_max": max(gauges)}

@@ -41,7 +41,7 @@ import numpy as np
 from core_akf.figures import subplots
 from core_akf.outputs import write_csv
 
-from ..estimating import estimate_job
+from ..estimate import estimate_job
 from ..examples import S17_ACC_ONLY, S17_MULTI, S17_STRAIN_ONLY, s17_job
 from ..job import Job
 from ._common import Progress, StudyResult, drift_ratio, output_dir, psd, save
@@ -72,7 +72,7 @@ CASES = {
 
 
 def run_case(case, duration=2.0, seed=0):
-    """Run one S17 case; returns the :class:`~akf.estimating.EstimateResult`."""
+    """Run one S17 case; returns the :class:`~akf.estimate.EstimateResult`."""
     description, sensors, slow, errors = CASES[case]
     job = s17_job(f"s17-{case}", description, sensors, slow=slow, model_error=errors, noise=errors)
     job["simulation"].update(duration=duration, seed=seed)

@@ -21,8 +21,8 @@ from sensoropt.ga import THESIS, independent_runs, place
 from sensoropt.pareto import pareto
 from sensoropt.plots import plot_convergence, plot_layout, plot_pareto
 
+from ..figures import draw
 from ..placement import example_problem
-from ..writers import draw
 from ._common import Progress, StudyResult, output_dir
 
 log = logging.getLogger("akf")

@@ -40,7 +40,7 @@ import numpy as np
 from core_akf.figures import figure
 from core_akf.outputs import write_csv
 
-from ..estimating import estimate_job
+from ..estimate import estimate_job
 from ..examples import TH_CASE1, TH_CASE2, TH_CASE3, TH_CASE4, TH_FLEXIBLE_PLATE, th_job
 from ..job import Job
 from ._common import Progress, StudyResult, drift_ratio, output_dir, psd, save
@@ -77,7 +77,7 @@ CHANNELS = ("strain:70:ex", "strain:1:gxy")
 
 
 def run_case(case, duration=6.0, seed=0, n_modes=None):
-    """Run one thesis case; returns the :class:`~akf.estimating.EstimateResult`."""
+    """Run one thesis case; returns the :class:`~akf.estimate.EstimateResult`."""
     description, sensors, model_error, noise, options = CASES[case]
     job = th_job(f"th-{case}", description, sensors, model_error=model_error, noise=noise, **options)
     job["simulation"].update(duration=duration, seed=seed)

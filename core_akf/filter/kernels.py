@@ -10,7 +10,8 @@ Every path of the toolkit runs these:
   steady filter, a time-varying filter whose covariance has converged, a chunk of a stream, the
   smoother's forward pass), in lifted form (:func:`core_akf.filter.recursion.lti_response`);
   :func:`closed_loop` forms its matrices, once;
-- :func:`time_varying_filter` -- the covariance recursion, step by step, until the covariance
+- :func:`time_varying_filter` -- the covariance recursion, step by step (cheaply for a modal
+  transition, :class:`~core_akf.filter.recursion.ModalBlockTransition`), until the covariance
   has converged, then :func:`fixed_gain`;
 - :func:`steady_filter` -- one batched Riccati solve (:func:`core_akf.filter.riccati.steady_gain`);
 - :func:`innovations` and :func:`innovation_covariance` -- the one-step prediction errors and
@@ -72,109 +73,6 @@ class FilterRun:
         if self.loglik_terms is None:
             raise AKFInputError("the log-likelihood was not asked for: run the kernel with loglik=True")
         return self.loglik_terms.sum(axis=(-2, -1))
-
-
-class ModalBlockTransition:
-    """The augmented transition of a classically damped structure in modal coordinates.
-
-    ``A_a = [[A_z, B_z], [0, F_d]]`` whose structural part ``A_z`` consists of four diagonal
-    blocks -- the ZOH transition in modal coordinates ``z = [omega q; q']`` (see
-    :func:`core_akf.statespace.modal_state_transform`).  :meth:`left` applies ``A_a`` from the
-    left in ``O(n_a (1 + n_p))`` operations per column instead of ``O(n_a^2)``, which makes the
-    time-varying covariance update ``A_a P A_a^T`` ``O(n_a^2)`` instead of ``O(n_a^3)`` per step.
-
-    Parameters
-    ----------
-    A_a : ndarray (n_a, n_a)
-        The augmented transition, ``n_a = 2 n_modes + n_p``.
-    n_modes : int
-        Modes of the structural part.
-    rtol : float
-        Tolerance of the structure test (:meth:`detect`).
-    """
-
-    def __init__(self, A_a, n_modes, rtol=1e-12):
-        n = int(n_modes)
-        nx = 2 * n
-        blocks = [np.diag(A_a[i * n:(i + 1) * n, j * n:(j + 1) * n]).copy() for i in (0, 1) for j in (0, 1)]
-        rebuilt = np.zeros((nx, nx))
-        for (i, j), d in zip(((0, 0), (0, 1), (1, 0), (1, 1)), blocks):
-            rebuilt[i * n:(i + 1) * n, j * n:(j + 1) * n] = np.diag(d)
-        self.error = float(np.max(np.abs(A_a[:nx, :nx] - rebuilt)) / max(np.max(np.abs(A_a[:nx, :nx])), 1e-300))
-        lower = A_a[nx:]
-        if self.error > rtol or not np.array_equal(lower, np.eye(A_a.shape[0])[nx:]):
-            raise ValueError(f"A_a has no modal block structure (relative off-block size {self.error:.1e})")
-        self.n, self.nx = n, nx
-        self.d11, self.d12, self.d21, self.d22 = (d[:, None] for d in blocks)
-        self.B = A_a[:nx, nx:].copy()
-
-    @classmethod
-    def detect(cls, A_a, n_modes, rtol=1e-12):
-        """The structured form of ``A_a`` if it has it.
-
-        Parameters
-        ----------
-        A_a : ndarray (n_a, n_a)
-            An augmented transition.
-        n_modes : int
-            Modes of its structural part.
-        rtol : float
-            Largest entry outside the four diagonal blocks, relative to the largest entry.
-
-        Returns
-        -------
-        ModalBlockTransition or None
-        """
-        try:
-            return cls(A_a, n_modes, rtol)
-        except ValueError:
-            return None
-
-    def left(self, X):
-        """``A_a @ X``.
-
-        Parameters
-        ----------
-        X : ndarray (..., n_a, k)
-
-        Returns
-        -------
-        ndarray (..., n_a, k)
-        """
-        n, nx = self.n, self.nx
-        q, v, f = X[..., :n, :], X[..., n:nx, :], X[..., nx:, :]
-        out = np.empty(X.shape)
-        np.matmul(self.B, f, out=out[..., :nx, :])
-        out[..., :n, :] += self.d11 * q
-        out[..., :n, :] += self.d12 * v
-        out[..., n:nx, :] += self.d21 * q
-        out[..., n:nx, :] += self.d22 * v
-        out[..., nx:, :] = f
-        return out
-
-    def propagate(self, P, Q):
-        """``A_a P A_a^T + Q``, symmetrised.
-
-        Two left products on contiguous data (``A (A P)^T`` is the transpose of the wanted
-        symmetric matrix).
-
-        Parameters
-        ----------
-        P : ndarray (B, n_a, n_a)
-            Posterior covariances.
-        Q : ndarray (B, n_a, n_a)
-            Process covariances.
-
-        Returns
-        -------
-        ndarray (B, n_a, n_a)
-            The prior covariances of the next step.
-        """
-        out = self.left(np.ascontiguousarray(np.swapaxes(self.left(P), -1, -2)))
-        out += np.swapaxes(out, -1, -2)
-        out *= 0.5
-        out += Q
-        return out
 
 
 # ------------------------------------------------------------------------------ the steps

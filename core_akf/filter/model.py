@@ -43,7 +43,8 @@ from ..statespace import (
     zoh,
 )
 from ..types import ArrayLike, Covariance, FloatArray, Forces, Layout, Measurements, NoiseCovariance
-from .kernels import FilterRun, ModalBlockTransition, innovation_covariance
+from .kernels import FilterRun, innovation_covariance
+from .recursion import ModalBlockTransition
 from .riccati import RiccatiError
 
 if TYPE_CHECKING:

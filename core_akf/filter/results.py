@@ -13,11 +13,108 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..sensors import UNITS
 from ..statespace import observation, strain_feedthrough
 from ..types import FloatArray, Layout
+from .kernels import closed_loop
 
 if TYPE_CHECKING:
     import pandas as pd
+
+#: lags of the innovation autocorrelation checked for whiteness
+WHITENESS_LAGS = 20
+#: the columns of the one tidy table (:meth:`Estimate.to_frame`, ``timeseries.csv``)
+TIDY_COLUMNS = ("time", "quantity", "channel", "unit", "estimated", "reference", "std")
+
+
+def skipped(n):
+    """Samples left out of the statistics as the start-up transient: the first 5 % of ``n``."""
+    return n // 20
+
+
+def whiteness(e, lags=WHITENESS_LAGS):
+    """How white a sequence of innovations is.
+
+    Parameters
+    ----------
+    e : ndarray (N,)
+        Innovations of one channel (its unit).
+    lags : int
+        Autocorrelation lags tested, ``1..lags``.
+
+    Returns
+    -------
+    share : float
+        Share of the lags inside the 95 % band ``+-1.96 / sqrt(N)`` of white noise (about 0.95
+        for white innovations); NaN for a constant sequence.
+    lag1 : float
+        The lag-1 autocorrelation.
+    """
+    e = np.asarray(e, float) - np.mean(e)
+    n = e.size
+    denom = float(e @ e)
+    lags = min(lags, n - 1)
+    if denom == 0 or lags < 1:
+        return float("nan"), float("nan")
+    rho = np.array([float(e[:-k] @ e[k:]) / denom for k in range(1, lags + 1)])
+    return float(np.mean(np.abs(rho) < 1.96 / np.sqrt(n))), float(rho[0])
+
+
+def sensor_diagnostics(est):
+    """Innovation statistics per sensor, over the record after its first 5 %.
+
+    Parameters
+    ----------
+    est : Estimate
+        An estimate (:func:`core_akf.filter.estimate`).
+
+    Returns
+    -------
+    list of dict
+        One per sensor: ``channel``, ``unit``, ``measured_rms``, ``innovation_rms``,
+        ``predicted_innovation_std`` (``sqrt(S_ii)``), ``consistency`` (their ratio, about 1 when
+        the model and the covariances fit the data), ``whiteness`` and ``lag1_autocorrelation``
+        (:func:`whiteness`), and ``loglik``, the channel's log-likelihood over the whole record
+        (:attr:`Estimate.loglik_channels`).
+    """
+    Y, E = est.measurements, est.innovations
+    k0 = skipped(Y.shape[0])
+    loglik = est.loglik_channels                      # over the whole record
+    out = []
+    for j, s in enumerate(est.sensors):
+        e = E[k0:, j]
+        irms = float(np.sqrt(np.mean(e ** 2)))
+        std = float(np.sqrt(max(est.innovation_cov[j, j], 0.0)))
+        white, lag1 = whiteness(e)
+        out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": float(np.sqrt(np.mean(Y[k0:, j] ** 2))),
+                    "innovation_rms": irms, "predicted_innovation_std": std,
+                    "consistency": irms / std if std > 0 else float("inf"), "whiteness": white,
+                    "lag1_autocorrelation": lag1, "loglik": float(loglik[j])})
+    return out
+
+
+def force_statistics(est):
+    """Statistics of the estimated forces, after the first 5 % of the record.
+
+    Parameters
+    ----------
+    est : Estimate
+        An estimate (:func:`core_akf.filter.estimate`).
+
+    Returns
+    -------
+    list of dict
+        One per force location: ``channel`` ("8:y"), ``unit`` (N), ``rms`` (N), ``peak`` (N, the
+        signed value of the largest magnitude) and ``time_of_peak`` (s).
+    """
+    k0 = skipped(est.forces.shape[0])
+    out = []
+    for j, (node, d) in enumerate(est.force_locations):
+        f = est.forces[k0:, j]
+        i = int(np.argmax(np.abs(f)))
+        out.append({"channel": f"{node}:{d}", "unit": "N", "rms": float(np.sqrt(np.mean(f ** 2))),
+                    "peak": float(f[i]), "time_of_peak": float((k0 + i) * est.dt)})
+    return out
 
 
 @dataclass
@@ -111,7 +208,7 @@ class Estimate:
         """Time constant (s) of the filter's slowest error mode, ``-dt / ln(rho)`` with ``rho`` the
         spectral radius of the closed loop ``(I - L G_a) A_a``; ``inf`` if it does not decay."""
         A, G, L = self.filter_matrices
-        rho = float(np.max(np.abs(np.linalg.eigvals(A - L @ (G @ A)))))
+        rho = float(np.max(np.abs(np.linalg.eigvals(closed_loop(A, G, L)[1]))))
         return self.dt / -np.log(rho) if rho < 1 else np.inf
 
     @property
@@ -122,10 +219,67 @@ class Estimate:
     @cached_property
     def strains(self):
         """Strains at every member (truss) or node component (plate), shape (N, n_strain)."""
+        return self.strain_outputs()
+
+    def strain_outputs(self, index: list[int] | None = None) -> FloatArray:
+        """Strains at the outputs ``index`` (0-based rows of the model's strain operator; None: all),
+        with the static correction of a reduced model: the one place strains come from states.
+
+        Parameters
+        ----------
+        index : list of int, optional
+
+        Returns
+        -------
+        ndarray (N, k) (m/m)
+        """
+        if index is not None and "strains" in self.__dict__:
+            return self.strains[:, index]
         n = self.structure.n
-        out = self.states[:, :n] @ self.structure.strain_operator.T
+        rows = self.structure.strain_operator if index is None else self.structure.strain_operator[index]
+        out = self.states[:, :n] @ rows.T
         extra = strain_feedthrough(self.structure, self.force_locations)
-        return out if extra is None else out + self.forces @ extra.T
+        if extra is None:
+            return out
+        return out + self.forces @ (extra if index is None else extra[index]).T
+
+    def diagnostics(self) -> list[dict]:
+        """Innovation statistics per sensor (:func:`sensor_diagnostics`): consistency, whiteness,
+        log-likelihood, RMS.
+
+        Returns
+        -------
+        list of dict
+        """
+        return sensor_diagnostics(self)
+
+    def summary(self) -> pd.DataFrame:
+        """One row per channel, as a statsmodels result's summary: every force location (RMS, peak,
+        time of the peak, mean standard deviation of a smoothed estimate) and every sensor (measured
+        RMS and :meth:`diagnostics`).  ``attrs`` holds the record's ``loglik``, ``transient_time``
+        (s), ``n_steps``, ``dt`` (s) and whether it is ``smoothed``.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
+        import pandas as pd
+
+        rows = [dict(quantity="force", **f) for f in force_statistics(self)]
+        if self.smoothed:
+            for row, std in zip(rows, np.mean(self.force_std, axis=0)):
+                row["mean_std"] = float(std)
+        rows += [dict(quantity="sensor", channel=d["channel"], unit=d["unit"], rms=d["measured_rms"],
+                      **{k: v for k, v in d.items() if k not in ("channel", "unit", "measured_rms")})
+                 for d in self.diagnostics()]
+        columns = ["quantity", "channel", "unit", "rms", "peak", "time_of_peak", "mean_std", "innovation_rms",
+                   "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation", "loglik"]
+        frame = pd.DataFrame(rows, columns=columns)
+        frame.attrs = {"loglik": self.loglik if self.loglik_terms is not None else float("nan"),
+                       "transient_time": float(self.transient_time) if self.filter_matrices is not None
+                       else float("nan"), "n_steps": int(self.forces.shape[0]), "dt": self.dt,
+                       "smoothed": self.smoothed}
+        return frame
 
     def response(self, sensors: Layout) -> FloatArray:
         """Estimated response at any sensors (e.g. held-back validation sensors).
@@ -143,17 +297,27 @@ class Estimate:
         G, D = observation(self.structure, sensors, self.force_locations)
         return self.states @ G.T + self.forces @ D.T
 
-    def to_frame(self, wide: bool = False) -> pd.DataFrame:
-        """The estimated forces and strains as a :class:`pandas.DataFrame`.
+    def to_frame(self, wide: bool = False, *, strains: list[int] | str = "all", reference=None,
+                 start: int | None = None) -> pd.DataFrame:
+        """The estimated forces and strains as a :class:`pandas.DataFrame` (the tidy schema of
+        ``timeseries.csv``).
 
         Parameters
         ----------
         wide : bool
-            False (default), tidy: one row per time step and channel, columns ``time`` (s),
-            ``quantity`` ("force" or "strain"), ``channel`` (``"8:y"``, ``"strain:13"``,
-            ``"strain:70:ex"``: the names of force locations and sensors), ``unit`` ("N", "m/m") and
-            ``value``.  True: one row per time step and one column per channel (``force:8:y``,
-            ``strain:13``), for spreadsheets.
+            False (default), tidy: one row per time step and channel, columns :data:`TIDY_COLUMNS`:
+            ``time`` (s), ``quantity`` ("force" or "strain"), ``channel`` (``"8:y"``,
+            ``"strain:13"``, ``"strain:70:ex"``), ``unit`` ("N", "m/m"), ``estimated``,
+            ``reference`` (NaN without one) and ``std`` (the standard deviation of a smoothed
+            estimate, NaN for a filtered one); text columns are categoricals.  True: one row per
+            time step and one column per channel (``force:8:y``, ``strain:13``), for spreadsheets.
+        strains : "all" or list of int
+            The strain outputs (0-based rows of the model's strain operator) after the forces.
+        reference : Simulation, optional
+            The truth (its ``loads`` (N_ref, n_p) and ``strains`` (N_ref, n_strain)), of which this
+            estimate covers the steps from ``start``.
+        start : int, optional
+            The step of the reference this estimate starts at (default ``t0 / dt``).
 
         Returns
         -------
@@ -161,21 +325,30 @@ class Estimate:
         """
         import pandas as pd
 
-        forces = [f"{node}:{d}" for node, d in self.force_locations]
-        strains = self.structure.strain_labels
+        index = list(range(self.structure.n_strain)) if isinstance(strains, str) and strains == "all" else list(strains)
+        labels = [f"{node}:{d}" for node, d in self.force_locations] + [self.structure.strain_labels[i] for i in index]
+        values = np.hstack([self.forces] + ([self.strain_outputs(index)] if index else []))
         if wide:
             cols = {"time": self.time}
-            cols.update({f"force:{c}": self.forces[:, j] for j, c in enumerate(forces)})
-            cols.update(dict(zip(strains, self.strains.T)))
+            cols.update({(f"force:{c}" if j < len(self.force_locations) else c): values[:, j]
+                         for j, c in enumerate(labels)})
             return pd.DataFrame(cols)
-        N = self.time.size
-        values = np.hstack([self.forces, self.strains])
-        channels = forces + strains
-        return pd.DataFrame({
-            "time": np.tile(self.time, len(channels)),
-            "quantity": np.repeat(["force"] * len(forces) + ["strain"] * len(strains), N),
-            "channel": np.repeat(channels, N),
-            "unit": np.repeat(["N"] * len(forces) + ["m/m"] * len(strains), N),
-            "value": values.T.reshape(-1)})
+        n, k = self.time.size, len(labels)
+        if reference is not None:
+            s0 = int(round(self.t0 / self.dt)) if start is None else int(start)
+            ref = np.hstack([reference.loads[s0:s0 + n]] + ([reference.strains[s0:s0 + n, index]] if index else []))
+            ref = ref.T.reshape(-1)
+        else:
+            ref = np.full(n * k, np.nan)
+        if self.smoothed:
+            std = np.hstack([self.force_std] + ([self.strain_std[:, index]] if index else [])).T.reshape(-1)
+        else:
+            std = np.full(n * k, np.nan)
+        is_strain = np.repeat(np.arange(k) >= len(self.force_locations), n).astype(np.int8)
 
-
+        def column(codes, categories):
+            return pd.Categorical.from_codes(codes, categories=categories)
+        return pd.DataFrame({"time": np.tile(self.time, k), "quantity": column(is_strain, ["force", "strain"]),
+                             "channel": column(np.repeat(np.arange(k), n), labels),
+                             "unit": column(is_strain, ["N", "m/m"]),
+                             "estimated": values.T.reshape(-1), "reference": ref, "std": std})

@@ -1,9 +1,16 @@
-"""The figures of ``akf estimate`` (simulated and measured jobs alike): the estimated forces (with
-the reference when there is one) and the strain errors, and every sensor's measured signal against
-its one-step prediction.  Each takes plain arrays, writes ``path`` and returns it."""
+"""The app's figures and its figure writer: :func:`draw` runs a plot after the results are written,
+never at their cost; the figures of ``akf estimate`` (simulated and measured jobs alike) -- the
+estimated forces (with the reference when there is one) and the strain errors, every sensor's
+measured signal against its one-step prediction, the fatigue map -- and the location map of
+``akf locate``.  Each plot takes plain arrays, writes ``path`` and returns it."""
 from __future__ import annotations
 
+import logging
+import os
+
 import numpy as np
+
+log = logging.getLogger("akf")
 
 #: above this many strain outputs, the error panel ranks the worst :data:`WORST` instead of a bar each
 MANY_OUTPUTS = 40
@@ -169,3 +176,24 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity=
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path)
     return fig
+
+
+def draw(files, key, notes, plot, *args, **kw):
+    """Draw a figure after the results are written, never at their cost.
+
+    Calls ``plot(*args, **kw)``, a plot function that writes its figure to the ``.png`` path among
+    ``args``; on success records that path as ``files[key]`` and returns it.  A figure that fails
+    (a model the drawing does not know, a font, the disk) is a note in ``notes`` naming the figure
+    and the error, and the return value is ``None``: the results already written stay the run's
+    result.
+    """
+    path = next(a for a in args if isinstance(a, str) and a.endswith(".png"))
+    try:
+        plot(*args, **kw)
+    except Exception as exc:  # noqa: BLE001 -- any failure of a figure is only a warning
+        log.debug("figure %s failed", path, exc_info=True)
+        notes.append(f"figure {os.path.basename(path)} not drawn ({type(exc).__name__}: {exc}); the result files "
+                     "are complete")
+        return None
+    files[key] = path
+    return path
