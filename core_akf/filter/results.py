@@ -21,6 +21,8 @@ from .kernels import closed_loop
 if TYPE_CHECKING:
     import pandas as pd
 
+    from ..simulate import Simulation
+
 #: lags of the innovation autocorrelation checked for whiteness
 WHITENESS_LAGS = 20
 #: the columns of the one tidy table (:meth:`Estimate.to_frame`, ``timeseries.csv``)
@@ -28,7 +30,17 @@ TIDY_COLUMNS = ("time", "quantity", "channel", "unit", "estimated", "reference",
 
 
 def skipped(n):
-    """Samples left out of the statistics as the start-up transient: the first 5 % of ``n``."""
+    """Samples left out of the statistics as the start-up transient: the first 5 %.
+
+    Parameters
+    ----------
+    n : int
+        Steps of the record.
+
+    Returns
+    -------
+    int
+    """
     return n // 20
 
 
@@ -297,7 +309,7 @@ class Estimate:
         G, D = observation(self.structure, sensors, self.force_locations)
         return self.states @ G.T + self.forces @ D.T
 
-    def to_frame(self, wide: bool = False, *, strains: list[int] | str = "all", reference=None,
+    def to_frame(self, wide: bool = False, *, strains: list[int] | str = "all", reference: Simulation | None = None,
                  start: int | None = None) -> pd.DataFrame:
         """The estimated forces and strains as a :class:`pandas.DataFrame` (the tidy schema of
         ``timeseries.csv``).
