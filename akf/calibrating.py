@@ -25,8 +25,6 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     log-likelihood and the consistency per channel before and after, the standard errors
     (relative) and the warnings of the fit."""
     from core_akf.calibration import calibrate
-    from core_akf.diagnostics import sensor_diagnostics
-    from core_akf.filter import estimate
 
     Q, fm = job.model_error_cov, job.force_model
     fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
@@ -34,9 +32,6 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     fitted = list(fit.apply(model, sensors, Q, fm.increment_cov, noise_cov))
     fitted[2] = fit.force_model if fm.stationary else ForceModel("random_walk", increment_cov=fitted[2])
 
-    def consistency(m, q, f, r):
-        est = estimate(m, sensors, forces, Y, job.dt, model_error_cov=q, force_model=f, noise_cov=r, dummy=job.dummy)
-        return {d["channel"]: d["consistency"] for d in sensor_diagnostics(est)}
     report = {"parameters": list(job.calibrate), "record_steps": int(Y.shape[0])}
     m = fit.multipliers
     if "stiffness_factor" in m:
@@ -59,8 +54,5 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     for name in ("force_increment_cov", "model_error_cov", "force_std", "force_timescale"):
         if name in job.calibrate or f"{name}:forces" in job.calibrate:
             report[name] = fit.values[name]
-    report |= {"multipliers": m, "std_errors": fit.std_errors, "loglik_before": fit.loglik_before,
-               "loglik_after": fit.loglik_after, "consistency_before": consistency(model, Q, fm, noise_cov),
-               "consistency_after": consistency(*fitted), "warnings": list(fit.warnings),
-               "evaluations": fit.evaluations, "seconds": fit.seconds}
+    report |= fit.to_dict()
     return (*fitted, report)

@@ -30,12 +30,16 @@ from .checks import as_finite_array
 from .covariances import noise_covariance
 from .defaults import default
 from .exceptions import AKFInputError
+from .filter import kernels
 from .filter.kernels import steady_logliks
 from .filter.model import Filter
+from .filter.results import skipped
 from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .types import Covariance, Forces, Layout, Measurements, NoiseCovariance
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from .structure import Structure
 
 #: the parameters :func:`calibrate` can learn
@@ -80,6 +84,10 @@ class CalibrationResult:
         None for the random walk (its ``S`` is in :meth:`apply`).
     layout : tuple of Sensor
         The layout of the fit.
+    consistency_before, consistency_after : dict
+        Per channel, the innovation RMS over its predicted standard deviation (after the first 5 %
+        of the record; about 1 when the model and the covariances fit) with the starting and the
+        fitted values.
     """
 
     values: dict
@@ -92,6 +100,42 @@ class CalibrationResult:
     seconds: float = 0.0
     force_model: object = None
     layout: tuple = ()
+    consistency_before: dict = field(default_factory=dict)
+    consistency_after: dict = field(default_factory=dict)
+
+    def summary(self) -> pd.DataFrame:
+        """The fit as a table, as ``akf calibrate`` prints it: a row per parameter (``kind``
+        "parameter": its ``factor`` and relative ``std_error``) and a row per channel (``kind``
+        "consistency": innovation RMS over predicted, ``before`` and ``after``).  ``attrs`` holds
+        the log-likelihood before and after, the filters run, the seconds and the warnings.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
+        import pandas as pd
+
+        rows = [{"kind": "parameter", "name": n, "factor": f, "std_error": self.std_errors[n]}
+                for n, f in self.multipliers.items()]
+        rows += [{"kind": "consistency", "name": c, "before": b, "after": self.consistency_after.get(c, np.nan)}
+                 for c, b in self.consistency_before.items()]
+        frame = pd.DataFrame(rows, columns=["kind", "name", "factor", "std_error", "before", "after"])
+        frame.attrs = {k: v for k, v in self.to_dict().items() if k in ("loglik_before", "loglik_after", "evaluations",
+                                                                          "seconds", "warnings")}
+        return frame
+
+    def to_dict(self) -> dict:
+        """The fit's JSON block: factors and their standard errors, the log-likelihood and the
+        consistency per channel before and after, the warnings, the filters run and the seconds.
+
+        Returns
+        -------
+        dict
+        """
+        return {"multipliers": dict(self.multipliers), "std_errors": dict(self.std_errors),
+                "loglik_before": self.loglik_before, "loglik_after": self.loglik_after,
+                "consistency_before": dict(self.consistency_before), "consistency_after": dict(self.consistency_after),
+                "warnings": list(self.warnings), "evaluations": self.evaluations, "seconds": self.seconds}
 
     def apply(self, structure: Structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance) -> tuple:
@@ -215,13 +259,17 @@ class _Problem:
                 self._filters.pop(next(iter(self._filters)))
         return self._filters[key]
 
-    def matrices(self, u):
-        """``(A_a, G_a, Q_a, R)`` of the log-factors ``u``."""
+    def filter_at(self, u):
+        """The :class:`~core_akf.filter.Filter` of the log-factors ``u``."""
         p = dict(zip(self.names, u))
         std, scale_t = self.force_factors(p)
-        f = self.model_filter(p).with_levels(
+        return self.model_filter(p).with_levels(
             q=np.exp(p.get("model_error_cov", 0.0)), s=np.exp(p.get("force_increment_cov", 0.0)) * std ** 2,
             r=noise_scale(self.layout, {n: np.exp(x) for n, x in p.items()}), timescale=scale_t)
+
+    def matrices(self, u):
+        """``(A_a, G_a, Q_a, R)`` of the log-factors ``u``."""
+        f = self.filter_at(u)
         return f.A_a, f.G_a[0], f.Q_a, f.R[0]
 
     def force_factors(self, p):
@@ -237,6 +285,17 @@ class _Problem:
             own = np.array([p.get(f"{base}:{node}:{d}", 0.0) for node, d in self.locs])
             out.append(np.exp(p.get(base, 0.0) + own))
         return tuple(out)
+
+    def consistency(self, u):
+        """Per channel, the innovation RMS over its predicted standard deviation under the log-factors
+        ``u`` (one steady kernel run; the first 5 % of the record left out, as
+        :func:`~core_akf.filter.results.sensor_diagnostics` does)."""
+        f = self.filter_at(u)
+        run = kernels.steady(f, self.Y[None])
+        m = len(self.layout)
+        E = run.innovations[0, skipped(self.Y.shape[0]):, :m]
+        S = kernels.innovation_covariance(f.G_a[0], run.P_prior[0], f.R[0])
+        return {s.label: float(np.sqrt(np.mean(E[:, j] ** 2)) / np.sqrt(S[j, j])) for j, s in enumerate(self.layout)}
 
     def logliks(self, U):
         """The log-likelihood at every row of ``U`` (one batch)."""
@@ -369,8 +428,9 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     multipliers = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
     values = _values(multipliers, names, noise_cov, model_error_cov, force_model.increment_cov, layout)
     fitted_force = _fitted_force(problem, force_model, multipliers, names, values)
+    consistency = [problem.consistency(v) for v in (np.zeros(len(u)), u)]      # two kernel runs
     return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
-                             time.perf_counter() - start_time, fitted_force, layout)
+                             time.perf_counter() - start_time, fitted_force, layout, *consistency)
 
 
 def _bounds(problem, force_model, n_steps, stiffness_range, decades):

@@ -66,6 +66,20 @@ def test_the_core_fit_on_a_record_of_ones_own():
                     model_error_cov=1e-16, force_increment_cov=1e3, noise_cov=np.diag(sim.noise_std ** 2))
     assert 0.92 * fit.values["stiffness_factor"] == pytest.approx(1.0, abs=0.003)
     assert fit.warnings == [] and 0 < fit.std_errors["stiffness_factor"] < 0.003
+    # the fit's own summary; its consistency equals the estimates' diagnostics before and after
+    table = fit.summary()
+    params = table[table["kind"] == "parameter"]
+    assert list(params["name"]) == ["stiffness_factor"]
+    assert params["factor"].iloc[0] == fit.multipliers["stiffness_factor"]
+    assert table.attrs["loglik_after"] > table.attrs["loglik_before"]
+    kw = dict(model_error_cov=1e-16, force_increment_cov=1e3, noise_cov=np.diag(sim.noise_std ** 2))
+    for model, column in ((s17_truss().scaled(0.92), "before"), (s17_truss().scaled(0.92 * fit.values["stiffness_factor"]),
+                                                                  "after")):
+        est = estimate(model, sensors, ["8:y"], sim.measurements, 1e-3, **kw)
+        expected = {d["channel"]: d["consistency"] for d in est.diagnostics()}
+        got = dict(zip(table[table["kind"] == "consistency"]["name"], table[table["kind"] == "consistency"][column]))
+        assert got == pytest.approx(expected, rel=1e-6)
+    assert max(fit.consistency_after.values()) < 1.5 < max(fit.consistency_before.values())
 
 
 BAD_CALIBRATIONS = {
