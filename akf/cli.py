@@ -15,7 +15,7 @@ import sys
 import traceback
 from importlib.metadata import entry_points
 
-from core_akf.exceptions import AKFInputError, UndetectableError
+from core_akf.checks import AKFInputError, UndetectableError
 
 from . import __version__
 from .parallel import ClusterError

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.fatigue import FatigueAccumulator, SNCurve, stress_operator
 
 #: seconds per year (365.25 days) for the damage per year

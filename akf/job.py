@@ -44,9 +44,8 @@ from functools import cached_property
 import numpy as np
 
 from core_akf import loads as L
-from core_akf.checks import check_memory
+from core_akf.checks import AKFInputError, check_memory
 from core_akf.defaults import default
-from core_akf.exceptions import AKFInputError
 from core_akf.forcemodels import DummyMeasurements, ForceModel
 from core_akf.models import footbridge, from_files, imp_plate, plate, s17_truss, th_plate
 from core_akf.sensors import as_layout, parse_force_locations, selection_matrices

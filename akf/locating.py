@@ -37,7 +37,7 @@ import os
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.outputs import confined, write_csv
 
 from .figures import draw

@@ -10,7 +10,7 @@ import os
 import socket
 import time
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.outputs import confine_writes
 
 LOCK_NAME = ".akf-run.lock"

@@ -15,7 +15,7 @@ from __future__ import annotations
 import contextlib
 import os
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 
 #: how to get dask
 INSTALL_HINT = 'the dask scheduler needs dask.distributed: python -m pip install "akf-toolkit[dask]"'

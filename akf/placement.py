@@ -1,8 +1,8 @@
 """Placement problems from job files and the built-in thesis problems (``akf place``)."""
 from __future__ import annotations
 
+from core_akf.checks import AKFInputError
 from core_akf.defaults import default
-from core_akf.exceptions import AKFInputError
 from sensoropt.problem import PlacementProblem
 
 from .examples import TH_CASE2, load_example

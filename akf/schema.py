@@ -22,8 +22,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PlainValidator, ValidationError, WithJsonSchema
 
+from core_akf.checks import AKFInputError
 from core_akf.defaults import DEFAULTS
-from core_akf.exceptions import AKFInputError
 from core_akf.fatigue import EC3_CATEGORIES
 
 #: the commands that read job files

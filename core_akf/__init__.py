@@ -5,7 +5,7 @@ The most used names are importable from here::
     from core_akf import models, estimate, simulate, detectability, rms_error
 """
 from . import loads, models
-from .exceptions import AKFInputError, ModelError, UndetectableError
+from .checks import AKFInputError, ModelError, UndetectableError
 from .filter import Estimate, Filter, FilterModel, estimate, estimate_batch, run, smooth
 from .filter.smoother import SmoothResult
 from .forcemodels import DummyMeasurements, ForceModel

@@ -26,16 +26,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .checks import as_finite_array
+from .checks import AKFInputError, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
 from .covariances import noise_covariance
 from .defaults import default
-from .exceptions import AKFInputError
 from .filter import kernels
 from .filter.kernels import steady_logliks
 from .filter.model import Filter
 from .filter.results import skipped
 from .forcemodels import DummyMeasurements, ForceModel, as_force_model
-from .types import Covariance, Forces, Layout, Measurements, NoiseCovariance
 
 if TYPE_CHECKING:
     import pandas as pd

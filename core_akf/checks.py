@@ -1,11 +1,105 @@
-"""Small input-validation helpers shared by the public functions."""
+"""The inputs' contract, in one place: the type aliases of the public API (what an input may be),
+the toolkit's exceptions (what is raised when it is not) and the checks that raise them.
+
+**Type aliases** (for annotations; nothing here runs or checks shapes).  A sensor is a string in
+the sensor grammar (``"strain:13"``, ``"strain:70:ex"``, ``"acc:8:y"``) or a
+:class:`~core_akf.sensors.Sensor`; a force location is ``"8:y"`` or ``(8, "y")``; a covariance is
+one level, a vector of variances, a matrix, or (for measurement noise) a table of variances per
+sensor kind.  SI units throughout.  The array aliases carry their shape and unit as
+:data:`typing.Annotated` metadata, as dynamax's ``types.py`` does with jaxtyping: ``Measurements``
+is an array of shape (N, m) -- N time steps, m sensors -- in the sensors' SI units.  Letters: N
+time steps, m sensors, n generalised coordinates (2n structural states), n_p unknown forces,
+n_a = 2n + n_p augmented states, B a batch of problems.
+
+**Exceptions.**  All derive from :class:`ValueError`, so that callers who only know the standard
+library can still catch bad input in one place.
+
+**Checks.**  Small input-validation helpers shared by the public functions; each raises
+:class:`AKFInputError` naming the argument.
+"""
+from __future__ import annotations
+
 import os
+from collections.abc import Mapping, Sequence
+from typing import Annotated, Protocol, Union
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
-from .exceptions import AKFInputError, ModelError
+
+# ------------------------------------------------------------------------------ exceptions
+class AKFInputError(ValueError):
+    """Invalid user input: wrong shape, NaN data, unknown id, duplicate sensor, ..."""
 
 
+class ModelError(AKFInputError):
+    """An invalid structural model (singular or non-symmetric mass matrix, ...)."""
+
+
+class UndetectableError(AKFInputError):
+    """The sensor set makes the augmented system undetectable (PBH test failed).
+
+    Attributes
+    ----------
+    report : core_akf.statespace.DetectabilityReport
+        Which eigenvalues fail the test and by how much.
+    """
+
+    def __init__(self, report):
+        self.report = report
+        super().__init__(
+            "the sensor set is not detectable for the augmented state "
+            "(the force/state estimate would drift or diverge):\n" + str(report)
+            + "\nAdd strain or displacement sensors, use a Matérn force model or dummy displacements, or "
+            "pass allow_undetectable=True to run the filter anyway."
+        )
+
+
+# ---------------------------------------------------------------------------- type aliases
+class SensorLike(Protocol):
+    """What a :class:`core_akf.sensors.Sensor` is to an annotation: an object with a ``kind`` and a
+    ``label`` (structural, so that this module imports none of the modules that use it)."""
+
+    kind: str
+
+    @property
+    def label(self) -> str:
+        """The sensor's string, e.g. ``"acc:8:y"``."""
+
+
+#: a sensor: its string (``"strain:13"``) or a :class:`core_akf.sensors.Sensor`
+SensorSpec = Union[str, SensorLike]
+Layout = Sequence[SensorSpec]
+ForceSpec = Union[str, tuple[int, str]]
+Forces = Sequence[ForceSpec]
+#: a force location as the library returns it: 1-based node id and direction
+ForceLocation = tuple[int, str]
+Covariance = Union[float, ArrayLike]
+NoiseCovariance = Union[float, ArrayLike, Mapping[str, float]]
+#: damping of a model: a modal ratio (one, or one per mode), ``("rayleigh", alpha, beta)`` or None
+Damping = Union[float, Sequence[float], tuple, None]
+#: a random stream: a seed or a numpy Generator
+Seed = Union[int, np.random.Generator, None]
+
+FloatArray = NDArray[np.float64]
+#: measurements: one row per time step, one column per sensor, SI (m/m, m/s^2, m/s, m)
+Measurements = Annotated[ArrayLike, "(N, m) SI"]
+#: a batch of measurement sets, one per layout
+BatchMeasurements = Annotated[ArrayLike, "(B, N, m) SI"]
+#: force histories, one column per force location
+ForceHistories = Annotated[ArrayLike, "(N, n_p) N"]
+#: one signal over time
+Signal = Annotated[FloatArray, "(N,)"]
+#: a time grid
+Time = Annotated[FloatArray, "(N,) s"]
+#: a square matrix (K, M, C, a covariance), or a stack of them
+Matrix = Annotated[ArrayLike, "(..., n, n)"]
+#: a layout as the placement GA holds it: sorted candidate indices (0-based)
+CandidateLayout = tuple[int, ...]
+
+
+
+# ---------------------------------------------------------------------------------- checks
 def as_finite_array(value, name, ndim=None, shape=None, dtype=float):
     """Return ``value`` as a finite float array, or raise :class:`AKFInputError` naming it.
 
@@ -253,3 +347,23 @@ def first_repeat(values):
             return seen[v], j, v
         seen[v] = j
     return None
+
+
+def check_n_modes(n_modes, name="n_modes"):
+    """A number of modes, checked.
+
+    Parameters
+    ----------
+    n_modes : int
+    name : str
+        Its name in the message.
+
+    Returns
+    -------
+    int
+        ``n_modes`` as an int >= 1; ``2.5``, ``"all"`` or ``True`` are clear errors.
+    """
+    if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise AKFInputError(f"{name} must be a whole number of modes >= 1, got {n_modes!r} (leave it out for the full "
+                            "model up to the size where it is reduced anyway)")
+    return int(n_modes)

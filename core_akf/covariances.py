@@ -12,10 +12,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .checks import as_finite_array, check_covariance
-from .exceptions import AKFInputError
+from .checks import AKFInputError, FloatArray, Layout, NoiseCovariance, as_finite_array, check_covariance
 from .sensors import as_layout
-from .types import FloatArray, Layout, NoiseCovariance
 
 
 def diag_levels(level, size, name, definite=False):

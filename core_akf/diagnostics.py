@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .exceptions import AKFInputError
+from .checks import AKFInputError
 from .filter.results import WHITENESS_LAGS, sensor_diagnostics, skipped
 from .sensors import UNITS
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .exceptions import AKFInputError
+from .checks import AKFInputError
 from .outputs import atomic_path
 
 #: identifies a checkpoint of this engine; a file with another tag or version is refused

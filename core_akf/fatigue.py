@@ -19,8 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exceptions import AKFInputError
-from .types import ArrayLike, FloatArray
+from .checks import AKFInputError, ArrayLike, FloatArray
 
 #: the detail categories of EN 1993-1-9, Table 8.1 ff.: Δσ_C (MPa) at 2e6 cycles
 EC3_CATEGORIES = (160, 140, 125, 112, 100, 90, 80, 71, 63, 56, 50, 45, 40, 36)

@@ -27,8 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg
 
-from .exceptions import AKFInputError
-from .types import ArrayLike, Layout
+from .checks import AKFInputError, ArrayLike, Layout
 
 if TYPE_CHECKING:
     from .structure import Structure

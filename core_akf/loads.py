@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .exceptions import AKFInputError
-from .types import Seed, Signal, Time
+from .checks import AKFInputError, Seed, Signal, Time
 
 
 def time_grid(n_steps: int, dt: float) -> Time:

@@ -3,9 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .checks import as_finite_array
-from .exceptions import AKFInputError
-from .types import ArrayLike
+from .checks import AKFInputError, ArrayLike, as_finite_array
 
 
 def rms_error(estimate: ArrayLike, reference: ArrayLike, axis: int = 0) -> np.ndarray:

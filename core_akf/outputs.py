@@ -10,7 +10,7 @@ import contextlib
 import os
 import tempfile
 
-from .exceptions import AKFInputError
+from .checks import AKFInputError
 
 #: the output folders in use by this process: (path as given, made absolute; its real path)
 _ACTIVE: list = []

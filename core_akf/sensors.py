@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exceptions import AKFInputError
+from .checks import AKFInputError
 from .structure import STRAIN_COMPONENTS
 
 KINDS = ("strain", "acc", "vel", "disp")

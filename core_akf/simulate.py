@@ -8,12 +8,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .types import ArrayLike, FloatArray, ForceHistories, Forces, Layout
+from .checks import ArrayLike, FloatArray, ForceHistories, Forces, Layout
 
 if TYPE_CHECKING:
     from .structure import Structure
-from .checks import as_finite_array
-from .exceptions import AKFInputError
+from .checks import AKFInputError, as_finite_array
 from .sensors import as_layout, parse_force_locations
 from .statespace import continuous, modal_blocks, modal_state_transform, observation, strain_feedthrough, zoh
 

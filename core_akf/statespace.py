@@ -14,12 +14,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg
 
-from .types import Forces, Layout
+from .checks import Forces, Layout
 
 if TYPE_CHECKING:
     from .structure import Structure
 from . import rank
-from .exceptions import AKFInputError, UndetectableError
+from .checks import AKFInputError, UndetectableError
 from .forcemodels import ForceModel, van_loan  # noqa: F401  (van_loan public here as before)
 from .rank import is_supported  # noqa: F401  (public here as before)
 from .sensors import as_layout, parse_force_locations, selection_matrices
@@ -183,7 +183,7 @@ def _residual(structure, forces):
 def static_feedthrough(structure, sensors, forces):
     """Feed-through of the modes a reduced structure leaves out, at the sensors.
 
-    The quasi-static strain and displacement of its :class:`~core_akf.residual.StaticCorrection`
+    The quasi-static strain and displacement of its :class:`~core_akf.models.sparse.StaticCorrection`
     (zero rows for accelerometers and velocity sensors; all zero without a correction).
 
     Parameters

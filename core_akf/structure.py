@@ -21,9 +21,16 @@ import scipy.linalg
 import scipy.sparse
 from numpy.typing import ArrayLike, NDArray
 
-from .checks import as_finite_array, check_positive_definite, check_square_symmetric
-from .exceptions import AKFInputError, ModelError
-from .types import Damping, FloatArray, ForceLocation
+from .checks import (
+    AKFInputError,
+    Damping,
+    FloatArray,
+    ForceLocation,
+    ModelError,
+    as_finite_array,
+    check_positive_definite,
+    check_square_symmetric,
+)
 
 STRAIN_COMPONENTS = ("ex", "ey", "gxy")
 
@@ -102,7 +109,7 @@ class Structure:
         The user's node ids, row by row, for a model whose nodes are not numbered 1..n_nodes
         (one imported from an FE program, :func:`core_akf.models.from_matrices`); default
         ``1..n_nodes``.
-    static : :class:`~core_akf.residual.StaticCorrection`, optional
+    static : :class:`~core_akf.models.sparse.StaticCorrection`, optional
         For a reduced structure: the residual flexibility of the modes it leaves out, added to
         every strain and displacement output as a feed-through of the forces (a large model
         reduced by :func:`core_akf.models.from_matrices` has one).  ``strain_matrix`` may then be
@@ -549,7 +556,7 @@ class Structure:
             kept = st.omega.copy()
             matched = np.argmin(np.abs(kept[:, None] - omega[None, :k]), axis=0)    # the kept modes changed
             kept[matched] = kept[matched] * f
-            from .residual import StaticCorrection
+            from .models.sparse import StaticCorrection
 
             changes["static"] = StaticCorrection(solve, st.phi, kept, st.flexibility_scale)
         return self._replace(**changes)
@@ -567,14 +574,14 @@ class Structure:
             Modes kept.
         static_correction : bool
             Give a full structure's reduction a static correction
-            (:class:`~core_akf.residual.StaticCorrection` from a Cholesky factor of K): every strain
+            (:class:`~core_akf.models.sparse.StaticCorrection` from a Cholesky factor of K): every strain
             and displacement output then has the full model's static response.
 
         Returns
         -------
         Structure
         """
-        from .models.sparse import check_n_modes
+        from .checks import check_n_modes
 
         n_modes = check_n_modes(n_modes)
         if not 1 <= n_modes <= self.n:
@@ -594,7 +601,7 @@ class Structure:
         if self.static is not None:
             static = self.static.keeping(basis, omega[:n_modes])
         elif static_correction and self.basis is None:
-            from .residual import StaticCorrection
+            from .models.sparse import StaticCorrection
 
             factor = scipy.linalg.cho_factor(self.K)
             static = StaticCorrection(lambda B: scipy.linalg.cho_solve(factor, B), basis, omega[:n_modes])

@@ -6,7 +6,7 @@ import os
 import time
 from typing import TYPE_CHECKING
 
-from core_akf.types import ArrayLike, Layout
+from core_akf.checks import ArrayLike, Layout
 
 if TYPE_CHECKING:
     from core_akf.structure import Structure
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.forcemodels import ForceModel
 from core_akf.sensors import as_layout
 

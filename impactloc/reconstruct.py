@@ -6,10 +6,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError, ForceLocation, Layout, Measurements, Signal
 from core_akf.filter import estimate
 from core_akf.forcemodels import ForceModel
-from core_akf.types import ForceLocation, Layout, Measurements, Signal
 
 if TYPE_CHECKING:
     from core_akf.structure import Structure

@@ -9,9 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError, Layout
 from core_akf.sensors import Sensor, as_layout
-from core_akf.types import Layout
 
 _KINDS = ("strain", "acc", "vel", "disp")
 

@@ -12,16 +12,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core_akf.checks import as_finite_array
+from core_akf.checks import AKFInputError, FloatArray, ForceLocation, Layout, Measurements, as_finite_array
 from core_akf.defaults import auto_modes, default
-from core_akf.exceptions import AKFInputError
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
 from core_akf.forcemodels import ForceModel
 from core_akf.metrics import rms, rms_error
 from core_akf.sensors import as_layout, parse_force_locations
 from core_akf.statespace import SubsetDetectability
-from core_akf.types import FloatArray, ForceLocation, Layout, Measurements
 
 from .roles import RoleSplit
 

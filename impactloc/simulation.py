@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from core_akf.checks import ForceSpec, Layout, Seed
 from core_akf.loads import half_sine_pulse, time_grid
 from core_akf.simulate import MG, MICROSTRAIN, Simulation, simulate
-from core_akf.types import ForceSpec, Layout, Seed
 
 if TYPE_CHECKING:
     from core_akf.structure import Structure

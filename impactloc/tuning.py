@@ -19,9 +19,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from core_akf.checks import AKFInputError, ForceLocation, Layout, Measurements
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, best, blend, gaussian, tournament
-from core_akf.exceptions import AKFInputError
-from core_akf.types import ForceLocation, Layout, Measurements
 
 from .roles import RoleSplit
 from .scan import Covariances, ImpactModel, check_measurements, location_errors

@@ -26,9 +26,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError, CandidateLayout
 from core_akf.rank import zero_rows
-from core_akf.types import CandidateLayout
 
 if TYPE_CHECKING:
     from core_akf.structure import Structure

@@ -12,11 +12,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from core_akf.checks import check_memory
+from core_akf.checks import AKFInputError, check_memory
 from core_akf.defaults import default
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, Individual, best, tournament
 from core_akf.evolution import load_checkpoint as evolution_load_checkpoint
-from core_akf.exceptions import AKFInputError
 
 if TYPE_CHECKING:
     import pandas as pd

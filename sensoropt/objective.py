@@ -13,15 +13,14 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from core_akf.checks import AKFInputError, ForceHistories, Forces
 from core_akf.defaults import band_modes, default
-from core_akf.exceptions import AKFInputError
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
 from core_akf.filter.riccati import RiccatiError
 from core_akf.forcemodels import ForceModel
 from core_akf.simulate import simulate
 from core_akf.statespace import SubsetDetectability
-from core_akf.types import ForceHistories, Forces
 
 if TYPE_CHECKING:
     from core_akf.structure import Structure

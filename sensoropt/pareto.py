@@ -10,8 +10,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from core_akf.checks import AKFInputError
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, individual_class, tournament_dcd
-from core_akf.exceptions import AKFInputError
 
 from .encoding import PlateGrid
 from .ga import BATCH, PENALTY

@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from core_akf.checks import Forces
 from core_akf.figures import save_figure, subplots
-from core_akf.types import Forces
 
 if TYPE_CHECKING:
     import pandas as pd

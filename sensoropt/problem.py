@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core_akf.checks import AKFInputError
 from core_akf.defaults import auto_modes, default
-from core_akf.exceptions import AKFInputError
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
 from core_akf.forcemodels import ForceModel

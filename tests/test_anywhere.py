@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from akf.cli import main
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.models import footbridge, footbridge_matrices, from_files, s17_truss
 from sensoropt import PlacementProblem, place
 from sensoropt.encoding import CandidateSet, make_encoding

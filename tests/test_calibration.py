@@ -15,7 +15,7 @@ from akf.examples import example, example_job
 from akf.job import Job, load_job
 from core_akf import simulate
 from core_akf.calibration import calibrate
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.filter import estimate
 from core_akf.loads import band_limited_white_noise
 from core_akf.models import s17_truss

@@ -12,8 +12,8 @@ from helpers import run_estimate
 
 from akf.cli import main
 from akf.job import load_job_file
+from core_akf.checks import AKFInputError
 from core_akf.diagnostics import RunningDiagnostics
-from core_akf.exceptions import AKFInputError
 from core_akf.filter import CheckpointError, Estimator, estimate
 from core_akf.filter.results import force_statistics, sensor_diagnostics
 from core_akf.io import Reader, Record, Timing, conversion, register_reader

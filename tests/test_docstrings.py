@@ -192,7 +192,7 @@ def _api():
 
 def test_the_public_api_is_annotated():
     """Every parameter and every return of the public API has a type hint (the array aliases of
-    :mod:`core_akf.types` carry shapes and units)."""
+    :mod:`core_akf.checks` carry shapes and units)."""
     missing = []
     for qualified, func in _api():
         signature = inspect.signature(func)

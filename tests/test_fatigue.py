@@ -10,7 +10,7 @@ from helpers import measured_s17_files
 from akf.estimate import estimate_job
 from akf.examples import example
 from akf.job import Job
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.fatigue import (
     EC3_CATEGORIES,
     FatigueAccumulator,

@@ -14,7 +14,7 @@ from akf.job import Job
 from akf.locating import run_locate_job
 from core_akf import DummyMeasurements, ForceModel, detectability, estimate, simulate
 from core_akf.calibration import calibrate
-from core_akf.exceptions import AKFInputError, UndetectableError
+from core_akf.checks import AKFInputError, UndetectableError
 from core_akf.filter import Estimator, Filter
 from core_akf.loads import band_limited_white_noise
 from core_akf.models import s17_truss

@@ -9,8 +9,8 @@ import scipy.linalg
 import scipy.sparse
 
 from core_akf import estimate, simulate
+from core_akf.checks import AKFInputError
 from core_akf.covariances import state_covariance
-from core_akf.exceptions import AKFInputError
 from core_akf.models import from_matrices, plate, plate_matrices
 from core_akf.models.plate import TH_PLATE
 from core_akf.statespace import detectability, observation

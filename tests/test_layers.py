@@ -209,7 +209,7 @@ def test_the_command_line_words_the_library_messages():
 
     from akf.cli import cli_wording
     from core_akf import estimate
-    from core_akf.exceptions import UndetectableError
+    from core_akf.checks import UndetectableError
     from core_akf.io.units import conversion
     from core_akf.models import s17_truss
 

@@ -10,7 +10,7 @@ import scipy.sparse
 
 from akf.cli import main
 from core_akf import estimate, simulate
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.models import from_matrices, load_matrix, s17_truss
 from core_akf.models.matrices import ModelWarning
 

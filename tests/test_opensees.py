@@ -66,7 +66,7 @@ def _ref_dofs(structure):
 
 def test_opensees_rayleigh_damping_and_a_missing_model():
     ops = _opensees()
-    from core_akf.exceptions import AKFInputError
+    from core_akf.checks import AKFInputError
     from core_akf.models.opensees import from_opensees
 
     ops.wipe()

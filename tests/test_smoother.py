@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from core_akf import simulate
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.filter import Filter, filter_states
 from core_akf.filter.smoother import smooth
 from core_akf.models import s17_truss

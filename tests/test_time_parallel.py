@@ -7,7 +7,7 @@ import pytest
 from helpers import measured_s17_files
 
 from akf.examples import example
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.fatigue import FatigueAccumulator, SNCurve, rainflow, stress_operator
 from core_akf.filter import Estimator, TimeParallel, estimate_in_parallel, zero_state_end
 

@@ -7,7 +7,7 @@ import json
 import os
 import sys
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 
 from ..outputs import OutputFolder
 from .common import add_print_job, print_written

@@ -2,7 +2,7 @@
 example, not both."""
 from __future__ import annotations
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 
 
 def print_examples(command):

@@ -5,7 +5,7 @@ import json
 import os
 import sys
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler, workers

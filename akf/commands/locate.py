@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 
 from ..job import load_job
 from ..outputs import OutputFolder

@@ -11,7 +11,7 @@ import math
 import os
 import sys
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.outputs import write_csv
 
 from ..outputs import OutputFolder

@@ -8,7 +8,7 @@ import json
 import os
 import sys
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 
 from ..job import MODELS, build_structure
 from ..outputs import OutputFolder

@@ -16,7 +16,7 @@ import shutil
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 from core_akf.filter import CheckpointError
 from core_akf.outputs import atomic_path, confined, write_csv
 

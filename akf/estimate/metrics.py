@@ -7,8 +7,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from core_akf.checks import AKFInputError
 from core_akf.diagnostics import CONSISTENCY_LIMIT, scale_check, warnings_for
-from core_akf.exceptions import AKFInputError
 from core_akf.metrics import average_strain_error, rms_error
 from core_akf.simulate import MICROSTRAIN
 

@@ -8,8 +8,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from core_akf.checks import AKFInputError
 from core_akf.diagnostics import RunningDiagnostics
-from core_akf.exceptions import AKFInputError
 from core_akf.outputs import confined
 
 from .files import DEFAULT_CHUNK_STEPS, RunFiles, write_rows

@@ -14,9 +14,8 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-from core_akf.checks import check_memory
+from core_akf.checks import AKFInputError, check_memory
 from core_akf.diagnostics import RunningDiagnostics
-from core_akf.exceptions import AKFInputError
 from core_akf.filter import Estimator
 
 from ..calibrating import calibrate_job, calibration_record

@@ -28,8 +28,8 @@ import copy
 import functools
 import os
 
+from core_akf.checks import AKFInputError
 from core_akf.defaults import default
-from core_akf.exceptions import AKFInputError
 
 from ..job import Job, load_job_file
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 
 from . import example_names, load_example
 

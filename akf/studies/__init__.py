@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import importlib
 
-from core_akf.exceptions import AKFInputError
+from core_akf.checks import AKFInputError
 
 from ._common import StudyResult  # noqa: F401
 

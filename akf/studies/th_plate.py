@@ -86,7 +86,7 @@ def run_case(case, duration=6.0, seed=0, n_modes=None):
     try:
         return estimate_job(Job.from_dict(job, "estimate"))
     except Exception as exc:  # undetectable: force the time-varying filter, as the thesis does
-        from core_akf.exceptions import UndetectableError
+        from core_akf.checks import UndetectableError
 
         if not isinstance(exc, UndetectableError):
             raise

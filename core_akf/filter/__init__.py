@@ -11,7 +11,7 @@ with a random-walk or a Matérn Gaussian-process force model and dummy measureme
 - :mod:`~core_akf.filter.streaming` -- :class:`Estimator`, a record in chunks;
 - :mod:`~core_akf.filter.parallel` -- the time-parallel filter over a record's pieces;
 - :mod:`~core_akf.filter.smoother` -- the RTS and fixed-lag smoothers;
-- :mod:`~core_akf.filter.riccati`, :mod:`~core_akf.filter.recursion`, :mod:`~core_akf.filter.threads`
+- :mod:`~core_akf.filter.riccati`, :mod:`~core_akf.filter.recursion` (with the threads for stacks)
   and :mod:`~core_akf.filter.likelihood` -- the numerics beneath.
 """
 from .estimate import estimate, estimate_batch, run_filter

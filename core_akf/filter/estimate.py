@@ -13,10 +13,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from ..checks import as_finite_array
-from ..exceptions import AKFInputError
+from ..checks import AKFInputError, ArrayLike, BatchMeasurements, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
 from ..forcemodels import DummyMeasurements, ForceModel
-from ..types import ArrayLike, BatchMeasurements, Covariance, Forces, Layout, Measurements, NoiseCovariance
 from . import kernels
 from .model import Filter
 from .results import Estimate

@@ -28,9 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import as_finite_array, check_covariance
-from ..exceptions import AKFInputError
-from ..types import ArrayLike, BatchMeasurements, Matrix, Measurements
+from ..checks import AKFInputError, ArrayLike, BatchMeasurements, Matrix, Measurements, as_finite_array, check_covariance
 from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError, steady_gain

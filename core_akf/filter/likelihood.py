@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..exceptions import AKFInputError
+from ..checks import AKFInputError
 
 #: log(2 pi)
 LOG_2PI = float(np.log(2.0 * np.pi))

@@ -26,10 +26,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg
 
-from ..checks import as_finite_array
+from ..checks import AKFInputError, ArrayLike, Covariance, FloatArray, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
 from ..covariances import diag_levels, noise_covariance, state_covariance
 from ..defaults import auto_modes
-from ..exceptions import AKFInputError
 from ..forcemodels import DummyMeasurements, ForceModel, as_force_model
 from ..sensors import as_layout, parse_force_locations
 from ..statespace import (
@@ -42,7 +41,6 @@ from ..statespace import (
     strain_feedthrough,
     zoh,
 )
-from ..types import ArrayLike, Covariance, FloatArray, Forces, Layout, Measurements, NoiseCovariance
 from .kernels import FilterRun, innovation_covariance
 from .recursion import ModalBlockTransition
 from .riccati import RiccatiError

@@ -13,9 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..checks import as_finite_array
-from ..exceptions import AKFInputError
-from ..types import ArrayLike
+from ..checks import AKFInputError, ArrayLike, as_finite_array
 from .kernels import closed_loop
 
 if TYPE_CHECKING:

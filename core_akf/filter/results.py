@@ -13,9 +13,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..checks import FloatArray, Layout
 from ..sensors import UNITS
 from ..statespace import observation, strain_feedthrough
-from ..types import FloatArray, Layout
 from .kernels import closed_loop
 
 if TYPE_CHECKING:

@@ -10,7 +10,7 @@ matrix products and squares the convergence factor, so ~10-25 steps reach machin
 precision even for lightly damped structures.  The algorithm runs on a stack of
 problems at once (leading batch axis); each problem stops iterating when it has converged, so
 its solution does not depend on what else shares the stack, and a stack of small problems is
-split over threads (:mod:`core_akf.filter.threads`) with the same result.  A solution whose residual
+split over threads (:mod:`core_akf.filter.recursion`) with the same result.  A solution whose residual
 is above rounding level is polished by Newton (Hewer) steps; one that still fails, or did not converge, is re-solved
 with :func:`scipy.linalg.solve_discrete_are` and a :class:`RiccatiWarning`, and that
 solution's residual is checked too: a :class:`RiccatiError` names the problems without an
@@ -25,8 +25,8 @@ import scipy.linalg
 from scipy.linalg.lapack import dgetrf as _getrf
 from scipy.linalg.lapack import dgetri as _getri
 
-from ..exceptions import AKFInputError
-from .threads import split_stack
+from ..checks import AKFInputError
+from .recursion import split_stack
 
 
 class RiccatiError(AKFInputError):
@@ -180,7 +180,7 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
     R = np.broadcast_to(R, batch + (m, m)).reshape(nb, m, m)
     if n > _OWN_THREADS_UP_TO:          # large problems: BLAS's threads share the work
         return _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps).reshape(batch + (n, n))
-    # small problems: BLAS on one thread, the stack split over threads (core_akf.filter.threads).  The
+    # small problems: BLAS on one thread, the stack split over threads (core_akf.filter.recursion).  The
     # problems are independent and each is iterated on its own (see _solve_stack), so every
     # split gives the same bits -- also in a joblib or dask worker
     outcomes = split_stack(lambda i: _solve_stack(A[i], G[i], Q[i], R[i], tol, max_iter, check, newton_steps), nb)

@@ -22,9 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import as_finite_array, check_covariance
-from ..exceptions import AKFInputError
-from ..types import ArrayLike, FloatArray, Matrix, Measurements
+from ..checks import AKFInputError, ArrayLike, FloatArray, Matrix, Measurements, as_finite_array, check_covariance
 from .kernels import fixed_gain, steady_states
 from .recursion import lti_response
 

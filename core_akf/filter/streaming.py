@@ -25,10 +25,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..checks import as_finite_array
-from ..exceptions import AKFInputError
+from ..checks import AKFInputError, ArrayLike, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
 from ..forcemodels import DummyMeasurements, ForceModel
-from ..types import ArrayLike, Covariance, Forces, Layout, Measurements, NoiseCovariance
 from . import kernels
 from .likelihood import loglik_terms
 from .model import Filter

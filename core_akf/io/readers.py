@@ -30,8 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import first_repeat
-from ..exceptions import AKFInputError
+from ..checks import AKFInputError, first_repeat
 
 #: a time stamp may lie off the uniform grid ``t_0 + k dt`` by this fraction of a step
 TIME_GRID_RTOL = 0.01

@@ -21,9 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import AKFInputError
+from ..checks import AKFInputError, FloatArray, Layout, Time
 from ..sensors import as_layout
-from ..types import FloatArray, Layout, Time
 from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
 from .units import conversion, is_bridge_unit, is_unset
 

@@ -15,7 +15,7 @@ import re
 from dataclasses import dataclass
 from functools import lru_cache
 
-from ..exceptions import AKFInputError
+from ..checks import AKFInputError
 from ..sensors import UNITS
 
 #: the SI unit of each sensor kind (what the filter works in): the one table, :data:`core_akf.sensors.UNITS`

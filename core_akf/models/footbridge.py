@@ -22,8 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..exceptions import ModelError
-from ..types import Damping
+from ..checks import Damping, ModelError
 
 if TYPE_CHECKING:
     from ..structure import Structure

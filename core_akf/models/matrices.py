@@ -25,10 +25,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..checks import first_repeat
-from ..exceptions import AKFInputError, ModelError
+from ..checks import AKFInputError, ArrayLike, Damping, ModelError, check_n_modes, first_repeat
 from ..structure import Structure
-from ..types import ArrayLike, Damping
 
 if TYPE_CHECKING:
     import scipy.sparse
@@ -37,7 +35,6 @@ from .sparse import (
     DENSE_LIMIT,
     RIGID_BODY_RTOL,
     as_sparse,
-    check_n_modes,
     check_symmetric,
     modal_parts,
     refuse_complex,

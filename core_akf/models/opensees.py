@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..exceptions import AKFInputError
+from ..checks import AKFInputError
 
 #: OpenSees' DOF order per (ndm, ndf)
 DOF_NAMES = {(1, 1): ("x",), (2, 2): ("x", "y"), (2, 3): ("x", "y", "rz"), (3, 3): ("x", "y", "z"),

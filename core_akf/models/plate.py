@@ -20,10 +20,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..exceptions import ModelError
+from ..checks import Damping, FloatArray, ModelError, check_n_modes
 from ..structure import Structure
-from ..types import Damping, FloatArray
-from .sparse import DEFAULT_MODES, DENSE_LIMIT, check_n_modes, modal_parts
+from .sparse import DEFAULT_MODES, DENSE_LIMIT, modal_parts
 
 _GAUSS2 = np.array([-1.0, 1.0]) / np.sqrt(3.0)
 _CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])

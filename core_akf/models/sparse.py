@@ -1,17 +1,30 @@
 """Large models: the lowest modes of sparse ``K`` and ``M`` by shift-invert Lanczos
 (:func:`scipy.sparse.linalg.eigsh`) on one sparse factorisation of ``K``, which also gives the
-static correction of the modes left out (:class:`~core_akf.residual.StaticCorrection`).
+static correction of the modes left out (:class:`~core_akf.models.sparse.StaticCorrection`).
 
 No dense ``n x n`` matrix is formed: the model kept is ``M = I``, ``K = diag(omega^2)`` with the
 mode shapes as basis (n_phys x n_modes), the projection ``Phi^T M`` (n_modes x n_phys) and the
 strain operator as given (sparse or dense rows).
+
+Static correction of a modally reduced model: the residual flexibility of the modes it leaves
+out (mode-acceleration method).
+
+A model reduced to its lowest modes ``Phi`` (mass-normalised, physical coordinates) misses the
+quasi-static response of the higher modes to the forces::
+
+    u_res = (K^-1 - Phi Omega^-2 Phi^T) S_p f
+
+It enters every strain and displacement output as a feed-through on the force states, so the
+reduced filter sees the static deflection of the full model exactly.  :class:`StaticCorrection`
+holds what that needs -- a solver for ``K^-1`` (a sparse factorisation for a large model) and the
+kept modes -- and is carried by a reduced :class:`~core_akf.structure.Structure`
+(``structure.static``).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..exceptions import AKFInputError
-from ..residual import StaticCorrection
+from ..checks import AKFInputError
 
 #: dense matrices are formed up to this many DOFs; larger models are reduced here
 DENSE_LIMIT = 6000
@@ -43,26 +56,6 @@ def refuse_complex(A, name):
         raise AKFInputError(f"{name} is complex; the state-space models here are real: give the real part as {name} "
                             "and the damping as a modal ratio (damping = 0.02), Rayleigh coefficients or a damping "
                             "matrix C (a loss factor eta is about twice the damping ratio)")
-
-
-def check_n_modes(n_modes, name="n_modes"):
-    """A number of modes, checked.
-
-    Parameters
-    ----------
-    n_modes : int
-    name : str
-        Its name in the message.
-
-    Returns
-    -------
-    int
-        ``n_modes`` as an int >= 1; ``2.5``, ``"all"`` or ``True`` are clear errors.
-    """
-    if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
-        raise AKFInputError(f"{name} must be a whole number of modes >= 1, got {n_modes!r} (leave it out for the full "
-                            "model up to the size where it is reduced anyway)")
-    return int(n_modes)
 
 
 def as_sparse(A, name):
@@ -319,3 +312,82 @@ def modal_parts(K, M, n_modes, C=None, name="model"):
     P = np.asarray((M @ phi).T)
     Cr = None if C is None else np.asarray(phi.T @ (C @ phi))
     return np.diag(omega ** 2), phi, P, Cr, StaticCorrection(solve, phi, omega)
+
+
+class StaticCorrection:
+    """Residual flexibility ``K^-1 - Phi Omega^-2 Phi^T`` of the modes a reduced model leaves out.
+
+    Parameters
+    ----------
+    solve : callable -- ``solve(B)`` returns ``K^-1 B`` for a (n_phys, k) array (m/N)
+    phi : ndarray (n_phys, n_kept) -- the kept mass-normalised modes in physical free DOFs
+    omega : ndarray (n_kept,) -- their circular frequencies (rad/s)
+    flexibility_scale : float -- multiplies ``solve`` (a model ``factor`` times stiffer: ``1 / factor``)
+    """
+
+    def __init__(self, solve, phi, omega, flexibility_scale=1.0):
+        self.solve = solve
+        self.phi = np.asarray(phi, float)
+        self.omega = np.asarray(omega, float)
+        self.flexibility_scale = float(flexibility_scale)
+        self._cache = {}
+
+    @property
+    def n_phys(self):
+        return self.phi.shape[0]
+
+    def residual(self, dofs):
+        """Residual displacement for unit forces at physical free DOFs.
+
+        Parameters
+        ----------
+        dofs : sequence of int
+            Physical free DOF indices (0-based).
+
+        Returns
+        -------
+        ndarray (n_phys, len(dofs))
+            m/N (cached per set of DOFs).
+        """
+        key = tuple(int(d) for d in dofs)
+        if key not in self._cache:
+            unit = np.zeros((self.n_phys, len(key)))
+            unit[list(key), np.arange(len(key))] = 1.0
+            full = np.asarray(self.solve(unit), float).reshape(self.n_phys, len(key))
+            kept = self.phi @ (self.phi[list(key)].T / self.omega[:, None] ** 2)
+            self._cache[key] = self.flexibility_scale * full - kept
+        return self._cache[key]
+
+    def scaled(self, stiffness_factor=1.0, mass_factor=1.0):
+        """The correction of the model with ``K`` times ``stiffness_factor`` and ``M`` times ``mass_factor``.
+
+        Modes ``phi / sqrt(mass_factor)``, frequencies times ``sqrt(stiffness_factor / mass_factor)``,
+        ``K^-1`` over ``stiffness_factor``.
+
+        Parameters
+        ----------
+        stiffness_factor, mass_factor : float
+
+        Returns
+        -------
+        StaticCorrection
+        """
+        return StaticCorrection(self.solve, self.phi / np.sqrt(mass_factor),
+                                self.omega * np.sqrt(stiffness_factor / mass_factor),
+                                self.flexibility_scale / stiffness_factor)
+
+    def keeping(self, phi, omega):
+        """The correction of the same model reduced to fewer modes; the others join the residual.
+
+        Parameters
+        ----------
+        phi : ndarray (n_phys, k)
+            The modes it keeps now (mass-normalised).
+        omega : ndarray (k,)
+            Their circular frequencies (rad/s).
+
+        Returns
+        -------
+        StaticCorrection
+        """
+        return StaticCorrection(self.solve, phi, omega, self.flexibility_scale)

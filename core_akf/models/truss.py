@@ -26,9 +26,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..exceptions import ModelError
+from ..checks import ArrayLike, Damping, ModelError
 from ..structure import Structure
-from ..types import ArrayLike, Damping
 
 #: S17 member connectivity, 1-based joints, in member order 1..34
 S17_MEMBERS = (
