@@ -178,6 +178,28 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity=
     return fig
 
 
+def plot_events(structure, frame, path, title):
+    """The located impacts on the structure (``akf locate`` over many records): a disc per event at
+    its node, sized by the peak force and numbered in the order of events.csv; writes ``path``."""
+    from core_akf.figures import plot_structure, save_figure
+
+    fig = plot_structure(structure, numbers=structure.n_nodes <= 60)
+    ax = fig.axes[0]
+    ok = frame[frame["node"].notna()]
+    peaks = np.abs(ok["peak_force"].to_numpy(float))
+    sizes = 60 + 340 * peaks / max(peaks.max(), 1e-300)
+    xy = structure.nodes[structure.node_rows(ok["node"].astype(int).to_numpy())][:, :2]
+    sc = ax.scatter(xy[:, 0], xy[:, 1], s=sizes, c=ok["confidence"].to_numpy(float), cmap="viridis", vmin=0, vmax=1,
+                    alpha=0.75, edgecolors="k", zorder=5)
+    for k, (x, y), p in zip(ok.index, xy, peaks):
+        ax.annotate(f"#{k + 1}: {p / 1e3:.3g} kN", (x, y), textcoords="offset points", xytext=(8, -12), fontsize=8,
+                    fontweight="bold", color="darkred", zorder=6)
+    fig.colorbar(sc, ax=ax, label="confidence (share of role splits)", orientation="horizontal", shrink=0.4, pad=0.2)
+    ax.set_title(f"{title}: {len(ok)} of {len(frame)} impacts located (disc size: peak force, "
+                 f"largest {peaks.max() / 1e3:.3g} kN)", fontsize=9)
+    return save_figure(fig, path)
+
+
 def draw(files, key, notes, plot, *args, **kw):
     """Draw a figure after the results are written, never at their cost.
 

@@ -423,17 +423,3 @@ def _absolute_noise(spec):
         kind, factor = _NOISE_UNITS[key]
         out[kind] = float(value) * factor
     return out
-
-
-def read_measurements(path, sensors, dt, time_column="time", **channel_map):
-    """Measured data (N x m, SI) of ``sensors`` from a file, folder or glob pattern in any format
-    :mod:`core_akf.io` reads, with the sampling interval checked against ``dt`` (s).
-    ``channel_map``: the keys of :class:`core_akf.io.Record` (channels, units, gauge_factor,
-    bridge, invert, remove_offset, format, group)."""
-    from core_akf.io import Record
-
-    record = Record(path, sensors, time_column=time_column, **channel_map)
-    if record.n_steps < 2:
-        raise AKFInputError(f"{record.files[0]}: {record.n_steps} data row(s); a record needs at least two time steps")
-    record.check_dt(dt)
-    return record.read()[1]

@@ -40,7 +40,7 @@ import numpy as np
 from core_akf.checks import AKFInputError
 from core_akf.outputs import confined, write_csv
 
-from .figures import draw
+from .figures import draw, plot_events
 
 log = logging.getLogger("akf")
 
@@ -138,7 +138,7 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
     written["event_folders"] = os.path.join(out, "events")
     if plot and frame["node"].notna().any():
         notes = []
-        draw(written, "events_figure", notes, _plot_events, job.structure, frame,
+        draw(written, "events_figure", notes, plot_events, job.structure, frame,
              os.path.join(out, "events.png"), job.name)
         if notes and progress:
             log.warning(f"  WARNING: {notes[0]}")
@@ -151,36 +151,12 @@ def printable_path(path):
     return os.fsencode(path).decode("utf-8", "backslashreplace")
 
 
-def _plot_events(structure, frame, path, title):
-    """The located impacts on the structure: a disc per event at its node, sized by the peak force
-    and numbered in the order of events.csv."""
-    import numpy as np
-
-    from core_akf.figures import plot_structure, save_figure
-
-    fig = plot_structure(structure, numbers=structure.n_nodes <= 60)
-    ax = fig.axes[0]
-    ok = frame[frame["node"].notna()]
-    peaks = np.abs(ok["peak_force"].to_numpy(float))
-    sizes = 60 + 340 * peaks / max(peaks.max(), 1e-300)
-    xy = structure.nodes[structure.node_rows(ok["node"].astype(int).to_numpy())][:, :2]
-    sc = ax.scatter(xy[:, 0], xy[:, 1], s=sizes, c=ok["confidence"].to_numpy(float), cmap="viridis", vmin=0, vmax=1,
-                    alpha=0.75, edgecolors="k", zorder=5)
-    for k, (x, y), p in zip(ok.index, xy, peaks):
-        ax.annotate(f"#{k + 1}: {p / 1e3:.3g} kN", (x, y), textcoords="offset points", xytext=(8, -12), fontsize=8,
-                    fontweight="bold", color="darkred", zorder=6)
-    fig.colorbar(sc, ax=ax, label="confidence (share of role splits)", orientation="horizontal", shrink=0.4, pad=0.2)
-    ax.set_title(f"{title}: {len(ok)} of {len(frame)} impacts located (disc size: peak force, "
-                 f"largest {peaks.max() / 1e3:.3g} kN)", fontsize=9)
-    return save_figure(fig, path)
-
-
 def write_outputs(result, out, scenario=None, plot=True, notes=None):
     """Write ranking.csv, scan.csv, force.csv, response.csv, tuning.csv and then the figures; a
     figure that fails is a note in ``notes`` (default ``result.warnings``).  Returns {name: path}."""
     import pandas as pd
 
-    from impactloc.locate import plot_locate
+    from impactloc.plots import plot_locate
 
     os.makedirs(confined(out), exist_ok=True)
     files = {"ranking": os.path.join(out, "ranking.csv"), "scan": os.path.join(out, "scan.csv"),

@@ -149,3 +149,45 @@ def band_modes(structure, dt, accelerations=False):
     f = structure.frequencies()
     keep = int(np.sum(f < default("band_modes_factor") * 0.5 / float(dt)))
     return int(min(full, max(min(default("auto_modes_minimum"), structure.n), keep)))
+
+
+def resolve_modes(n_modes, structure, dt, accelerations, rule="auto"):
+    """The modes a filter model keeps, decided once for every caller (the filter model, the
+    placement fitness, the location scan, the reconstruction).
+
+    Parameters
+    ----------
+    n_modes : None, "full", "auto" or int
+        None or ``"full"``: the full model; ``"auto"``: the rule; a number: checked against the model.
+    structure : Structure
+        The model.
+    dt : float
+        Time step (s).
+    accelerations : bool
+        Whether any acceleration sensor is (or may be) used (:func:`core_akf.sensors.sees_accelerations`).
+    rule : "auto" or "band"
+        :func:`auto_modes` (reported errors, estimates) or :func:`band_modes` (the placement fitness).
+
+    Returns
+    -------
+    int or None
+        None for the full model (also when the count is every mode).
+
+    Examples
+    --------
+    >>> from core_akf.models import th_plate
+    >>> resolve_modes("auto", th_plate(), 0.0005, False) == auto_modes(th_plate(), 0.0005, False)
+    True
+    """
+    from .checks import AKFInputError, check_n_modes
+
+    if n_modes is None or (isinstance(n_modes, str) and n_modes == "full"):
+        return None
+    if isinstance(n_modes, str):
+        if n_modes != "auto":
+            raise AKFInputError(f"n_modes must be a number of modes, \"auto\" or \"full\", got {n_modes!r}")
+        n_modes = (band_modes if rule == "band" else auto_modes)(structure, dt, accelerations)
+    n_modes = check_n_modes(n_modes)
+    if n_modes > structure.n:
+        raise AKFInputError(f"n_modes must be between 1 and {structure.n}, got {n_modes}")
+    return None if n_modes == structure.n else n_modes

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .checks import AKFInputError, ArrayLike, FloatArray
+from .structure import STRAIN_COMPONENTS
 
 #: the detail categories of EN 1993-1-9, Table 8.1 ff.: Δσ_C (MPa) at 2e6 cycles
 EC3_CATEGORIES = (160, 140, 125, 112, 100, 90, 80, 71, 63, 56, 50, 45, 40, 36)
@@ -605,7 +606,7 @@ def stress_operator(structure, outputs: list, youngs_modulus: float | None = Non
     labels = structure.strain_labels
     for row, i in enumerate(idx):
         parts = labels[i].split(":")
-        if structure.strain_kind == "node" and nu is not None and len(parts) == 3 and parts[2] in ("ex", "ey", "gxy"):
+        if structure.strain_kind == "node" and nu is not None and len(parts) == 3 and parts[2] in STRAIN_COMPONENTS:
             node, comp = int(parts[1]), parts[2]
             try:
                 ex, ey = structure.strain_index((node, "ex")), structure.strain_index((node, "ey"))

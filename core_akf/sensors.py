@@ -124,6 +124,20 @@ class Sensor:
         return self.label
 
 
+def sees_accelerations(sensors):
+    """Whether a layout holds an accelerometer (the one test behind the ``"auto"`` mode rules).
+
+    Parameters
+    ----------
+    sensors : sequence of sensor specs
+
+    Returns
+    -------
+    bool
+    """
+    return any(s.kind == "acc" for s in as_layout(sensors))
+
+
 def as_layout(sensors):
     """A tuple of :class:`Sensor` from any sensor specs.
 

@@ -20,8 +20,8 @@ if TYPE_CHECKING:
     from .structure import Structure
 from . import rank
 from .checks import AKFInputError, UndetectableError
-from .forcemodels import ForceModel, van_loan  # noqa: F401  (van_loan public here as before)
-from .rank import is_supported  # noqa: F401  (public here as before)
+from .forcemodels import ForceModel
+from .rank import is_supported
 from .sensors import as_layout, parse_force_locations, selection_matrices
 
 

@@ -12,7 +12,8 @@ location.  A GA then tunes the covariance levels and the AKF reconstructs the fo
 ...              ad_kinds=("strain",), direction="y")              # doctest: +SKIP
 >>> res.identified, res.scan.confidence, res.reconstruction.summary.peak   # doctest: +SKIP
 """
-from .locate import LocateResult, locate, plot_locate
+from .locate import LocateResult, locate
+from .plots import plot_locate
 from .reconstruct import ForceSummary, Reconstruction, force_summary, reconstruct
 from .roles import RoleSplit, role_splits
 from .scan import Covariances, ImpactModel, ScanResult, candidate_locations, default_covariances, scan

@@ -157,10 +157,10 @@ def reconstruct(structure: Structure, sensors: Layout, measurements: Measurement
     (0.303, (600, 34))
     """
     if n_modes is not None and structure.n > FULL_MODEL_LIMIT and not structure.is_reduced:
-        from core_akf.defaults import auto_modes
+        from core_akf.defaults import resolve_modes
 
-        k = auto_modes(structure, dt, accelerations=True) if n_modes == "auto" else int(n_modes)
-        if k < structure.n:
+        k = resolve_modes(n_modes, structure, dt, accelerations=True)
+        if k is not None:
             structure = structure.reduce(k, static_correction=True)
     est = estimate(structure, sensors, [location], measurements, dt, model_error_cov=covariances.model_error,
                    force_model=covariances.force_model(force_model), noise_cov=dict(covariances.noise), steady=True)

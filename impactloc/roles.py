@@ -10,9 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core_akf.checks import AKFInputError, Layout
-from core_akf.sensors import Sensor, as_layout
-
-_KINDS = ("strain", "acc", "vel", "disp")
+from core_akf.sensors import KINDS, Sensor, as_layout
 
 
 @dataclass(frozen=True)
@@ -78,9 +76,9 @@ def role_splits(sensors: Layout, n_ad: int, ad_kinds: Sequence[str] = ("strain",
     """
     layout = as_layout(sensors)
     ad_kinds = (ad_kinds,) if isinstance(ad_kinds, str) else tuple(ad_kinds)
-    unknown = [k for k in ad_kinds if k not in _KINDS]
+    unknown = [k for k in ad_kinds if k not in KINDS]
     if unknown:
-        raise AKFInputError(f"unknown AD sensor kind(s) {unknown}; use {list(_KINDS)}")
+        raise AKFInputError(f"unknown AD sensor kind(s) {unknown}; use {list(KINDS)}")
     pool = [i for i, s in enumerate(layout) if s.kind in ad_kinds]
     if not isinstance(n_ad, (int, np.integer)) or n_ad < 1:
         raise AKFInputError(f"n_ad must be a positive integer, got {n_ad!r}")

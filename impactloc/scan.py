@@ -13,12 +13,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from core_akf.checks import AKFInputError, FloatArray, ForceLocation, Layout, Measurements, as_finite_array
-from core_akf.defaults import auto_modes, default
+from core_akf.defaults import default, resolve_modes
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
 from core_akf.forcemodels import ForceModel
 from core_akf.metrics import rms, rms_error
-from core_akf.sensors import as_layout, parse_force_locations
+from core_akf.sensors import as_layout, parse_force_locations, sees_accelerations
 from core_akf.statespace import SubsetDetectability
 
 from .roles import RoleSplit
@@ -206,12 +206,7 @@ class ImpactModel:
         self.force_model = force_model if force_model is not None and force_model.stationary else None
         self.layout = as_layout(sensors)
         self.dt = float(dt)
-        if n_modes is not None and n_modes != "auto" and not 1 <= int(n_modes) <= structure.n:
-            raise AKFInputError(f"n_modes must be between 1 and {structure.n}, got {n_modes}")
-        accelerations = any(s.kind == "acc" for s in as_layout(sensors))
-        self.n_modes = auto_modes(structure, dt, accelerations) if n_modes == "auto" else n_modes
-        if self.n_modes is not None and int(self.n_modes) == structure.n:
-            self.n_modes = None
+        self.n_modes = resolve_modes(n_modes, structure, dt, sees_accelerations(self.layout))
         self.kinds = np.array([s.kind for s in self.layout])
         self._systems = {}
         self._detectability = {}

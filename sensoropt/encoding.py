@@ -28,11 +28,12 @@ from scipy.optimize import linear_sum_assignment
 
 from core_akf.checks import AKFInputError, CandidateLayout
 from core_akf.rank import zero_rows
+from core_akf.structure import STRAIN_COMPONENTS
 
 if TYPE_CHECKING:
     from core_akf.structure import Structure
 
-STRAIN_KINDS = ("ex", "ey", "gxy")
+STRAIN_KINDS = STRAIN_COMPONENTS
 KINDS = STRAIN_KINDS + ("acc",)
 #: directions an accelerometer measures (w: a plate's out-of-plane translation)
 TRANSLATIONS = ("x", "y", "z", "w")
@@ -871,10 +872,6 @@ class PlateGrid(CandidateSet):
         """
         C = np.hypot(self.ix[a][:, :, None] - self.ix[b][:, None, :], self.iy[a][:, :, None] - self.iy[b][:, None, :])
         return C + (self.kind[a][:, :, None] != self.kind[b][:, None, :])
-
-
-#: the old name of :class:`PlateGrid` (kept so that scripts written against it still run)
-Encoding = PlateGrid
 
 
 def make_encoding(structure: Structure, kinds: Sequence[str] | None = None, n_sensors: int | None = None,

@@ -15,7 +15,6 @@ import numpy as np
 from core_akf.checks import AKFInputError, check_memory
 from core_akf.defaults import default
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, Individual, best, tournament
-from core_akf.evolution import load_checkpoint as evolution_load_checkpoint
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -216,10 +215,6 @@ def place(objective: Objective, encoding: CandidateSet, *, population: int = 50,
     return PlacementResult(best_layout, best_f, encoding.sensors(best_layout), encoding.records(best_layout),
                            res.logbook, [(encoding.sensors(l), f[0]) for l, f in res.hall_of_fame], res.evaluations,
                            res.cache_hits, res.infeasible, res.stopped, seed, settings)
-
-
-#: checkpoints are the engine's (JSON): see :func:`core_akf.evolution.load_checkpoint`
-load_checkpoint = evolution_load_checkpoint
 
 
 def independent_runs(objective: Objective, encoding: CandidateSet, runs: int = 4, seed: int = 0,

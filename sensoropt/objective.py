@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from core_akf.checks import AKFInputError, ForceHistories, Forces
-from core_akf.defaults import band_modes, default
+from core_akf.defaults import default, resolve_modes
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
 from core_akf.filter.riccati import RiccatiError
@@ -163,9 +163,8 @@ class StrainErrorObjective:
         n = int(round(window / dt))
         if not 2 <= n <= loads.shape[0]:
             raise AKFInputError(f"window {window} s must hold at least 2 steps of the {loads.shape[0] * dt:.3g} s loads")
-        if n_modes == "auto":
-            n_modes = band_modes(structure, dt, accelerations="acc" in set(encoding.type))
-        n_modes = min(int(n_modes), structure.n) if n_modes is not None else None
+        n_modes = n_modes if n_modes in (None, "auto") else min(int(n_modes), structure.n)
+        n_modes = resolve_modes(n_modes, structure, dt, "acc" in set(encoding.type), rule="band")
         self.encoding = encoding
         self.labels = encoding.sensors(range(len(encoding.candidates)))
         sim = simulate(structure, self.labels, forces, loads[:n], dt, relative_noise=relative_noise, seed=seed)

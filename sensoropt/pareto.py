@@ -13,7 +13,7 @@ import numpy as np
 from core_akf.checks import AKFInputError
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, individual_class, tournament_dcd
 
-from .encoding import PlateGrid
+from .encoding import STRAIN_KINDS, PlateGrid
 from .ga import BATCH, PENALTY
 
 if TYPE_CHECKING:
@@ -132,7 +132,7 @@ class _ErrorAndCost:
         return out
 
 
-def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...] = ("ex", "ey", "gxy"),
+def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...] = STRAIN_KINDS,
            sizes: tuple[int, int] = (1, 8), cost: dict[str, float] | None = None, population: int = 60,
            generations: int = 40, crossover: float = 0.8, mutation: float = 0.3, seed: int = 0, n_jobs: int = 1,
            progress: bool = False, penalty: float = PENALTY) -> ParetoResult:

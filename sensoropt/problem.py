@@ -8,11 +8,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core_akf.checks import AKFInputError
-from core_akf.defaults import auto_modes, default
+from core_akf.defaults import default, resolve_modes
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
 from core_akf.forcemodels import ForceModel
 from core_akf.metrics import average_strain_error
+from core_akf.sensors import sees_accelerations
 from core_akf.simulate import simulate
 
 from .encoding import CandidateSet, make_encoding
@@ -208,12 +209,11 @@ class PlacementProblem:
         """The steady AKF's outputs ``rows_of(filter model)`` over the whole record, and the simulation."""
         sim = simulate(self.structure, sensors, self.forces, self.loads, self.dt, relative_noise=self.relative_noise,
                        seed=self.seed if seed is None else seed)
-        n_modes = self.n_modes
-        if n_modes == "auto":
-            n_modes = auto_modes(self.structure, self.dt, accelerations=any(str(s).startswith("acc") for s in sensors))
+        n_modes = self.n_modes if self.n_modes in (None, "auto") else min(int(self.n_modes), self.structure.n)
+        n_modes = resolve_modes(n_modes, self.structure, self.dt, sees_accelerations(sensors))
         force_model = self.force_model or ForceModel("random_walk", increment_cov=self.force_increment_cov)
-        fm = FilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt,
-                              None if n_modes is None else min(int(n_modes), self.structure.n), force_model=force_model)
+        fm = FilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt, n_modes,
+                         force_model=force_model)
         R = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2) + fm.residual_noise(sensors, self.model_error_cov)
         est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov),
                              R[None], sim.measurements[None], rows_of(fm))[0]

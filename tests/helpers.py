@@ -49,3 +49,13 @@ def measured_s17_files(tmp_path, files, output):
     measured["measurements"] = {"file": str(folder / ("*.csv" if files > 1 else "part00.csv")), "chunk": 0.1}
     measured["output"] = output
     return measured
+
+
+def read_record(path, sensors, dt, **channel_map):
+    """A measured record's data (N x m, SI) through :class:`core_akf.io.Record`, its sampling
+    interval checked against ``dt``."""
+    from core_akf.io import Record
+
+    record = Record(path, sensors, **channel_map)
+    record.check_dt(dt)
+    return record.read()[1]

@@ -75,11 +75,11 @@ def test_fallback_result_is_checked(monkeypatch):
 def test_parquet_measurements_are_read(tmp_path):
     """Parquet is a documented input format: its reader (pyarrow) is a declared dependency."""
     import pandas as pd
+    from helpers import read_record
 
-    from akf.job import read_measurements
     rng = np.random.default_rng(0)
     df = pd.DataFrame({"time": np.arange(50) * 1e-3, "strain:13": 1e-6 * rng.normal(size=50),
                        "acc:8:y": rng.normal(size=50)})
     df.to_parquet(tmp_path / "d.parquet")
-    Y = read_measurements(tmp_path / "d.parquet", ["strain:13", "acc:8:y"], 1e-3)
+    Y = read_record(tmp_path / "d.parquet", ["strain:13", "acc:8:y"], 1e-3)
     np.testing.assert_array_equal(Y, df[["strain:13", "acc:8:y"]].to_numpy())

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from core_akf import UndetectableError
+from core_akf.forcemodels import van_loan
 from core_akf.models import s17_truss, th_plate
-from core_akf.statespace import continuous, detectability, observation, state_space, van_loan, zoh
+from core_akf.statespace import continuous, detectability, observation, state_space, zoh
 
 FORCES4 = ["4:y", "6:y", "8:y", "12:y"]
 ACC_ONLY = [f"acc:{j}:y" for j in (2, 4, 5, 6, 7, 8, 9, 12, 14, 15)] + [f"acc:{j}:x" for j in (4, 5, 8, 9)]

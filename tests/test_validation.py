@@ -2,8 +2,8 @@
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import read_record
 
-from akf.job import read_measurements
 from core_akf import AKFInputError, ModelError, Structure, UndetectableError
 from core_akf.filter import estimate, run
 from core_akf.models import plate, s17_truss, th_plate
@@ -130,13 +130,13 @@ def test_measurement_file_checks(tmp_path):
     df = pd.DataFrame({"time": t, "strain:13": 1e-6 * rng.normal(size=10), "acc:8:y": rng.normal(size=10)})
     ok = tmp_path / "ok.csv"
     df.to_csv(ok, index=False)
-    assert read_measurements(ok, sensors, 0.001).shape == (10, 2)
+    assert read_record(ok, sensors, 0.001).shape == (10, 2)
     with pytest.raises(AKFInputError, match="does not match the job's dt"):
-        read_measurements(ok, sensors, 0.002)
+        read_record(ok, sensors, 0.002)
     df.drop(columns=["acc:8:y"]).to_csv(tmp_path / "missing.csv", index=False)
     with pytest.raises(AKFInputError, match=r"no channel\(s\) \['acc:8:y'\]"):
-        read_measurements(tmp_path / "missing.csv", sensors, 0.001)
+        read_record(tmp_path / "missing.csv", sensors, 0.001)
     df.loc[4, "strain:13"] = np.nan
     df.to_csv(tmp_path / "nan.csv", index=False)
     with pytest.raises(AKFInputError, match="'strain:13' has 1 missing/NaN or non-numeric sample.*'nan' in data row 5"):
-        read_measurements(tmp_path / "nan.csv", sensors, 0.001)
+        read_record(tmp_path / "nan.csv", sensors, 0.001)

@@ -17,6 +17,7 @@ import os
 
 from core_akf.outputs import write_csv
 from core_akf.sensors import parse_force_locations
+from sensoropt.encoding import STRAIN_KINDS
 from sensoropt.ga import THESIS, independent_runs, place
 from sensoropt.pareto import pareto
 from sensoropt.plots import plot_convergence, plot_layout, plot_pareto
@@ -113,7 +114,7 @@ def run(out=None, quick=False, seed=0, n_jobs=2):
             p = example_problem("th-multi")
             p.budget, p.window = budget, window
             if "acc" not in budget:
-                p.kinds = ("ex", "ey", "gxy")
+                p.kinds = STRAIN_KINDS
             enc = p.encoding()
             res = place(p.objective(enc), enc, seed=seed, n_jobs=n_jobs, **ga)
             mix = f"{budget['strain']} gauges" + (" + 1 acc" if "acc" in budget else "")

@@ -28,7 +28,7 @@ import scipy.linalg
 
 from ..checks import AKFInputError, ArrayLike, Covariance, FloatArray, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
 from ..covariances import diag_levels, noise_covariance, state_covariance
-from ..defaults import auto_modes
+from ..defaults import resolve_modes
 from ..forcemodels import DummyMeasurements, ForceModel, as_force_model
 from ..sensors import as_layout, parse_force_locations
 from ..statespace import (
@@ -82,11 +82,7 @@ class FilterModel:
         self.full = structure
         self.forces = parse_force_locations(structure, forces)
         self.dt = float(dt)
-        if n_modes == "auto":
-            n_modes = auto_modes(structure, dt, accelerations=True)
-        if n_modes is not None and not 1 <= int(n_modes) <= structure.n:
-            raise AKFInputError(f"n_modes must be between 1 and {structure.n}, got {n_modes}")
-        self.n_modes = None if n_modes is None or int(n_modes) == structure.n else int(n_modes)
+        self.n_modes = resolve_modes(n_modes, structure, dt, accelerations=True)
         # the one static-correction path: the reduced structure carries it (Structure.reduce), kept
         # with the structure so that every force location and candidate shares one factorisation
         k = self.n_modes

@@ -18,12 +18,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..checks import AKFInputError
+from .sparse import DENSE_LIMIT
 
 #: OpenSees' DOF order per (ndm, ndf)
 DOF_NAMES = {(1, 1): ("x",), (2, 2): ("x", "y"), (2, 3): ("x", "y", "rz"), (3, 3): ("x", "y", "z"),
              (3, 6): ("x", "y", "z", "rx", "ry", "rz")}
-#: models above this many equations are refused (printA gives a dense matrix)
-OPENSEES_LIMIT = 6000
+#: models above this many equations are refused (printA gives a dense matrix): the dense-size limit
+OPENSEES_LIMIT = DENSE_LIMIT
 
 
 def _ops():
