@@ -1,6 +1,32 @@
-"""What several test modules share: the estimate pipeline on a job dict, a simulated record as a file."""
+"""What several test modules share: the repository root, job snippets, the estimate pipeline on a job dict, a
+simulated record as a file."""
+import pathlib
+
 from akf.estimate import estimate_job
 from akf.job import Job
+
+#: the repository's root folder
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+#: node ids of the 3-D frame of one's own are the S17 truss' plus this
+OFFSET = 100
+
+SIMULATION = """[filter]
+model_error_cov = 1e-16
+force_increment_cov = 1e4
+[simulation]
+duration = 1.0
+relative_noise = 0.02
+[[simulation.loads]]
+components = [{type = "sine", frequency = 3.0, amplitude = 300.0}]
+"""
+
+PLACE_3D = """[place]
+candidates = ["strain:5", "strain:13", "strain:35", "strain:36", "acc:108:y", "acc:106:y"]
+budget = {strain = 2, acc = 1}
+window = 0.25
+population = 6
+generations = 2
+"""
 
 
 def run_estimate(job, out=None, *, steady=None, allow_undetectable=None, **run_options):
@@ -59,3 +85,35 @@ def read_record(path, sensors, dt, **channel_map):
     record = Record(path, sensors, **channel_map)
     record.check_dt(dt)
     return record.read()[1]
+
+
+#: the sample data-acquisition files
+DAQ = ROOT / "examples" / "daq"
+
+
+def measured_job(tmp_path, extra=""):
+    """The S17 case-4 job on the SI CSV record, short chunks (20 ms), as a job file in ``tmp_path``."""
+    text = (DAQ / "s17-tdms.toml").read_text()
+    head = text[:text.index("[measurements]")]
+    job = tmp_path / "job.toml"
+    job.write_text(head + f'[measurements]\nfile = "{DAQ / "record-si.csv"}"\nchunk = 0.02\n' + extra)
+    return job
+
+
+def two_dof(**changes):
+    """A two-DOF model of one's own (springs of 1 MN/m, 10 kg masses) with ``changes`` to its inputs."""
+    import numpy as np
+
+    from core_akf.models import from_matrices
+
+    kw = dict(K=np.array([[2.0, -1.0], [-1.0, 1.0]]) * 1e6, M=np.eye(2) * 10.0, dofs=[(1, "x"), (2, "x")],
+              nodes={1: (1.0, 0.0), 2: (2.0, 0.0)}) | changes
+    return from_matrices(**kw)
+
+
+def read_channels(path, sensors=("acc:4:y", "acc:6:y"), **kw):
+    """``(time, data)`` of ``sensors`` in a record file (:class:`core_akf.io.Record`)."""
+    from core_akf.io import Record
+
+    record = Record(str(path), list(sensors), **kw)
+    return record.read()

@@ -143,7 +143,7 @@ def _job(**sections):
 _DELETE = object()
 
 
-def _measured_job(tmp_path, frame, **extra):
+def measured_job(tmp_path, frame, **extra):
     path = tmp_path / "data.csv"
     if isinstance(frame, str):
         path.write_text(frame)
@@ -183,32 +183,32 @@ JOB_CASES = {
     "model_error_cov negative": (lambda tp: _job(filter__model_error_cov=-1e-16), "model_error_cov in \\[filter\\]"),
     "no sensors key": (lambda tp: _job(sensors=_DELETE), "the job has no 'sensors'"),
     "unknown model": (lambda tp: _job(structure={"model": "bridge"}), "model in \\[structure\\] must be one of"),
-    "noise_cov simulated on measured data": (lambda tp: dict(_measured_job(tp, _frame()), filter={"noise_cov": "simulated"}),
+    "noise_cov simulated on measured data": (lambda tp: dict(measured_job(tp, _frame()), filter={"noise_cov": "simulated"}),
                                              "needs a simulated job"),
     "measurement file missing": (lambda tp: _job(simulation=_DELETE, measurements={"file": str(tp / "nope.csv")}),
                                  "not found"),
     "measurement folder without data files": (lambda tp: _job(simulation=_DELETE, measurements={"file": str(tp)}),
                                                "has no data files"),
-    "empty CSV": (lambda tp: _measured_job(tp, ""), "the file is empty"),
-    "header-only CSV": (lambda tp: _measured_job(tp, "time," + ",".join(SENSORS) + "\n"), "0 data row"),
-    "strings in data": (lambda tp: _measured_job(tp, _frame(strain_13=["x"] * 256)),
+    "empty CSV": (lambda tp: measured_job(tp, ""), "the file is empty"),
+    "header-only CSV": (lambda tp: measured_job(tp, "time," + ",".join(SENSORS) + "\n"), "0 data row"),
+    "strings in data": (lambda tp: measured_job(tp, _frame(strain_13=["x"] * 256)),
                         "column 'strain:13' has 256 missing/NaN or non-numeric sample"),
-    "NaN in data": (lambda tp: _measured_job(tp, _frame(strain_13=np.r_[np.ones(100), np.nan, np.ones(155)] * 1e-6)),
+    "NaN in data": (lambda tp: measured_job(tp, _frame(strain_13=np.r_[np.ones(100), np.nan, np.ones(155)] * 1e-6)),
                     "'strain:13' has 1 missing/NaN"),
-    "duplicate time stamps": (lambda tp: _measured_job(tp, _frame(t=np.r_[0.0, np.arange(255) * DT])),
+    "duplicate time stamps": (lambda tp: measured_job(tp, _frame(t=np.r_[0.0, np.arange(255) * DT])),
                               "time repeats at data row 2"),
-    "time goes back": (lambda tp: _measured_job(tp, _frame(t=np.r_[np.arange(100), 50, np.arange(101, 256)] * DT)),
+    "time goes back": (lambda tp: measured_job(tp, _frame(t=np.r_[np.arange(100), 50, np.arange(101, 256)] * DT)),
                        "time goes back at data row 101"),
-    "a gap in the record": (lambda tp: _measured_job(tp, _frame(t=np.r_[np.arange(128), np.arange(129, 257)] * DT)),
+    "a gap in the record": (lambda tp: measured_job(tp, _frame(t=np.r_[np.arange(128), np.arange(129, 257)] * DT)),
                             "data row 129 .* off the uniform grid"),
-    "another sampling rate": (lambda tp: _measured_job(tp, _frame(t=np.arange(256) * DT * 2)),
+    "another sampling rate": (lambda tp: measured_job(tp, _frame(t=np.arange(256) * DT * 2)),
                               "sampling interval 0.001953125 s .* does not match the job's dt = 0.0009765625 s"),
-    "constant channel": (lambda tp: _measured_job(tp, _frame(acc_8_y=np.full(256, 0.5))), "'acc:8:y' is constant"),
-    "all-zero data": (lambda tp: _measured_job(tp, _frame(**{k.replace(":", "_"): np.zeros(256) for k in SENSORS})),
+    "constant channel": (lambda tp: measured_job(tp, _frame(acc_8_y=np.full(256, 0.5))), "'acc:8:y' is constant"),
+    "all-zero data": (lambda tp: measured_job(tp, _frame(**{k.replace(":", "_"): np.zeros(256) for k in SENSORS})),
                       "is constant \\(0\\)"),
-    "strain in microstrain": (lambda tp: _measured_job(tp, _frame(strain_5=_measured()[:, 2] * 1e6)),
+    "strain in microstrain": (lambda tp: measured_job(tp, _frame(strain_5=_measured()[:, 2] * 1e6)),
                               "'strain:5' has an RMS of .* it looks like microstrain"),
-    "strain:99 on measured data": (lambda tp: dict(_measured_job(tp, _frame()), sensors=SENSORS[:3] + ["strain:99"]),
+    "strain:99 on measured data": (lambda tp: dict(measured_job(tp, _frame()), sensors=SENSORS[:3] + ["strain:99"]),
                                    "unknown member 99"),
 }
 
@@ -222,14 +222,14 @@ def test_job_bad_input(name, tmp_path):
 
 def test_time_column_rounded_to_six_decimals_is_accepted(tmp_path):
     """A DAQ that prints the time with 6 decimals is off the grid by <= 5e-7 s (0.05 % of a step)."""
-    job = _measured_job(tmp_path, _frame(t=np.round(np.arange(256) * DT, 6)))
+    job = measured_job(tmp_path, _frame(t=np.round(np.arange(256) * DT, 6)))
     res = run_estimate(job)
     assert res.metrics["n_steps"] == 256
 
 
 def test_messages_print_unequal_numbers_unequally(tmp_path):
     with pytest.raises(AKFInputError) as err:
-        run_estimate(_measured_job(tmp_path, _frame(t=np.arange(256) * DT * 1.05)))
+        run_estimate(measured_job(tmp_path, _frame(t=np.arange(256) * DT * 1.05)))
     msg = str(err.value)
     assert "0.00102539062" in msg and "0.0009765625" in msg
 

@@ -70,15 +70,15 @@ def test_command_lines_parse(line):
 def test_json_schema_file_is_current():
     from akf.schema import json_schema_text
 
-    assert (ROOT / "akf" / "job.schema.json").read_text() == json_schema_text(), \
-        "regenerate with: python -m akf.schema --json > akf/job.schema.json"
+    assert (ROOT / "akf" / "job.schema.json").read_text() == json_schema_text(), (
+        "regenerate with: python -m akf.schema --json > akf/job.schema.json")
 
 
 def test_committed_job_reference_is_current():
     from akf.schema import reference_markdown
 
-    assert (ROOT / "docs" / "reference" / "jobs.md").read_text(encoding="utf-8") == reference_markdown(), \
-        "regenerate with: python -m akf.schema > docs/reference/jobs.md"
+    assert (ROOT / "docs" / "reference" / "jobs.md").read_text(encoding="utf-8") == reference_markdown(), (
+        "regenerate with: python -m akf.schema > docs/reference/jobs.md")
 
 
 def test_reference_lists_every_key():

@@ -129,8 +129,8 @@ def test_what_a_function_returns_is_documented(package):
     """A function that returns or yields a value has a Returns or Yields section."""
     missing = []
     for qualified, func, doc in CALLABLES:
-        if not qualified.startswith(package + ".") or func is None or not inspect.isfunction(func) \
-                or func.__name__ == "__init__":
+        if (not qualified.startswith(package + ".") or func is None or not inspect.isfunction(func)
+                or func.__name__ == "__init__"):
             continue
         if _returns_a_value(func) and not re.search(r"\n(Returns|Yields)\n-+\n", doc or ""):
             missing.append(qualified)
@@ -246,8 +246,8 @@ def test_the_api_has_examples():
         exported = getattr(module, "__all__", None) or [n for n in vars(module) if not n.startswith("_")]
         for n in exported:
             obj = getattr(module, n)
-            if inspect.isfunction(obj) and obj.__module__.split(".")[0] in PACKAGES and not n.startswith("plot_") \
-                    and "\nExamples\n--" not in (inspect.getdoc(obj) or ""):
+            if (inspect.isfunction(obj) and obj.__module__.split(".")[0] in PACKAGES and not n.startswith("plot_")
+                    and "\nExamples\n--" not in (inspect.getdoc(obj) or "")):
                 missing.append(f"{name}.{n}")
     for qualified in BUILT_CLASSES:
         module, n = qualified.rsplit(".", 1)

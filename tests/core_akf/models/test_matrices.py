@@ -130,7 +130,7 @@ def test_three_dimensional_tripod_extensometers():
     assert s.nodes.shape == (4, 3) and s.dof_names == ("x", "y", "z")
 
 
-def _two_dof():
+def two_dof():
     K = np.array([[2.0, -1.0], [-1.0, 1.0]]) * 1e6
     return K, np.eye(2) * 10.0, [(1, "x"), (2, "x")], {1: (1.0, 0.0), 2: (2.0, 0.0)}
 
@@ -148,11 +148,11 @@ def _two_dof():
 ])
 def test_matrices_that_cannot_be_a_model_are_refused(change, message):
     with pytest.raises(AKFInputError, match=message):
-        from_matrices(*change(*_two_dof()))
+        from_matrices(*change(*two_dof()))
 
 
 def test_absurd_frequencies_warn_about_units():
-    K, M, dofs, nodes = _two_dof()
+    K, M, dofs, nodes = two_dof()
     with pytest.warns(ModelWarning, match=r"first natural frequencies 3\.111e\+05, 8\.143e\+05 Hz lie outside"):
         from_matrices(K * 1e8, M, dofs, nodes)        # a mass 1e8 times too small
     with pytest.raises(AKFInputError, match="extensometer 1 \\(1-2\\) needs DOF 1:y"):

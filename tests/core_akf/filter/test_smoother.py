@@ -156,7 +156,7 @@ def test_smoothing_a_model_the_data_disagree_with_is_a_warning():
     assert any("smoothed although the data disagree" in w and "calibrate first" in w for w in res.metrics["warnings"])
 
 
-def _measured_job(tmp_path, duration=0.5):
+def measured_job(tmp_path, duration=0.5):
     from helpers import write_record
 
     from akf.examples import example_job
@@ -182,7 +182,7 @@ def test_a_streamed_record_is_smoothed_with_a_fixed_lag(tmp_path):
     from akf.estimate import estimate_job
     from akf.job import Job
 
-    measured, sim = _measured_job(tmp_path)
+    measured, sim = measured_job(tmp_path)
 
     def run(name, **changes):
         data = {**measured, "filter": measured["filter"] | changes.get("filter", {}),
@@ -214,7 +214,7 @@ def test_a_lagged_smoothing_run_resumes_where_it_stopped(tmp_path):
     from akf.estimate import estimate_job
     from akf.job import Job
 
-    measured, _ = _measured_job(tmp_path)
+    measured, _ = measured_job(tmp_path)
     job = Job.from_dict(measured, "estimate")
     partial = estimate_job(job, str(tmp_path / "a"), plot=False, stop_after=2)
     assert not partial.complete

@@ -7,6 +7,7 @@ import os
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import ROOT as HELPERS_ROOT
 from helpers import write_record
 
 import akf.schema
@@ -15,7 +16,7 @@ from akf.estimate import estimate_job
 from akf.examples import example, example_job
 from akf.job import Job, load_job
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = str(HELPERS_ROOT)
 
 
 @pytest.fixture

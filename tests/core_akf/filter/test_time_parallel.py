@@ -73,8 +73,8 @@ def test_on_a_two_worker_dask_cluster(record):
     Y = sim.measurements
     sequential = _estimator(job, kw).update(Y)
     W = stress_operator(job.structure, range(job.structure.n_strain))
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
-            distributed.Client(cluster) as client:
+    with (distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster,
+          distributed.Client(cluster) as client):
         out = estimate_in_parallel(_estimator(job, kw), _pieces(Y, 6, seed=1),
                                    map_pieces=lambda f, xs: client.gather(client.map(f, xs, pure=False)),
                                    on_piece=_Fatigue(W))

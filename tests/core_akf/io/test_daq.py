@@ -2,13 +2,12 @@
 streamed estimate (chunk by chunk, resumable) against the one-piece estimate."""
 import json
 import os
-import pathlib
 import tracemalloc
 
 import numpy as np
 import pandas as pd
 import pytest
-from helpers import run_estimate
+from helpers import ROOT, run_estimate
 
 from akf.cli import main
 from akf.job import load_job_file
@@ -20,7 +19,7 @@ from core_akf.io import Reader, Record, Timing, conversion, register_reader
 from core_akf.io import readers as readers_module
 from core_akf.models import s17_truss
 
-DAQ = pathlib.Path(__file__).resolve().parents[1] / "examples" / "daq"
+DAQ = ROOT / "examples" / "daq"
 FORMATS = ["record.csv", "record.parquet", "record.tdms", "record.uff", "record.h5"]
 SENSORS = ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x", "strain:5", "strain:9", "strain:13", "strain:26"]
 FORCES = ["4:y", "6:y", "8:y", "12:y"]

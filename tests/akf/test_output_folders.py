@@ -1,0 +1,139 @@
+"""Output folders and resume: links that lead out of the folder, umask, interrupted and damaged runs."""
+import json
+import os
+
+import numpy as np
+import pandas as pd
+import pytest
+from helpers import PLACE_3D, SIMULATION, measured_job
+
+from akf.cli import main
+
+
+def test_streamed_run_into_a_folder_whose_timeseries_is_a_link_to_a_file_elsewhere(tmp_path, capsys):
+    elsewhere = tmp_path / "precious.csv"
+    elsewhere.write_text("keep me\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    os.symlink(elsewhere, out / "timeseries.csv")
+    assert main(["estimate", str(measured_job(tmp_path)), "--no-plot", "--out", str(out)]) == 2
+    assert "leads outside the output folder" in capsys.readouterr().err
+    assert elsewhere.read_text() == "keep me\n"
+
+
+def test_streamed_parquet_run_into_a_folder_whose_parts_are_a_link_to_a_folder_elsewhere(tmp_path, capsys):
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "part-00000.parquet").write_text("not ours")
+    out = tmp_path / "out"
+    out.mkdir()
+    os.symlink(elsewhere, out / "timeseries.parquet")
+    job = measured_job(tmp_path, '[output]\nformat = "parquet"\n')
+    assert main(["estimate", str(job), "--no-plot", "--out", str(out)]) == 2
+    assert "leads outside the output folder" in capsys.readouterr().err
+    assert (elsewhere / "part-00000.parquet").read_text() == "not ours"
+
+
+def test_figure_written_through_a_linked_subfolder_is_refused(tmp_path):
+    from akf.outputs import OutputFolder
+    from core_akf.outputs import write_csv
+
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "out").mkdir()
+    os.symlink(tmp_path / "elsewhere", tmp_path / "out" / "sub")
+    with OutputFolder(str(tmp_path / "out")), pytest.raises(ValueError, match="leads outside the output folder"):
+        write_csv(pd.DataFrame({"a": [1]}), str(tmp_path / "out" / "sub" / "x.csv"))
+    assert list((tmp_path / "elsewhere").iterdir()) == []
+    write_csv(pd.DataFrame({"a": [1]}), str(tmp_path / "out" / "sub" / "x.csv"))   # no run in it: the user's choice
+
+
+@pytest.mark.parametrize("name", ["../escape", "a/b", ".hidden", "..\\\\x"])
+def test_job_name_that_would_leave_the_output_folder(tmp_path, capsys, name, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    job = measured_job(tmp_path)
+    job.write_text(job.read_text().replace('name = "s17-tdms"', f'name = "{name}"'))
+    assert main(["estimate", str(job), "--no-plot"]) == 2
+    assert "must be a plain name" in capsys.readouterr().err
+    assert not (tmp_path / "escape").exists() and not os.path.exists(tmp_path / "akf-out")
+
+
+def test_outputs_are_created_with_the_users_umask(tmp_path, capsys):
+    old = os.umask(0o022)
+    try:
+        assert main(["estimate", "--example", "s17-case4", "--duration", "0.2", "--out", str(tmp_path)]) == 0
+    finally:
+        os.umask(old)
+    for name in ("timeseries.csv", "summary.csv", "estimate.png"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o644, name
+
+
+def test_resume_after_the_output_strains_or_the_format_or_the_filter_changed(tmp_path, capsys):
+    from akf.estimate import estimate_job
+    from akf.job import load_job
+    from core_akf.filter import CheckpointError
+    path = str(measured_job(tmp_path))
+    out = str(tmp_path / "o")
+    estimate_job(load_job(path, "estimate"), out, plot=False, stop_after=2)
+    for table, key, value, named in (("output", "strains", ["strain:1"], r"\[output\] strains"),
+                                     ("output", "format", "parquet", r"\[output\] format"),
+                                     ("filter", "stiffness_factor", 1.0, r"\[filter\] stiffness_factor"),
+                                     ("filter", "steady", False, r"\[filter\] steady")):
+        with pytest.raises(CheckpointError, match=named):
+            estimate_job(load_job(path, "estimate", {f"{table}.{key}": value}), out, plot=False, resume=True)
+    assert estimate_job(load_job(path, "estimate"), out, plot=False, resume=True).complete
+
+
+def test_plain_rerun_into_an_interrupted_runs_folder(tmp_path, capsys):
+    from akf.estimate import estimate_job
+    from akf.job import load_job
+    path = measured_job(tmp_path)
+    out = tmp_path / "o"
+    estimate_job(load_job(str(path), "estimate"), str(out), plot=False, stop_after=2)
+    size = (out / "timeseries.csv").stat().st_size
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out)]) == 2
+    assert "holds an interrupted run" in capsys.readouterr().err and (out / "timeseries.csv").stat().st_size == size
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out), "--overwrite"]) == 0
+    assert not (out / ".akf-resume.npz").exists()
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out)]) == 0       # a finished run: simply runs
+
+
+@pytest.mark.parametrize("damage", ["truncated", "foreign", "nan"])
+def test_resume_from_a_damaged_checkpoint(tmp_path, capsys, damage):
+    from akf.estimate import estimate_job
+    from akf.job import load_job
+    path = measured_job(tmp_path)
+    out = tmp_path / "o"
+    estimate_job(load_job(str(path), "estimate"), str(out), plot=False, stop_after=2)
+    ck = out / ".akf-resume.npz"
+    if damage == "truncated":
+        ck.write_bytes(ck.read_bytes()[:200])
+    elif damage == "foreign":
+        np.savez(ck, something=np.ones(3))
+        os.replace(str(ck) + ".npz" if os.path.exists(str(ck) + ".npz") else ck, ck)
+    else:
+        saved = dict(np.load(ck))
+        saved["P"] = saved["P"] * np.nan
+        with open(ck, "wb") as fh:
+            np.savez(fh, **saved)
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert {"truncated": "is truncated or not a checkpoint", "foreign": "is not a checkpoint of akf estimate",
+            "nan": "NaN or infinite values in 'P'"}[damage] in err
+
+
+def test_place_rerun_into_a_finished_runs_folder_runs_and_an_interrupted_one_asks(tmp_path, capsys):
+    job = tmp_path / "truss.toml"
+    job.write_text('name = "truss"\ndt = 0.001953125\nforces = ["8:y"]\n[structure]\nmodel = "s17_truss"\n'
+                   + PLACE_3D.replace("strain:35", "strain:21").replace("strain:36", "strain:26")
+                   .replace("108", "8").replace("106", "6") + SIMULATION)
+    args = ["place", str(job), "--no-plot", "--json", "--out", str(tmp_path / "o")]
+    assert main(args) == 0 and main(args) == 0
+    ck = tmp_path / "o" / "checkpoint.json"
+    data = json.loads(ck.read_text())
+    data["finished"] = False
+    ck.write_text(json.dumps(data))
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "interrupted run (generation 2 of 2)" in err and "with --resume to continue it, or with --overwrite" in err
+    assert main(args + ["--overwrite"]) == 0

@@ -1,0 +1,121 @@
+"""Inputs a user types: encodings of job files, strain and gravity units, scheduler addresses, populations."""
+import os
+
+import numpy as np
+import pytest
+from helpers import ROOT
+
+from akf.cli import main
+from core_akf.models import s17_truss
+
+CASE4 = os.path.join(ROOT, "akf", "examples", "jobs", "s17-case4.toml")
+
+
+@pytest.mark.parametrize("encoding, message", [
+    ("utf-16", "is UTF-16 text"), ("utf-16-le", "looks like UTF-16 text without a byte-order mark"),
+    ("latin-1", "looks like Latin-1 / Windows-1252 text"), ("binary", "not a text file")])
+def test_job_file_in_another_encoding(tmp_path, capsys, encoding, message):
+    text = open(CASE4, encoding="utf-8").read().replace('name = "s17-case4"', 'name = "s17-café"')
+    job = tmp_path / "job.toml"
+    if encoding == "binary":
+        job.write_bytes(bytes(range(256)))
+    else:
+        job.write_bytes(text.encode(encoding))
+    assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_job_file_with_a_utf8_byte_order_mark_is_read(tmp_path):
+    from akf.job import load_job_file
+
+    job = tmp_path / "job.toml"
+    job.write_bytes(b"\xef\xbb\xbf" + open(CASE4, "rb").read())
+    assert load_job_file(job)["name"] == "s17-case4"
+
+
+@pytest.mark.parametrize("table", ["structure", "filter", "simulation"])
+def test_a_top_level_key_after_a_table_header(tmp_path, capsys, table):
+    text = open(CASE4).read()
+    lines = [line for line in text.splitlines() if not line.startswith("dt =")]
+    at = lines.index(f"[{table}]") + 1
+    job = tmp_path / "job.toml"
+    job.write_text("\n".join(lines[:at] + ["dt = 0.000244140625"] + lines[at:]) + "\n")
+    assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert f"'dt' sits in [{table}], but it is a top-level key" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("unit, gauge_factor, message", [
+    ("mV", 2.1, "is a voltage in 'mV', not a bridge ratio"),
+    ("rad", None, "'rad' is an angle, not a strain"),
+    ("deg", None, "'deg' is an angle, not a strain")])
+def test_strain_units_that_are_not_strain(unit, gauge_factor, message):
+    from core_akf.io.units import conversion
+
+    with pytest.raises(ValueError, match=message):
+        conversion(unit, "strain", "SG1", gauge_factor=gauge_factor)
+
+
+@pytest.mark.parametrize("unit, scale", [("uE", 1e-6), ("µE", 1e-6), ("ue", 1e-6), ("με", 1e-6), ("mm/m", 1e-3)])
+def test_common_strain_abbreviations(unit, scale):
+    from core_akf.io.units import conversion
+
+    assert conversion(unit, "strain", "SG1")(np.array([2.0]))[0] == pytest.approx(2 * scale)
+
+
+@pytest.mark.parametrize("unit", ["g", "G", "gn"])
+def test_gravity_as_daq_systems_write_it(unit):
+    from core_akf.io.units import conversion
+
+    assert conversion(unit, "acc", "ACC1")(np.array([1.0]))[0] == pytest.approx(9.80665)
+
+
+def test_v_per_v_is_a_bridge_output():
+    from core_akf.io.units import conversion
+
+    c = conversion("V/V", "strain", "SG1", gauge_factor=2.0, bridge="full")
+    assert c(np.array([1e-3]))[0] == pytest.approx(0.5e-3)
+
+
+@pytest.mark.parametrize("address, message", [
+    ("http://127.0.0.1:8787/status", "is a web address"), ("tcp://scheduler-host", "needs a host and a port"),
+    ("tls://scheduler-host:8786", "no client certificate is configured"), ("ftp://h:21", "unknown address scheme")])
+def test_scheduler_addresses_that_cannot_be_one(address, message):
+    pytest.importorskip("distributed")
+    from akf.parallel import check_scheduler
+
+    with pytest.raises(ValueError, match=message):
+        check_scheduler(address)
+
+
+def test_scheduler_port_that_accepts_and_says_nothing_is_not_a_hang():
+    pytest.importorskip("distributed")
+    import socket
+    import time
+
+    from akf.parallel import probe_scheduler
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    t0 = time.perf_counter()
+    try:
+        with pytest.raises(ValueError, match="did not answer as a dask scheduler within 1 s"):
+            probe_scheduler(f"tcp://127.0.0.1:{server.getsockname()[1]}", timeout=1.0)
+    finally:
+        server.close()
+    assert time.perf_counter() - t0 < 30
+
+
+def test_population_that_does_not_fit_in_memory(tmp_path, capsys):
+    assert main(["place", "--example", "th-case5", "--population", "1000000000", "--out", str(tmp_path)]) == 2
+    assert "a GA of population 1000000000 over 100 generations" in capsys.readouterr().err
+
+
+def test_diversity_of_a_large_population_is_sampled():
+    from sensoropt.encoding import DIVERSITY_SAMPLE, make_encoding
+
+    enc = make_encoding(s17_truss(), kinds=("strain",), n_sensors=3)
+    rng = np.random.default_rng(0)
+    pop = [enc.random_layout(rng) for _ in range(DIVERSITY_SAMPLE + 300)]
+    assert enc.diversity(pop) == pytest.approx(enc.diversity([pop[i] for i in np.linspace(
+        0, len(pop) - 1, DIVERSITY_SAMPLE).astype(int)]))

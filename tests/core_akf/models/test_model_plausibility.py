@@ -1,0 +1,63 @@
+"""The plausibility of a model of one's own: units, repeated nodes, complex or overflowing values."""
+import os
+
+import numpy as np
+import pytest
+import scipy.io
+import scipy.sparse
+from helpers import ROOT, two_dof
+
+from akf.cli import main
+
+
+def test_node_coordinates_in_mm_against_si_matrices():
+    from core_akf.models.matrices import ModelWarning
+
+    with pytest.warns(ModelWarning, match="are the coordinates in mm"):
+        two_dof(nodes={1: (1000.0, 0.0), 2: (2000.0, 0.0)}, extensometers=[(1, 2)])
+
+
+def test_node_coordinates_in_m_give_no_unit_warning(recwarn):
+    two_dof(nodes={1: (1.0, 0.0), 2: (3.5, 0.0)})
+    assert not [w for w in recwarn if "in mm" in str(w.message)]
+
+
+def test_a_node_listed_twice(tmp_path):
+    from core_akf.models.matrices import read_nodes
+
+    with pytest.raises(ValueError, match="node 1 is listed twice"):
+        two_dof(nodes=[(1, (1.0, 0.0)), (2, (2.0, 0.0)), (1, (3.0, 0.0))])
+    (tmp_path / "nodes.csv").write_text("node,x,y\n1,0,0\n2,1,0\n1,2,0\n")
+    with pytest.raises(ValueError, match="node 1 is listed twice \\(data rows 1 and 3\\)"):
+        read_nodes(tmp_path / "nodes.csv")
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_a_complex_stiffness_matrix(sparse):
+    K = np.array([[2.0, -1.0], [-1.0, 1.0]]) * 1e6 * (1 + 0.04j)
+    with pytest.raises(ValueError, match="K is complex"):
+        two_dof(K=scipy.sparse.csr_matrix(K) if sparse else K)
+
+
+def test_damping_typed_as_a_percentage():
+    from core_akf.structure import DampingWarning
+
+    with pytest.raises(ValueError, match="damping is a ratio, not a percentage"):
+        two_dof(damping=2.0)
+    with pytest.warns(DampingWarning, match="is it a percentage"):
+        two_dof(damping=0.5)
+
+
+@pytest.mark.parametrize("n_modes", [2.5, "all", True, 0])
+def test_n_modes_that_is_not_a_number_of_modes(n_modes):
+    with pytest.raises(ValueError, match="n_modes must be a whole number of modes >= 1"):
+        two_dof(n_modes=n_modes)
+
+
+def test_a_stiffness_factor_that_overflows(tmp_path, capsys):
+    job = tmp_path / "j.toml"
+    text = open(os.path.join(ROOT, "akf", "examples", "jobs", "s17-case4.toml")).read()
+    job.write_text(text.replace("stiffness_factor = 1.05", "stiffness_factor = 1e308"))
+    assert "1e308" in job.read_text()
+    assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert "stiffness_factor 1e+308 makes the stiffness matrix overflow" in capsys.readouterr().err
