@@ -6,13 +6,15 @@ import numpy as np
 
 from core_akf.forcemodels import ForceModel
 
-from .estimate.files import DEFAULT_CHUNK_STEPS
+#: steps of a measured record that calibrate the filter without ``[filter] calibrate_window``
+#: (the estimate's longest chunk: one read of the record)
+CALIBRATION_STEPS = 65536
 
 
 def calibration_record(job, record):
     """The part of a measured record that calibrates the filter: its first ``[filter]
-    calibrate_window`` seconds, or the whole record up to :data:`DEFAULT_CHUNK_STEPS` steps."""
-    steps = DEFAULT_CHUNK_STEPS if job.calibrate_window is None else max(2, int(round(job.calibrate_window / job.dt)))
+    calibrate_window`` seconds, or the whole record up to :data:`CALIBRATION_STEPS` steps."""
+    steps = CALIBRATION_STEPS if job.calibrate_window is None else max(2, int(round(job.calibrate_window / job.dt)))
     return next(iter(record.chunks(min(steps, record.n_steps))))[1]
 
 

@@ -67,6 +67,14 @@ class SensorLike(Protocol):
         """The sensor's string, e.g. ``"acc:8:y"``."""
 
 
+class Reference(Protocol):
+    """The truth of a record, to compare an estimate with (a :class:`core_akf.simulate.Simulation`
+    is one): the loads (N, n_p) in N and the strains (N, n_strain) in m/m."""
+
+    loads: NDArray[np.float64]
+    strains: NDArray[np.float64]
+
+
 #: a sensor: its string (``"strain:13"``) or a :class:`core_akf.sensors.Sensor`
 SensorSpec = Union[str, SensorLike]
 Layout = Sequence[SensorSpec]

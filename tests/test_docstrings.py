@@ -216,7 +216,7 @@ def test_the_annotations_name_real_types():
         namespace = dict(vars(module))
         for extra in ("core_akf.structure", "core_akf.filter", "core_akf.sensors", "sensoropt.encoding",
                       "sensoropt.objective", "impactloc.scan", "impactloc.locate", "impactloc.tuning",
-                      "impactloc.reconstruct", "core_akf.io.readers", "core_akf.simulate"):
+                      "impactloc.reconstruct", "core_akf.io.readers"):
             namespace.update({k: v for k, v in vars(importlib.import_module(extra)).items() if not k.startswith("_")})
         import numpy
         import pandas

@@ -262,3 +262,30 @@ def test_no_module_reaches_into_an_estimator():
                         and (node.attr in ("setup", "filter") or node.attr.startswith("_"))):
                     offences.append(f"{path.relative_to(ROOT)}:{node.lineno}: {node.value.id}.{node.attr}")
     assert not offences, offences
+
+
+def test_every_module_imports_first():
+    """Each module of the distribution imports on its own, first (an import circle through a
+    package's ``__init__`` fails only when a module inside it is the first one imported)."""
+    code = f"""
+import importlib, pathlib, sys
+root = pathlib.Path({str(ROOT)!r})
+names = []
+for package in {PACKAGES!r}:
+    for path in sorted((root / package).rglob("*.py")):
+        parts = list(path.relative_to(root).with_suffix("").parts)
+        if parts[-1] != "__main__":
+            names.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+failed = []
+for name in names:
+    for loaded in [m for m in sys.modules if m.split(".")[0] in {PACKAGES!r}]:
+        del sys.modules[loaded]
+    try:
+        importlib.import_module(name)
+    except Exception as exc:
+        failed.append(f"{{name}}: {{type(exc).__name__}}: {{exc}}")
+print(len(names)); print("\\n".join(failed))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.splitlines()
+    failed = [line for line in out[1:] if line]
+    assert int(out[0]) > 80 and failed == [], failed

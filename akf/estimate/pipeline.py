@@ -36,7 +36,7 @@ class Setup:
     job : Job
     out : str or None
         The output folder.
-    sim : Simulation or None
+    sim : core_akf.simulate.Simulation or None
         The simulated record and its truth.
     record : Record or None
         The measured record.

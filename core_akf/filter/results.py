@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..checks import FloatArray, Layout
+from ..checks import FloatArray, Layout, Reference
 from ..sensors import UNITS
 from ..statespace import observation, strain_feedthrough
 from .kernels import closed_loop
@@ -21,7 +21,6 @@ from .kernels import closed_loop
 if TYPE_CHECKING:
     import pandas as pd
 
-    from ..simulate import Simulation
 
 #: lags of the innovation autocorrelation checked for whiteness
 WHITENESS_LAGS = 20
@@ -309,7 +308,7 @@ class Estimate:
         G, D = observation(self.structure, sensors, self.force_locations)
         return self.states @ G.T + self.forces @ D.T
 
-    def to_frame(self, wide: bool = False, *, strains: list[int] | str = "all", reference: Simulation | None = None,
+    def to_frame(self, wide: bool = False, *, strains: list[int] | str = "all", reference: Reference | None = None,
                  start: int | None = None) -> pd.DataFrame:
         """The estimated forces and strains as a :class:`pandas.DataFrame` (the tidy schema of
         ``timeseries.csv``).
@@ -325,9 +324,9 @@ class Estimate:
             time step and one column per channel (``force:8:y``, ``strain:13``), for spreadsheets.
         strains : "all" or list of int
             The strain outputs (0-based rows of the model's strain operator) after the forces.
-        reference : Simulation, optional
-            The truth (its ``loads`` (N_ref, n_p) and ``strains`` (N_ref, n_strain)), of which this
-            estimate covers the steps from ``start``.
+        reference : Reference, optional
+            The truth, e.g. a :class:`core_akf.simulate.Simulation`: its ``loads`` (N_ref, n_p) and
+            ``strains`` (N_ref, n_strain), of which this estimate covers the steps from ``start``.
         start : int, optional
             The step of the reference this estimate starts at (default ``t0 / dt``).
 
