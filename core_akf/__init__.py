@@ -6,8 +6,7 @@ The most used names are importable from here::
 """
 from . import loads, models
 from .checks import AKFInputError, ModelError, UndetectableError
-from .filter import Estimate, Filter, FilterModel, estimate, estimate_batch, run, smooth
-from .filter.smoother import SmoothResult
+from .filter import Estimate, Filter, FilterModel, SmoothResult, estimate, estimate_batch, run, smooth
 from .forcemodels import DummyMeasurements, ForceModel
 from .metrics import average_strain_error, rms_error
 from .sensors import Sensor

@@ -392,6 +392,38 @@ def steady(f, Y, start=None, loglik=False):
         raise f.riccati_error(exc) from None
 
 
+def with_gain(f, Y, L, P, start=None, loglik=False):
+    """The filter ``f`` with a given constant gain over a stack of records (a stream's chunk once
+    its gain is steady or has converged).
+
+    Parameters
+    ----------
+    f : Filter
+        Its modal matrices and prior mean are used.
+    Y : ndarray (B, N, m_f)
+        Measurements with the filter's channels.
+    L : ndarray (B, n_a, m_f)
+        The gain.
+    P : ndarray (B, n_a, n_a)
+        The prior covariance the gain belongs to (for the innovation covariance).
+    start : ndarray (B, n_a), optional
+        The prior mean of the first step (default the filter's prior).
+    loglik : bool
+        Also the log-likelihood terms.
+
+    Returns
+    -------
+    FilterRun
+    """
+    B, n = Y.shape[0], f.A_a.shape[0]
+    A = np.broadcast_to(f.A_a, (B, n, n))
+    x = _start(f, B, start)
+    X = fixed_gain(A, f.G_a, L, Y, x)
+    E = innovations(A, f.G_a, X, Y, x)
+    terms = loglik_terms(E, innovation_covariance(f.G_a, P, f.R)) if loglik else None
+    return FilterRun(X, E, L, P, True, terms)
+
+
 def time_varying(f, Y, start=None, loglik=False, switch_tol=1e-14):
     """The time-varying filter ``f`` over a stack of records.
 

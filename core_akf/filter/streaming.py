@@ -28,7 +28,6 @@ import numpy as np
 from ..checks import AKFInputError, ArrayLike, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
 from ..forcemodels import DummyMeasurements, ForceModel
 from . import kernels
-from .likelihood import loglik_terms
 from .model import Filter
 
 if TYPE_CHECKING:
@@ -111,7 +110,6 @@ class Estimator:
         self.layout, self.locs, self.report = f.layouts[0], f.locs, f.reports[0]
         self.dt, self.t0, self.switch_tol = f.dt, float(t0), float(switch_tol)
         self.steady = f.steady
-        self._GA = f.G_a[0] @ f.A_a
         self.n_steps = 0
         self._z = None                     # last filtered state (modal coordinates), None before step 0
         if self.steady:
@@ -213,19 +211,13 @@ class Estimator:
             return f.estimates(empty, Y_real[None], t0=t0)[0]
         x = self._prior()
         if self._switched:
-            L = self._L
-            X = kernels.fixed_gain(f.A_a[None], f.G_a, L[None], Y[None], x[None])[0]
-            innov = np.empty_like(Y)
-            innov[0] = Y[0] - f.G_a[0] @ x
-            innov[1:] = Y[1:] - X[:-1] @ self._GA.T
-            terms = loglik_terms(innov, kernels.innovation_covariance(f.G_a[0], self._P, f.R[0]))
-            run = kernels.FilterRun(X[None], innov[None], L[None], self._P[None], True, terms[None])
+            run = kernels.with_gain(f, Y[None], self._L[None], self._P[None], x[None], loglik=True)
         else:
             run = kernels.time_varying(f, Y[None], (x[None], self._P[None]), loglik=True, switch_tol=self.switch_tol)
             self._P = np.ascontiguousarray(run.P_prior[0])
             if run.switched:
                 self._switched, self._L = True, np.ascontiguousarray(run.gain[0])
-            X, innov, terms = run.states[0], run.innovations[0], run.loglik_terms[0]
+        X, innov, terms = run.states[0], run.innovations[0], run.loglik_terms[0]
         self._z = X[-1].copy()
         self.n_steps += Y.shape[0]
         if self.lagged is not None:
