@@ -32,7 +32,6 @@ from .defaults import default
 from .filter import kernels
 from .filter.kernels import steady_logliks
 from .filter.model import Filter
-from .filter.results import skipped
 from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 
 if TYPE_CHECKING:
@@ -286,14 +285,11 @@ class _Problem:
 
     def consistency(self, u):
         """Per channel, the innovation RMS over its predicted standard deviation under the log-factors
-        ``u`` (one steady kernel run; the first 5 % of the record left out, as
-        :func:`~core_akf.filter.results.sensor_diagnostics` does)."""
+        ``u``: one steady kernel run, and the estimate's own diagnostics
+        (:func:`~core_akf.filter.results.sensor_diagnostics`)."""
         f = self.filter_at(u)
-        run = kernels.steady(f, self.Y[None])
-        m = len(self.layout)
-        E = run.innovations[0, skipped(self.Y.shape[0]):, :m]
-        S = kernels.innovation_covariance(f.G_a[0], run.P_prior[0], f.R[0])
-        return {s.label: float(np.sqrt(np.mean(E[:, j] ** 2)) / np.sqrt(S[j, j])) for j, s in enumerate(self.layout)}
+        est = f.estimates(kernels.steady(f, self.Y[None], loglik=True), self.Y[None, :, :len(self.layout)])[0]
+        return {d["channel"]: d["consistency"] for d in est.diagnostics()}
 
     def logliks(self, U):
         """The log-likelihood at every row of ``U`` (one batch)."""

@@ -294,7 +294,7 @@ class Pipeline:
         """The metrics and the result of the finished run; its files written, then the figures drawn."""
         s = self.setup
         whole = self.last if self.done == 1 and self.start == 0 else None
-        first = self.first_chunk if self.first_chunk is not None else None
+        first = self.first_chunk
         metrics = run_metrics(s.job, self.estimator, self.diag, self.last, s.n_total, s.t0, whole, s.sim, s.model,
                               s.noise_cov, (lambda: first) if first is not None else s.first_chunk)
         if s.job.smooth:

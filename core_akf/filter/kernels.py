@@ -13,7 +13,8 @@ Every path of the toolkit runs these:
 - :func:`time_varying_filter` -- the covariance recursion, step by step (cheaply for a modal
   transition, :class:`~core_akf.filter.recursion.ModalBlockTransition`), until the covariance
   has converged, then :func:`fixed_gain`;
-- :func:`steady_filter` -- one batched Riccati solve (:func:`core_akf.filter.riccati.steady_gain`);
+- :func:`constant_gain` -- states, innovations and log-likelihood of a constant gain (the steady
+  gain from one batched Riccati solve, :func:`core_akf.filter.riccati.steady_gain`);
 - :func:`innovations` and :func:`innovation_covariance` -- the one-step prediction errors and
   their covariance; the log-likelihood is computed from them when it is asked for
   (:func:`core_akf.filter.likelihood.loglik_terms`, :func:`steady_logliks` for a stack).
@@ -162,27 +163,31 @@ def innovation_covariance(G, P, R):
     return 0.5 * (S + np.swapaxes(S, -1, -2))
 
 
-def steady_filter(A, G, Q, R):
-    """The steady-state gain of a stack of filters (one batched Riccati solve).
+def constant_gain(A, G, R, L, P, Y, x=None, loglik=False):
+    """A stack of filters run with a constant gain: the states (:func:`fixed_gain`), the innovations
+    and, when asked, their log-likelihood under the innovation covariance of ``P``.
 
     Parameters
     ----------
-    A, G, Q, R
+    A, G, R, Y
         As in the module's shapes.
+    L : ndarray (B, n, m)
+        The gain.
+    P : ndarray (B, n, n)
+        The prior covariance the gain belongs to.
+    x : ndarray (B, n), optional
+        The prior mean of the first step (default zero).
+    loglik : bool
+        Also the log-likelihood terms.
 
     Returns
     -------
-    P : ndarray (B, n, n)
-        The steady prior covariance.
-    L : ndarray (B, n, m)
-        The gain.
-
-    Raises
-    ------
-    RiccatiError
-        Where a gain does not exist (``problems`` names the batch indices).
+    FilterRun
     """
-    return steady_gain(A, G, Q, R)
+    X = fixed_gain(A, G, L, Y, x)
+    E = innovations(A, G, X, Y, x)
+    terms = loglik_terms(E, innovation_covariance(G, P, R)) if loglik else None
+    return FilterRun(X, E, L, P, True, terms)
 
 
 def steady_states(A, G, Q, R, Y, x=None, loglik=False):
@@ -201,11 +206,8 @@ def steady_states(A, G, Q, R, Y, x=None, loglik=False):
     -------
     FilterRun
     """
-    P, L = steady_filter(A, G, Q, R)
-    X = fixed_gain(A, G, L, Y, x)
-    E = innovations(A, G, X, Y, x)
-    terms = loglik_terms(E, innovation_covariance(G, P, R)) if loglik else None
-    return FilterRun(X, E, L, P, True, terms)
+    P, L = steady_gain(A, G, Q, R)
+    return constant_gain(A, G, R, L, P, Y, x, loglik)
 
 
 def steady_outputs(A, G, Q, R, Y, H):
@@ -231,7 +233,7 @@ def steady_outputs(A, G, Q, R, Y, H):
     """
     B, n = Y.shape[0], G.shape[-1]
     A, Q = np.broadcast_to(A, (B, n, n)), np.broadcast_to(Q, (B, n, n))
-    P, L = steady_filter(A, G, Q, R)
+    P, L = steady_gain(A, G, Q, R)
     return fixed_gain(A, G, L, Y, outputs=H)
 
 
@@ -267,13 +269,13 @@ def steady_logliks(A, G, Q, R, Y):
     out = np.full(B, -np.inf)
     ok = np.arange(B)
     try:
-        P, L = steady_filter(A, G, Q, R)
+        P, L = steady_gain(A, G, Q, R)
     except RiccatiError as exc:                        # the filters that have a steady state
         ok = np.array([b for b in range(B) if b not in set(exc.problems)], int)
         if not ok.size:
             return out
         A, G, Q, R = A[ok], G[ok], Q[ok], R[ok]
-        P, L = steady_filter(A, G, Q, R)
+        P, L = steady_gain(A, G, Q, R)
     Ys = np.broadcast_to(Y, (ok.size,) + Y.shape)
     predicted = fixed_gain(A, G, L, Ys, outputs=G @ A)           # G A X_k: the next step's predicted channels
     E = np.empty_like(Ys)
@@ -330,12 +332,10 @@ def time_varying_filter(A, G, Q, R, Y, x, P, switch_tol, transition=None, loglik
         if switch_tol > 0 and k > 0 and k % CHECK_EVERY == 0:
             change = np.linalg.norm(P - P_check, axis=(-2, -1)) / np.linalg.norm(P, axis=(-2, -1))
             if np.all(change < switch_tol):
-                out[:, k:] = fixed_gain(A, G, L, Y[:, k:], x)
-                innov[:, k:] = innovations(A, G, out[:, k:], Y[:, k:], x)
-                terms = None
-                if loglik:              # the covariance has converged: S from here on
-                    terms = np.concatenate([_terms_per_step(innov[:, :k], S_steps[:, :k]),
-                                            loglik_terms(innov[:, k:], S)], axis=1)
+                rest = constant_gain(A, G, R, L, P, Y[:, k:], x, loglik)     # converged: one gain from here on
+                out[:, k:], innov[:, k:] = rest.states, rest.innovations
+                terms = None if not loglik else np.concatenate([_terms_per_step(innov[:, :k], S_steps[:, :k]),
+                                                                 rest.loglik_terms], axis=1)
                 return FilterRun(out, innov, L, P, True, terms)
             P_check = P.copy()
         if loglik:
@@ -417,11 +417,7 @@ def with_gain(f, Y, L, P, start=None, loglik=False):
     """
     B, n = Y.shape[0], f.A_a.shape[0]
     A = np.broadcast_to(f.A_a, (B, n, n))
-    x = _start(f, B, start)
-    X = fixed_gain(A, f.G_a, L, Y, x)
-    E = innovations(A, f.G_a, X, Y, x)
-    terms = loglik_terms(E, innovation_covariance(f.G_a, P, f.R)) if loglik else None
-    return FilterRun(X, E, L, P, True, terms)
+    return constant_gain(A, f.G_a, f.R, L, P, Y, _start(f, B, start), loglik)
 
 
 def time_varying(f, Y, start=None, loglik=False, switch_tol=1e-14):

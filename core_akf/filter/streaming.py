@@ -29,6 +29,7 @@ from ..checks import AKFInputError, ArrayLike, Covariance, Forces, Layout, Measu
 from ..forcemodels import DummyMeasurements, ForceModel
 from . import kernels
 from .model import Filter
+from .riccati import RiccatiError, steady_gain
 
 if TYPE_CHECKING:
     from ..structure import Structure
@@ -114,8 +115,8 @@ class Estimator:
         self._z = None                     # last filtered state (modal coordinates), None before step 0
         if self.steady:
             try:
-                P, L = kernels.steady_filter(f.A_a[None], f.G_a, f.Q_a[None], f.R)
-            except kernels.RiccatiError as exc:
+                P, L = steady_gain(f.A_a[None], f.G_a, f.Q_a[None], f.R)
+            except RiccatiError as exc:
                 raise f.riccati_error(exc) from None
             # contiguous copies: a restored state is contiguous too, and BLAS may round a strided
             # operand differently, so a resumed run would differ in the last bits
