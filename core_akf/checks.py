@@ -164,6 +164,54 @@ def as_finite_array(value, name, ndim=None, shape=None, dtype=float):
     return arr
 
 
+def as_measurements(value, name="measurements", ndim=None):
+    """Return measurements as a float array in which NaN marks a missing sample.
+
+    A missing sample (NaN) is data the filter skips; an infinite value or text is an error.
+
+    Parameters
+    ----------
+    value : array_like (..., N, m)
+        The record, one column per channel (SI).
+    name : str
+        What the values are, for the message.
+    ndim : int or tuple of int, optional
+        The number of dimensions the array must have.
+
+    Returns
+    -------
+    ndarray
+        ``value`` as floats, NaN where a sample is missing.
+
+    Raises
+    ------
+    AKFInputError
+        For text, complex or infinite values, another dimension, or a record without one
+        observed sample.
+
+    Examples
+    --------
+    >>> as_measurements([[1.0, float("nan")], [2.0, 3.0]]).tolist()
+    [[1.0, nan], [2.0, 3.0]]
+    """
+    if np.iscomplexobj(value):
+        raise AKFInputError(f"{name} is complex; the filter works on real data (take .real, or the magnitude, first)")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise AKFInputError(f"{name} must be numeric (NaN for a missing sample): {exc}") from None
+    if ndim is not None and arr.ndim not in np.atleast_1d(ndim):
+        raise AKFInputError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
+    infinite = np.isinf(arr)
+    if infinite.any():
+        bad = np.argwhere(infinite)
+        raise AKFInputError(f"{name} contains {len(bad)} infinite value(s); first at index {tuple(int(i) for i in bad[0])} "
+                            "(a missing sample is NaN, not inf)")
+    if arr.size and np.isnan(arr).all():
+        raise AKFInputError(f"{name} has no observed sample: every value is NaN (missing)")
+    return arr
+
+
 def check_square_symmetric(mat, name, rtol=1e-9):
     """Raise :class:`ModelError` unless ``mat`` is a square symmetric matrix.
 

@@ -5,7 +5,8 @@ with a random-walk or a Matérn Gaussian-process force model and dummy measureme
 - :mod:`~core_akf.filter.model` -- :class:`FilterModel` (the layout-free augmented model, full or
   reduced) and :class:`Filter` (a model with layouts, covariances and prior, built and checked once);
 - :mod:`~core_akf.filter.kernels` -- the pure steady and time-varying kernels, the one fixed-gain
-  step, innovations and their covariance; :func:`run` / :func:`filter_states` on matrices of one's own;
+  step, innovations and their covariance, and the filter through missing samples;
+- :mod:`~core_akf.filter.matrices` -- :func:`run` / :func:`filter_states` on matrices of one's own;
 - :mod:`~core_akf.filter.results` -- :class:`Estimate`, which carries its own summary;
 - :mod:`~core_akf.filter.estimate` -- :func:`estimate` and :func:`estimate_batch`;
 - :mod:`~core_akf.filter.streaming` -- :class:`Estimator`, a record in chunks;
@@ -15,7 +16,8 @@ with a random-walk or a Matérn Gaussian-process force model and dummy measureme
   and :mod:`~core_akf.filter.likelihood` -- the numerics beneath.
 """
 from .estimate import estimate, estimate_batch, run_filter
-from .kernels import FilterRun, filter_states, run
+from .kernels import FilterRun
+from .matrices import filter_states, run
 from .model import Filter, FilterModel
 from .parallel import TimeParallel, estimate_in_parallel, zero_state_end
 from .results import Estimate

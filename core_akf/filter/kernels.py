@@ -29,13 +29,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import AKFInputError, ArrayLike, BatchMeasurements, Matrix, Measurements, as_finite_array, check_covariance
+from ..checks import AKFInputError
 from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError, steady_gain
 
 #: the time-varying filter tests every this many steps whether its covariance has converged
 CHECK_EVERY = 32
+#: after an undetectable stretch, the steady filter with missing samples returns to its cached
+#: gains once its covariance changes by less than this, relatively, over CHECK_EVERY steps
+GAP_SWITCH_TOL = 1e-10
+#: the steady filter with missing samples runs a stretch of one pattern of observed channels this
+#: long with that pattern's own steady-state gain, and lifted (:func:`switched_filter`)
+LONG_STRETCH = 256
 
 
 @dataclass
@@ -277,6 +283,11 @@ def steady_logliks(A, G, Q, R, Y):
         A, G, Q, R = A[ok], G[ok], Q[ok], R[ok]
         P, L = steady_gain(A, G, Q, R)
     Ys = np.broadcast_to(Y, (ok.size,) + Y.shape)
+    seen = observed(Ys)
+    if seen is not None:                               # missing samples: the filter of each pattern
+        run = gapped_filter(A, G, Q, R, Ys, seen, np.zeros(A.shape[:-1]), P, 0.0, loglik=True, steady=True)
+        out[ok] = run.loglik
+        return out
     predicted = fixed_gain(A, G, L, Ys, outputs=G @ A)           # G A X_k: the next step's predicted channels
     E = np.empty_like(Ys)
     E[:, 0] = Ys[:, 0]
@@ -365,6 +376,262 @@ def _terms_per_step(E, S):
     return loglik_terms(E, S)
 
 
+# ------------------------------------------------------------------------ missing samples
+def observed(Y):
+    """Which samples of a stack of records are observed (not NaN).
+
+    Parameters
+    ----------
+    Y : ndarray (B, N, m)
+        Measurements, NaN where a sample is missing.
+
+    Returns
+    -------
+    ndarray (B, N, m) of bool, or None when every sample is observed
+    """
+    missing = np.isnan(Y)
+    return ~missing if missing.any() else None
+
+
+def masked(G, R, seen):
+    """The observation of the observed rows only: ``W G`` and ``W R W^T`` kept in place.
+
+    A missing row of ``G`` becomes zero and its row and column of ``R`` those of the identity, so
+    the innovation covariance splits into the observed block and a unit block, the gain has zero
+    columns for the missing rows, and the update is exactly the one of the observed rows.
+
+    Parameters
+    ----------
+    G : ndarray (B, m, n)
+    R : ndarray (B, m, m)
+    seen : ndarray (B, m) of bool
+        The observed rows.
+
+    Returns
+    -------
+    G_k : ndarray (B, m, n)
+    R_k : ndarray (B, m, m)
+    """
+    both = seen[..., :, None] & seen[..., None, :]
+    return G * seen[..., :, None], np.where(both, R, 0.0) + np.eye(R.shape[-1]) * ~seen[..., None, :]
+
+
+def stretches(seen):
+    """The stretches of steps over which the observed channels of every record stay the same.
+
+    Parameters
+    ----------
+    seen : ndarray (B, N, m) of bool
+
+    Returns
+    -------
+    list of (int, int)
+        ``[(first, stop), ...]`` covering ``0 .. N``.
+    """
+    change = np.any(seen[:, 1:] != seen[:, :-1], axis=(0, 2))
+    cuts = np.r_[0, np.flatnonzero(change) + 1, seen.shape[1]]
+    return [(int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
+
+
+def gapped_filter(A, G, Q, R, Y, seen, x, P, switch_tol, transition=None, loglik=False, steady=False):
+    """The AKF over a stack of records with missing samples (NaN).
+
+    A step updates with its observed rows only (:func:`masked`); with no row observed it is a pure
+    prediction.
+
+    - ``steady=False``: exact.  The covariance recursion runs through every stretch of one pattern
+      of observed channels (:func:`stretches`) and, within a stretch, holds its gain once the
+      covariance has converged (as :func:`time_varying_filter`).  The log-likelihood is the exact
+      one of the observed samples (statsmodels' convention).
+    - ``steady=True``: :func:`steady_gapped` (cached gains per pattern, fast, approximate).
+
+    Parameters
+    ----------
+    A, G, Q, R
+        As in the module's shapes.
+    Y : ndarray (B, N, m)
+        Measurements, NaN where missing.
+    seen : ndarray (B, N, m) of bool
+        The observed samples (:func:`observed`).
+    x : ndarray (B, n)
+        Prior mean of the first step.
+    P : ndarray (B, n, n) or None
+        Prior covariance of the first step (not used with ``steady``).
+    switch_tol, transition, loglik
+        As :func:`time_varying_filter`.
+    steady : bool
+        See above.
+
+    Returns
+    -------
+    FilterRun
+        Innovations are NaN, and log-likelihood terms zero, at the missing samples.
+    """
+    if steady:
+        return steady_gapped(A, G, Q, R, Y, seen, x, loglik)
+    B, N, m = Y.shape
+    Y0 = np.where(seen, Y, 0.0)
+    states, innov = np.empty((B, N, A.shape[-1])), np.full((B, N, m), np.nan)
+    terms = np.zeros((B, N, m)) if loglik else None
+    for a, b in stretches(seen):
+        pattern = seen[:, a]
+        G_k, R_k = masked(G, R, pattern)
+        run = time_varying_filter(A, G_k, Q, R_k, Y0[:, a:b], x, P, switch_tol, transition, loglik)
+        P = run.P_prior
+        states[:, a:b] = run.states
+        innov[:, a:b] = np.where(pattern[:, None], run.innovations, np.nan)
+        if loglik:
+            terms[:, a:b] = np.where(pattern[:, None], run.loglik_terms, 0.0)
+        x = _times(A, run.states[:, -1])
+    return FilterRun(states, innov, run.gain, P, run.switched, terms)
+
+
+def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETCH):
+    """The steady-state AKF over a stack of records with missing samples: one cached gain per
+    pattern of observed channels.
+
+    At a step with pattern ``W`` (observed rows) the gain is that of the steady prior covariance
+    ``P`` of the complete layout updated with the observed rows only,
+    ``L_W = P G_W^T (G_W P G_W^T + R_W)^-1`` -- the exact gain of the first step of any hole, one
+    small solve per pattern, also for a set of live channels that is not detectable.  A pattern
+    that lasts ``long_stretch`` steps or more (a dead channel) runs with its own steady-state gain
+    (one Riccati solve per such pattern, cached) where one exists.  Back at the complete layout
+    the filter is at its steady gain again.  The covariance is not propagated through a hole, so
+    the gains are approximate while the layout is incomplete (the exact filter:
+    ``steady=False``; the accuracy is measured in the docs' "real records" page).
+
+    Parameters
+    ----------
+    A, G, Q, R
+        As in the module's shapes.
+    Y : ndarray (B, N, m)
+        Measurements, NaN where missing.
+    seen : ndarray (B, N, m) of bool
+    x : ndarray (B, n)
+        Prior mean of the first step.
+    loglik : bool
+        Also the log-likelihood terms, under each pattern's innovation covariance.
+    long_stretch : int
+        Steps from which a pattern runs with its own steady-state gain.
+
+    Returns
+    -------
+    FilterRun
+        ``gain`` and ``P_prior`` are the complete layout's steady ones.
+    """
+    P_full, L_full = steady_gain(A, G, Q, R)
+    B, N, m = Y.shape
+    states = np.empty((B, N, A.shape[-1]))
+    terms = np.zeros((B, N, m)) if loglik else None
+    for b in range(B):
+        patterns, which = np.unique(seen[b], axis=0, return_inverse=True)
+        G_p, R_p = masked(np.broadcast_to(G[b], (len(patterns),) + G.shape[1:]),
+                          np.broadcast_to(R[b], (len(patterns),) + R.shape[1:]), patterns)
+        which, pattern, P = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which.reshape(-1), long_stretch)
+        G_e, R_e = G_p[pattern], R_p[pattern]
+        S = innovation_covariance(G_e, P, R_e)
+        L = np.swapaxes(np.linalg.solve(S, G_e @ P), -1, -2)       # P G_W^T S^-1 (S symmetric)
+        Y0 = np.where(seen[b], Y[b], 0.0)
+        states[b] = switched_filter(A[b], G_e, L, which, Y0, x[b])
+        if loglik:
+            E0 = innovations(A[b:b + 1], G[b:b + 1], states[b:b + 1], Y0[None], x[b:b + 1])[0]
+            for e in range(len(P)):
+                rows = which == e
+                if rows.any():
+                    terms[b, rows] = loglik_terms(np.where(seen[b, rows], E0[rows], 0.0), S[e])
+    if loglik:
+        terms[~seen] = 0.0
+    return FilterRun(states, innovations(A, G, states, Y, x), L_full, P_full, True, terms)
+
+
+def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch):
+    """The covariances the gains of :func:`steady_gapped` come from, for one record.
+
+    Returns ``which`` (N,) the gain of each step, ``pattern`` (E,) the pattern of each gain and
+    ``P`` (E, n, n) its covariance: gain i < len(G_p) is pattern i's (``patterns`` (K, m), the
+    observed channels) from the complete layout's ``P_full``; the others are the own steady
+    states of patterns that last ``long_stretch`` steps.
+    """
+    n_p = len(G_p)
+    pattern, P = list(range(n_p)), [P_full] * n_p
+    own = {}
+    cuts = np.r_[0, np.flatnonzero(np.diff(which)) + 1, len(which)]
+    which = which.copy()
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        p = int(which[a])
+        if b - a < long_stretch or patterns[p].all():     # short, or the complete layout (P_full)
+            continue
+        if p not in own:
+            try:
+                P_own, _ = steady_gain(A[None], G_p[p:p + 1], Q[None], R_p[p:p + 1])
+                own[p] = len(P)
+                pattern.append(p)
+                P.append(P_own[0])
+            except RiccatiError:              # not detectable: the gain from P_full holds
+                own[p] = None
+        if own[p] is not None:
+            which[a:b] = own[p]
+    return which, np.array(pattern), np.array(P)
+
+
+def switched_filter(A, G, L, which, Y0, x):
+    """The fixed-gain filter of one record whose gain switches from step to step.
+
+    ``X_k = (I - L_i G_i) A X_k-1 + L_i y_k`` with ``i = which[k]``: stretches of one gain of at least
+    :data:`LONG_STRETCH` steps run lifted (:func:`fixed_gain`), the rest step by step.
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+    G : ndarray (E, m, n)
+        The (masked) observation of each gain.
+    L : ndarray (E, n, m)
+        The gains.
+    which : ndarray (N,) of int
+        The gain of each step.
+    Y0 : ndarray (N, m)
+        Measurements, zero where missing.
+    x : ndarray (n,)
+        Prior mean of the first step.
+
+    Returns
+    -------
+    ndarray (N, n)
+        The filtered states.
+    """
+    N, n = len(which), A.shape[-1]
+    I_LG, F = closed_loop(A, G, L)
+    U = np.empty((N, n))
+    for e in np.unique(which):
+        rows = which == e
+        U[rows] = Y0[rows] @ L[e].T
+    X = np.empty((N, n))
+    X[0] = I_LG[which[0]] @ x + U[0]
+    Ft = [np.ascontiguousarray(f.T) for f in F]
+    rows, gains, dot, add = list(X), which.tolist(), np.dot, np.add
+    inputs = list(U)
+
+    def stepwise(k0, k1):
+        x = rows[k0 - 1]
+        for k in range(k0, k1):
+            xk = rows[k]
+            dot(x, Ft[gains[k]], out=xk)          # x_k = F_i x_k-1 + L_i y_k, in place, no temporaries
+            add(xk, inputs[k], out=xk)
+            x = xk
+
+    cuts = np.r_[0, np.flatnonzero(np.diff(which)) + 1, N]
+    k = 1
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        if b - a < LONG_STRETCH:
+            continue
+        stepwise(k, a + 1)                             # up to and including step a (none for a = 0)
+        e = which[a]
+        X[a:b] = lti_response(F[e][None], L[e][None], Y0[None, a:b], X[a][None])[0]
+        k = b
+    stepwise(k, N)
+    return X
+
+
 # ------------------------------------------------------------------------- over a Filter
 def steady(f, Y, start=None, loglik=False):
     """The steady-state filter ``f`` over a stack of records.
@@ -386,8 +653,12 @@ def steady(f, Y, start=None, loglik=False):
     """
     B, n = Y.shape[0], f.A_a.shape[0]
     A, Q = np.broadcast_to(f.A_a, (B, n, n)), np.broadcast_to(f.Q_a, (B, n, n))
+    seen = observed(Y)
     try:
-        return steady_states(A, f.G_a, Q, f.R, Y, _start(f, B, start), loglik)
+        if seen is None:
+            return steady_states(A, f.G_a, Q, f.R, Y, _start(f, B, start), loglik)
+        return gapped_filter(A, f.G_a, Q, f.R, Y, seen, _start(f, B, start), None, GAP_SWITCH_TOL, f.transition,
+                             loglik, steady=True)
     except RiccatiError as exc:
         raise f.riccati_error(exc) from None
 
@@ -445,6 +716,10 @@ def time_varying(f, Y, start=None, loglik=False, switch_tol=1e-14):
         P0 = f.Q_a if f.Pz0 is None else f.Pz0
         start = (None, np.broadcast_to(P0, (B, n, n)).copy())
     x = _start(f, B, start[0])
+    seen = observed(Y)
+    if seen is not None:
+        return gapped_filter(np.broadcast_to(f.A_a, (B, n, n)), f.G_a, np.broadcast_to(f.Q_a, (B, n, n)), f.R, Y, seen,
+                             x, start[1], switch_tol, f.transition, loglik)
     return time_varying_filter(np.broadcast_to(f.A_a, (B, n, n)), f.G_a, np.broadcast_to(f.Q_a, (B, n, n)), f.R, Y,
                                x, start[1], switch_tol, f.transition, loglik)
 
@@ -454,143 +729,3 @@ def _start(f, B, x):
     if x is not None:
         return np.broadcast_to(x, (B, n)).copy()
     return np.zeros((B, n)) if f.z0 is None else np.broadcast_to(f.z0, (B, n)).copy()
-
-
-# ------------------------------------------------------------------------------ low level
-def _batchify(A_a, G_a, Q_a, R, Y, check=True):
-    """Validate shapes (and with ``check`` the covariances); return arrays with a leading batch
-    axis and whether the input had one."""
-    A_a = as_finite_array(A_a, "A_a", ndim=(2, 3))
-    G_a = as_finite_array(G_a, "G_a", ndim=(2, 3))
-    Q_a = as_finite_array(Q_a, "Q_a", ndim=(2, 3))
-    R = as_finite_array(R, "R", ndim=(2, 3))
-    Y = as_finite_array(Y, "measurements Y", ndim=(2, 3))
-    if Y.shape[-2] < 1:
-        raise AKFInputError("measurements Y have no time steps")
-    n = A_a.shape[-1]
-    m = G_a.shape[-2]
-    if A_a.shape[-2] != n:
-        raise AKFInputError(f"A_a must be square, got {A_a.shape}")
-    if G_a.shape[-1] != n:
-        raise AKFInputError(f"G_a has {G_a.shape[-1]} columns; A_a has {n} states")
-    if Q_a.shape[-2:] != (n, n):
-        raise AKFInputError(f"Q_a must be {n}x{n}, got {Q_a.shape}")
-    if R.shape[-2:] != (m, m):
-        raise AKFInputError(f"R must be {m}x{m} for {m} channels, got {R.shape}")
-    if Y.shape[-1] != m:
-        raise AKFInputError(f"measurements have {Y.shape[-1]} channels but G_a has {m} rows")
-    if check:
-        check_covariance(Q_a, "process covariance Q_a")
-        check_covariance(R, "measurement-noise covariance R", definite=True)
-    batched = any(x.ndim == 3 for x in (A_a, G_a, Q_a, R, Y))
-    if not batched:
-        return A_a[None], G_a[None], Q_a[None], R[None], Y[None], False
-    sizes = {x.shape[0] for x in (A_a, G_a, Q_a, R, Y) if x.ndim == 3}
-    if len(sizes) > 1:
-        raise AKFInputError(f"batched inputs disagree on the batch size: {sorted(sizes)}")
-    B = sizes.pop()
-    expand = [x if x.ndim == 3 else np.broadcast_to(x, (B,) + x.shape) for x in (A_a, G_a, Q_a, R, Y)]
-    return (*expand, True)
-
-
-def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_tol=1e-14, transition=None,
-                  check=True, loglik=False):
-    """Run one AKF or a batch of them on matrices of one's own (see :func:`run`).
-
-    Parameters
-    ----------
-    A_a, G_a, Q_a, R, Y
-        As in :func:`run`.
-    x0 : ndarray (n_a,) or (B, n_a), optional
-        Prior mean at step 0 (default zero).
-    P0 : ndarray (n_a, n_a) or (B, n_a, n_a), optional
-        Prior covariance at step 0 (default ``Q_a``); not used by the steady-state filter.
-    steady : bool
-        The steady-state gain instead of the time-varying filter.
-    switch_tol : float
-        The time-varying filter continues with its (then constant) gain once its covariance
-        changes by less than this, relatively; 0 keeps it time-varying to the end.
-    transition : ModalBlockTransition, optional
-        A structured form of a shared ``A_a`` for a cheaper time-varying covariance update.
-    check : bool
-        Check that Q_a, R and P0 are symmetric PSD (R PD); False for matrices already checked.
-    loglik : bool
-        Also the log-likelihood terms (:attr:`FilterRun.loglik_terms`); off by default: they
-        cost a Cholesky factor per time-varying step.
-
-    Returns
-    -------
-    FilterRun
-        Without a batch axis when no input had one.
-    """
-    A, G, Q, Rb, Yb, batched = _batchify(A_a, G_a, Q_a, R, Y, check)
-    B, n = Yb.shape[0], A.shape[-1]
-    if x0 is not None:
-        x0 = as_finite_array(x0, "x0")
-        if x0.shape[-1:] != (n,):
-            raise AKFInputError(f"x0 must have {n} entries (the augmented state), got shape {x0.shape}")
-    x = np.zeros((B, n)) if x0 is None else np.broadcast_to(x0, (B, n)).copy()
-    if steady:
-        res = steady_states(A, G, Q, Rb, Yb, x, loglik)
-    else:
-        if P0 is not None:
-            P0 = check_covariance(P0, "initial covariance P0") if check else np.asarray(P0, float)
-            if P0.shape[-2:] != (n, n):
-                raise AKFInputError(f"P0 must be {n}x{n}, got {P0.shape}")
-        P = Q.copy() if P0 is None else np.broadcast_to(P0, (B, n, n)).copy()
-        res = time_varying_filter(A, G, Q, Rb, Yb, x, P, switch_tol, transition, loglik)
-    if not batched:
-        res = FilterRun(res.states[0], res.innovations[0], res.gain[0], res.P_prior[0], res.switched,
-                        None if res.loglik_terms is None else res.loglik_terms[0])
-    return res
-
-
-def run(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements | BatchMeasurements, x0: ArrayLike | None = None,
-        P0: ArrayLike | None = None, steady: bool = False) -> np.ndarray:
-    """Filtered (posterior) augmented states of the AKF.
-
-    Parameters
-    ----------
-    A_a : ndarray (n_a, n_a) or (B, n_a, n_a)
-        Augmented transition matrix ``[[A, B], [0, I]]``.
-    G_a : ndarray (m, n_a) or (B, m, n_a)
-        Augmented observation ``[G, D]``.
-    Q_a : ndarray (n_a, n_a) or (B, n_a, n_a)
-        Process covariance ``blockdiag(Q, S)`` (model error, force increments).
-    R : ndarray (m, m) or (B, m, m)
-        Measurement-noise covariance.
-    Y : ndarray (N, m) or (B, N, m)
-        Measurements, one row per time step.
-    x0, P0 : optional
-        Prior mean (default 0) and covariance (default ``Q_a``) at step 0; ``P0`` is
-        ignored by the steady-state filter.
-    steady : bool
-        Use the steady-state gain (one Riccati solution) instead of the time-varying filter.
-
-    Returns
-    -------
-    ndarray (N, n_a), or (B, N, n_a) when any input carries a batch axis.
-
-    Notes
-    -----
-    The filter works in whatever coordinates the matrices are given in.  For stiff FE models
-    in raw ``[u; u']`` the Riccati iteration is ill-conditioned; :func:`core_akf.filter.estimate`
-    therefore transforms to energy-normalised modal coordinates first
-    (:func:`core_akf.statespace.modal_state_transform`) and back afterwards.
-
-    Examples
-    --------
-    The AKF on matrices of one's own (here the S17 truss' augmented model):
-
-    >>> import numpy as np
-    >>> from core_akf import simulate, state_space
-    >>> from core_akf.models import s17_truss
-    >>> sensors, forces = ["strain:13", "acc:8:y"], ["8:y"]
-    >>> sim = simulate(s17_truss(), sensors, forces, np.full((200, 1), 100.0), 1e-3, relative_noise=0.02, seed=0)
-    >>> ss = state_space(s17_truss(), sensors, forces, 1e-3)
-    >>> Q = np.diag(np.r_[np.full(66, 1e-16), 1e4])
-    >>> X = run(ss.A_a, ss.G_a, Q, np.diag(sim.noise_std ** 2), sim.measurements, steady=True)
-    >>> X.shape, round(float(X[-1, -1]))          # the last state is the force (N)
-    ((200, 67), 100)
-    """
-    return filter_states(A_a, G_a, Q_a, R, Y, x0=x0, P0=P0, steady=steady).states

@@ -70,7 +70,7 @@ class Estimator:
         continues from it.
     switch_tol : float
         The time-varying filter continues with its (then constant) gain once its covariance
-        changes by less than this, relatively (as :func:`core_akf.filter.kernels.filter_states`).
+        changes by less than this, relatively (as :func:`core_akf.filter.matrices.filter_states`).
     smooth_lag : int or "auto", optional
         Smooth with this many steps of the record after each step
         (:class:`core_akf.filter.smoother.FixedLagSmoother`, steady filter only): :meth:`update` then
