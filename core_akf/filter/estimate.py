@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from ..checks import AKFInputError, ArrayLike, BatchMeasurements, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
+from ..checks import AKFInputError, ArrayLike, BatchMeasurements, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_measurements
 from ..forcemodels import DummyMeasurements, ForceModel
 from . import kernels
 from .model import Filter
@@ -39,7 +39,7 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
     forces : sequence of force specs
         The unknown force locations (shared).
     measurements : ndarray (B, N, m) or sequence of (N, m)
-        One measurement set per layout, columns in layout order (SI).
+        One measurement set per layout, columns in layout order (SI); NaN marks a missing sample.
     dt : float
         Time step (s).
     model_error_cov, force_increment_cov
@@ -78,7 +78,7 @@ def estimate_batch(structure: Structure, layouts: Sequence[Layout], forces: Forc
     >>> [round(float(e.forces[-50:].mean())) for e in ests]      # the 100 N step
     [100, 100]
     """
-    Y = as_finite_array(measurements, "measurements", ndim=3)
+    Y = as_measurements(measurements, "measurements", ndim=3)
     f = Filter(structure, layouts, forces, dt, model_error_cov=model_error_cov, force_increment_cov=force_increment_cov,
                noise_cov=noise_cov, steady=steady, allow_undetectable=allow_undetectable, x0=x0, P0=P0,
                force_model=force_model, dummy=dummy)
@@ -132,7 +132,10 @@ def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements
     forces : sequence
         Force locations ``"node:direction"`` or ``(node, direction)``.
     measurements : ndarray (N, m)
-        One column per sensor in layout order (SI: m/m, m/s^2, m/s, m).
+        One column per sensor in layout order (SI: m/m, m/s^2, m/s, m).  A NaN is a missing
+        sample: the update uses the observed channels only (exactly with ``steady=False``; with
+        cached gains per pattern of observed channels with the steady filter,
+        :func:`core_akf.filter.kernels.steady_gapped`).
     dt : float
         Sampling interval (s).
     model_error_cov : float, ndarray
@@ -182,7 +185,7 @@ def estimate(structure: Structure, sensors: Layout, forces: Forces, measurements
     >>> est.forces.shape, est.strains.shape
     ((100, 1), (100, 34))
     """
-    Y = as_finite_array(measurements, "measurements", ndim=2)
+    Y = as_measurements(measurements, "measurements", ndim=2)
     return estimate_batch(structure, [sensors], forces, Y[None], dt, model_error_cov=model_error_cov,
                           force_increment_cov=force_increment_cov, noise_cov=noise_cov, steady=steady,
                           allow_undetectable=allow_undetectable, x0=x0, P0=P0, smooth=smooth,

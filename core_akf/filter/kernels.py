@@ -36,9 +36,6 @@ from .riccati import RiccatiError, steady_gain
 
 #: the time-varying filter tests every this many steps whether its covariance has converged
 CHECK_EVERY = 32
-#: after an undetectable stretch, the steady filter with missing samples returns to its cached
-#: gains once its covariance changes by less than this, relatively, over CHECK_EVERY steps
-GAP_SWITCH_TOL = 1e-10
 #: the steady filter with missing samples runs a stretch of one pattern of observed channels this
 #: long with that pattern's own steady-state gain, and lifted (:func:`switched_filter`)
 LONG_STRETCH = 256
@@ -285,7 +282,7 @@ def steady_logliks(A, G, Q, R, Y):
     Ys = np.broadcast_to(Y, (ok.size,) + Y.shape)
     seen = observed(Ys)
     if seen is not None:                               # missing samples: the filter of each pattern
-        run = gapped_filter(A, G, Q, R, Ys, seen, np.zeros(A.shape[:-1]), P, 0.0, loglik=True, steady=True)
+        run = steady_gapped(A, G, Q, R, Ys, seen, np.zeros(A.shape[:-1]), loglik=True, full=(P, L))
         out[ok] = run.loglik
         return out
     predicted = fixed_gain(A, G, L, Ys, outputs=G @ A)           # G A X_k: the next step's predicted channels
@@ -486,7 +483,7 @@ def gapped_filter(A, G, Q, R, Y, seen, x, P, switch_tol, transition=None, loglik
     return FilterRun(states, innov, run.gain, P, run.switched, terms)
 
 
-def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETCH):
+def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETCH, full=None, seen_before=None):
     """The steady-state AKF over a stack of records with missing samples: one cached gain per
     pattern of observed channels.
 
@@ -494,8 +491,9 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     ``P`` of the complete layout updated with the observed rows only,
     ``L_W = P G_W^T (G_W P G_W^T + R_W)^-1`` -- the exact gain of the first step of any hole, one
     small solve per pattern, also for a set of live channels that is not detectable.  A pattern
-    that lasts ``long_stretch`` steps or more (a dead channel) runs with its own steady-state gain
-    (one Riccati solve per such pattern, cached) where one exists.  Back at the complete layout
+    that has lasted ``long_stretch`` steps (a dead channel) goes on with its own steady-state gain
+    (one Riccati solve per such pattern, cached) where one exists: a causal rule, so a record run
+    in chunks gets the gains of the whole (``seen_before``).  Back at the complete layout
     the filter is at its steady gain again.  The covariance is not propagated through a hole, so
     the gains are approximate while the layout is incomplete (the exact filter:
     ``steady=False``; the accuracy is measured in the docs' "real records" page).
@@ -512,22 +510,30 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     loglik : bool
         Also the log-likelihood terms, under each pattern's innovation covariance.
     long_stretch : int
-        Steps from which a pattern runs with its own steady-state gain.
+        Steps after which a pattern runs with its own steady-state gain.
+    full : (P (B, n, n), L (B, n, m)), optional
+        The complete layout's steady prior covariance and gain, if known.
+    seen_before : ndarray (B, h, m) of bool, optional
+        The observed samples of the ``h`` steps before the record (a stream's previous chunks,
+        ``h <= long_stretch``): a pattern's run continues across.
 
     Returns
     -------
     FilterRun
         ``gain`` and ``P_prior`` are the complete layout's steady ones.
     """
-    P_full, L_full = steady_gain(A, G, Q, R)
+    P_full, L_full = steady_gain(A, G, Q, R) if full is None else full
     B, N, m = Y.shape
     states = np.empty((B, N, A.shape[-1]))
     terms = np.zeros((B, N, m)) if loglik else None
+    h = 0 if seen_before is None else seen_before.shape[1]
     for b in range(B):
-        patterns, which = np.unique(seen[b], axis=0, return_inverse=True)
+        patterns, which = np.unique(seen[b] if not h else np.vstack([seen_before[b], seen[b]]), axis=0,
+                                    return_inverse=True)
         G_p, R_p = masked(np.broadcast_to(G[b], (len(patterns),) + G.shape[1:]),
                           np.broadcast_to(R[b], (len(patterns),) + R.shape[1:]), patterns)
         which, pattern, P = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which.reshape(-1), long_stretch)
+        which = which[h:]
         G_e, R_e = G_p[pattern], R_p[pattern]
         S = innovation_covariance(G_e, P, R_e)
         L = np.swapaxes(np.linalg.solve(S, G_e @ P), -1, -2)       # P G_W^T S^-1 (S symmetric)
@@ -550,7 +556,7 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch):
     Returns ``which`` (N,) the gain of each step, ``pattern`` (E,) the pattern of each gain and
     ``P`` (E, n, n) its covariance: gain i < len(G_p) is pattern i's (``patterns`` (K, m), the
     observed channels) from the complete layout's ``P_full``; the others are the own steady
-    states of patterns that last ``long_stretch`` steps.
+    states of patterns, used once a pattern has lasted ``long_stretch`` steps.
     """
     n_p = len(G_p)
     pattern, P = list(range(n_p)), [P_full] * n_p
@@ -559,7 +565,7 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch):
     which = which.copy()
     for a, b in zip(cuts[:-1], cuts[1:]):
         p = int(which[a])
-        if b - a < long_stretch or patterns[p].all():     # short, or the complete layout (P_full)
+        if b - a <= long_stretch or patterns[p].all():     # short, or the complete layout (P_full)
             continue
         if p not in own:
             try:
@@ -570,7 +576,7 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch):
             except RiccatiError:              # not detectable: the gain from P_full holds
                 own[p] = None
         if own[p] is not None:
-            which[a:b] = own[p]
+            which[a + long_stretch:b] = own[p]
     return which, np.array(pattern), np.array(P)
 
 
@@ -657,15 +663,17 @@ def steady(f, Y, start=None, loglik=False):
     try:
         if seen is None:
             return steady_states(A, f.G_a, Q, f.R, Y, _start(f, B, start), loglik)
-        return gapped_filter(A, f.G_a, Q, f.R, Y, seen, _start(f, B, start), None, GAP_SWITCH_TOL, f.transition,
-                             loglik, steady=True)
+        return steady_gapped(A, f.G_a, Q, f.R, Y, seen, _start(f, B, start), loglik)
     except RiccatiError as exc:
         raise f.riccati_error(exc) from None
 
 
-def with_gain(f, Y, L, P, start=None, loglik=False):
+def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None):
     """The filter ``f`` with a given constant gain over a stack of records (a stream's chunk once
     its gain is steady or has converged).
+
+    With missing samples the gain changes with the pattern of observed channels
+    (:func:`steady_gapped` from ``L`` and ``P``).
 
     Parameters
     ----------
@@ -681,6 +689,8 @@ def with_gain(f, Y, L, P, start=None, loglik=False):
         The prior mean of the first step (default the filter's prior).
     loglik : bool
         Also the log-likelihood terms.
+    seen_before : ndarray (B, h, m_f) of bool, optional
+        As :func:`steady_gapped`.
 
     Returns
     -------
@@ -688,6 +698,10 @@ def with_gain(f, Y, L, P, start=None, loglik=False):
     """
     B, n = Y.shape[0], f.A_a.shape[0]
     A = np.broadcast_to(f.A_a, (B, n, n))
+    seen = observed(Y)
+    if seen is not None:
+        return steady_gapped(A, f.G_a, np.broadcast_to(f.Q_a, (B, n, n)), f.R, Y, seen, _start(f, B, start), loglik,
+                             full=(P, L), seen_before=seen_before)
     return constant_gain(A, f.G_a, f.R, L, P, Y, _start(f, B, start), loglik)
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..checks import AKFInputError, ArrayLike, BatchMeasurements, Matrix, Measurements, as_finite_array, as_measurements, check_covariance
-from .kernels import GAP_SWITCH_TOL, FilterRun, gapped_filter, observed, steady_states, time_varying_filter
+from .kernels import FilterRun, gapped_filter, observed, steady_gapped, steady_states, time_varying_filter
 
 
 def _batchify(A_a, G_a, Q_a, R, Y, check=True):
@@ -88,7 +88,7 @@ def filter_states(A_a, G_a, Q_a, R, Y, x0=None, P0=None, steady=False, switch_to
     seen = observed(Yb)
     if steady:
         res = steady_states(A, G, Q, Rb, Yb, x, loglik) if seen is None else \
-            gapped_filter(A, G, Q, Rb, Yb, seen, x, None, GAP_SWITCH_TOL, transition, loglik, steady=True)
+            steady_gapped(A, G, Q, Rb, Yb, seen, x, loglik)
     else:
         if P0 is not None:
             P0 = check_covariance(P0, "initial covariance P0") if check else np.asarray(P0, float)

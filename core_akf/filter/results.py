@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..checks import FloatArray, Layout, Reference
+from ..quality import missing_statistics
 from ..sensors import UNITS
 from ..statespace import observation, strain_feedthrough
 from .kernels import closed_loop
@@ -49,7 +50,7 @@ def whiteness(e, lags=WHITENESS_LAGS):
     Parameters
     ----------
     e : ndarray (N,)
-        Innovations of one channel (its unit).
+        Innovations of one channel (its unit); NaN where a sample is missing (left out).
     lags : int
         Autocorrelation lags tested, ``1..lags``.
 
@@ -61,10 +62,12 @@ def whiteness(e, lags=WHITENESS_LAGS):
     lag1 : float
         The lag-1 autocorrelation.
     """
-    e = np.asarray(e, float) - np.mean(e)
-    n = e.size
+    e = np.asarray(e, float)
+    seen = ~np.isnan(e)
+    n = int(seen.sum())
+    e = np.where(seen, e - (np.mean(e[seen]) if n else 0.0), 0.0)    # a missing sample adds nothing
     denom = float(e @ e)
-    lags = min(lags, n - 1)
+    lags = min(lags, n - 1, e.size - 1)
     if denom == 0 or lags < 1:
         return float("nan"), float("nan")
     rho = np.array([float(e[:-k] @ e[k:]) / denom for k in range(1, lags + 1)])
@@ -86,22 +89,30 @@ def sensor_diagnostics(est):
         ``predicted_innovation_std`` (``sqrt(S_ii)``), ``consistency`` (their ratio, about 1 when
         the model and the covariances fit the data), ``whiteness`` and ``lag1_autocorrelation``
         (:func:`whiteness`), and ``loglik``, the channel's log-likelihood over the whole record
-        (:attr:`Estimate.loglik_channels`).
+        (:attr:`Estimate.loglik_channels`), all over the observed samples; and its holes
+        (:func:`core_akf.quality.missing_statistics`): ``missing_fraction``, ``missing_spans`` and
+        ``longest_missing_s`` (s).
     """
     Y, E = est.measurements, est.innovations
     k0 = skipped(Y.shape[0])
     loglik = est.loglik_channels                      # over the whole record
     out = []
-    for j, s in enumerate(est.sensors):
+    for j, (s, holes) in enumerate(zip(est.sensors, missing_statistics(Y, est.dt))):
         e = E[k0:, j]
-        irms = float(np.sqrt(np.mean(e ** 2)))
+        irms = _rms(e)
         std = float(np.sqrt(max(est.innovation_cov[j, j], 0.0)))
         white, lag1 = whiteness(e)
-        out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": float(np.sqrt(np.mean(Y[k0:, j] ** 2))),
+        out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": _rms(Y[k0:, j]),
                     "innovation_rms": irms, "predicted_innovation_std": std,
                     "consistency": irms / std if std > 0 else float("inf"), "whiteness": white,
-                    "lag1_autocorrelation": lag1, "loglik": float(loglik[j])})
+                    "lag1_autocorrelation": lag1, "loglik": float(loglik[j]), **holes})
     return out
+
+
+def _rms(x):
+    """The RMS of the observed (not NaN) samples; NaN when there are none."""
+    x = x[~np.isnan(x)]
+    return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
 
 
 def force_statistics(est):
@@ -284,7 +295,8 @@ class Estimate:
                       **{k: v for k, v in d.items() if k not in ("channel", "unit", "measured_rms")})
                  for d in self.diagnostics()]
         columns = ["quantity", "channel", "unit", "rms", "peak", "time_of_peak", "mean_std", "innovation_rms",
-                   "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation", "loglik"]
+                   "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation", "loglik",
+                   "missing_fraction", "missing_spans", "longest_missing_s"]
         frame = pd.DataFrame(rows, columns=columns)
         frame.attrs = {"loglik": self.loglik if self.loglik_terms is not None else float("nan"),
                        "transient_time": float(self.transient_time) if self.filter_matrices is not None

@@ -22,9 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import AKFInputError, ArrayLike, FloatArray, Matrix, Measurements, as_finite_array, check_covariance
-from .kernels import fixed_gain, steady_states
+from ..checks import AKFInputError, ArrayLike, FloatArray, Matrix, Measurements, as_finite_array, as_measurements, check_covariance
+from .kernels import fixed_gain, masked, steady_states
 from .recursion import lti_response
+from .riccati import steady_gain
 
 #: a covariance counts as converged when it changes by less than this, relatively, over a step
 CONVERGED = 1e-14
@@ -82,7 +83,7 @@ def smooth(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements,
     R : ndarray (m, m)
         Measurement-noise covariance.
     Y : ndarray (N, m)
-        Measurements.
+        Measurements, NaN where a sample is missing (the exact filter runs through it).
     x0, P0 : optional
         Prior mean (default 0) and covariance (default ``Q_a``) at step 0, as in
         :func:`core_akf.filter.run`; the steady form starts from the steady prior covariance.
@@ -114,7 +115,7 @@ def smooth(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements,
     n, m = A.shape[0], G.shape[0]
     Q = check_covariance(Q_a, "Q_a")
     Rm = check_covariance(R, "R", definite=True)
-    Y = as_finite_array(Y, "Y", ndim=2)
+    Y = as_measurements(Y, "Y", ndim=2)
     if A.shape != (n, n) or G.shape[1] != n or Q.shape != (n, n) or Rm.shape != (m, m) or Y.shape[1] != m:
         raise AKFInputError(f"shapes do not fit: A_a {A.shape}, G_a {G.shape}, Q_a {Q.shape}, R {Rm.shape}, Y {Y.shape}")
     if covariances not in ("full", "diagonal", None):
@@ -123,7 +124,12 @@ def smooth(A_a: Matrix, G_a: ArrayLike, Q_a: Matrix, R: Matrix, Y: Measurements,
     H = None if outputs is None else as_finite_array(outputs, "outputs", ndim=2)
     if H is not None and H.shape[1] != n:
         raise AKFInputError(f"outputs must have {n} columns (the states), got shape {H.shape}")
-    if steady:
+    seen = ~np.isnan(Y)
+    if not seen.all():                                 # missing samples: the exact filter, then RTS
+        P = (steady_gain(A[None], G[None], Q[None], Rm[None])[0][0] if steady
+             else Q.copy() if P0 is None else check_covariance(P0, "P0"))
+        forward = _GappedForward(A, G, Q, Rm, Y, seen, x, P)
+    elif steady:
         res = steady_states(A[None], G[None], Q[None], Rm[None], Y[None], x[None])
         forward = _Forward.steady(A, G, Rm, x, res.states[0], res.P_prior[0], res.gain[0])
     else:
@@ -221,6 +227,64 @@ class _Forward:
             store(k, P_s)
             k -= 1
         return SmoothResult(Xs, Ps, X, C, None if out_var is None else np.sqrt(np.maximum(out_var, 0.0)))
+
+
+class _GappedForward(_Forward):
+    """The exact forward pass through missing samples (:func:`core_akf.filter.kernels.masked`), in
+    ``O(sqrt(N) n^2)`` memory: the prior covariance is kept every ``K ~ sqrt(N)`` steps, and the
+    covariances of a stretch are computed again, from its first step, when the backward pass
+    reaches it (twice the covariance work of the forward pass, the same numbers)."""
+
+    def __init__(self, A, G, Q, R, Y, seen, x, P):
+        N, n = Y.shape[0], A.shape[0]
+        self.A, self.G, self.Q, self.R, self.seen = A, G, Q, R, seen
+        self.K = max(16, int(np.sqrt(N)))
+        X, X_prior, checkpoints = np.empty((N, n)), np.empty((N, n)), []
+        Y0 = np.where(seen, Y, 0.0)
+        for k in range(N):
+            if k % self.K == 0:
+                checkpoints.append(P)
+            X_prior[k] = x
+            L, post = self._update(P, k)
+            x = x + L @ (Y0[k] - self._observation(k)[0] @ x)
+            X[k] = x
+            x = A @ x
+            P = self._predict(post)
+        super().__init__(X, X_prior, [], [], N - 1)
+        self.checkpoints, self._held = checkpoints, {}
+
+    def _observation(self, k):
+        G_k, R_k = masked(self.G[None], self.R[None], self.seen[k][None])
+        return G_k[0], R_k[0]
+
+    def _update(self, P, k):
+        G_k, R_k = self._observation(k)
+        L = np.linalg.solve(G_k @ P @ G_k.T + R_k, G_k @ P).T
+        return L, _posterior(P, L, G_k, R_k)
+
+    def _predict(self, post):
+        P = self.A @ post @ self.A.T + self.Q
+        return 0.5 * (P + P.T)
+
+    def _stretch(self, c):
+        """The (posterior, prior) covariances of the steps of stretch ``c``, computed again."""
+        if c not in self._held:
+            if len(self._held) > 1:                     # the backward pass needs this stretch and the next
+                self._held.pop(max(self._held))
+            P, posts, priors = self.checkpoints[c], [], []
+            for k in range(c * self.K, min((c + 1) * self.K, self.X.shape[0])):
+                priors.append(P)
+                post = self._update(P, k)[1]
+                posts.append(post)
+                P = self._predict(post)
+            self._held[c] = (posts, priors)
+        return self._held[c]
+
+    def post(self, k):
+        return self._stretch(k // self.K)[0][k % self.K]
+
+    def prior(self, k):
+        return self._stretch(k // self.K)[1][k % self.K]
 
 
 def _posterior(P, L, G, R):

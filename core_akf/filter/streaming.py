@@ -125,6 +125,7 @@ class Estimator:
             self._P = f.Q_a.copy() if f.Pz0 is None else 0.5 * (f.Pz0 + f.Pz0.T)
             self._L = None
         self._switched = self.steady       # True: the fixed-gain recursion runs
+        self._seen_tail = None             # the observed samples of the last steps, None while all are
         self.lagged = None
         if smooth_lag is not None:
             from .smoother import FixedLagSmoother
@@ -195,12 +196,13 @@ class Estimator:
         if Y.ndim != 2 or Y.shape[1] != self.n_channels:
             raise AKFInputError(f"a chunk must have shape (steps, {self.n_channels}) for the sensors "
                                 f"{[s.label for s in self.layout]}; got {Y.shape}")
-        bad = np.argwhere(~np.isfinite(Y))
+        bad = np.argwhere(np.isinf(Y))
         if bad.size:
             r, c = bad[0]
-            raise AKFInputError(f"measurements: {np.count_nonzero(~np.isfinite(Y))} NaN/infinite value(s) in the chunk "
-                                f"starting at step {self.n_steps}; first at step {self.n_steps + r} "
-                                f"(t = {self.t0 + (self.n_steps + r) * self.dt:.9g} s), channel {self.layout[c].label!r}")
+            raise AKFInputError(f"measurements: {len(bad)} infinite value(s) in the chunk starting at step "
+                                f"{self.n_steps}; first at step {self.n_steps + r} "
+                                f"(t = {self.t0 + (self.n_steps + r) * self.dt:.9g} s), channel {self.layout[c].label!r} "
+                                "(a missing sample is NaN)")
         t0 = self.t0 + self.n_steps * self.dt
         f = self.filter
         Y_real, Y = Y, f.extend(Y)           # with the dummy channels' zeros
@@ -211,20 +213,35 @@ class Estimator:
                                       self._switched, np.zeros((1, 0, Y.shape[1])))
             return f.estimates(empty, Y_real[None], t0=t0)[0]
         x = self._prior()
-        if self._switched:
-            run = kernels.with_gain(f, Y[None], self._L[None], self._P[None], x[None], loglik=True)
+        seen = ~np.isnan(Y)
+        gapped = not seen.all()
+        if self._switched and (self.steady or not gapped):     # the time-varying filter is exact through a hole
+            run = kernels.with_gain(f, Y[None], self._L[None], self._P[None], x[None], loglik=True,
+                                    seen_before=None if self._seen_tail is None else self._seen_tail[None])
         else:
             run = kernels.time_varying(f, Y[None], (x[None], self._P[None]), loglik=True, switch_tol=self.switch_tol)
             self._P = np.ascontiguousarray(run.P_prior[0])
-            if run.switched:
-                self._switched, self._L = True, np.ascontiguousarray(run.gain[0])
+            self._switched = run.switched
+            self._L = np.ascontiguousarray(run.gain[0]) if run.switched else None
+        self._remember(seen)
         X, innov, terms = run.states[0], run.innovations[0], run.loglik_terms[0]
         self._z = X[-1].copy()
         self.n_steps += Y.shape[0]
         if self.lagged is not None:
-            return self._smoothed(*self.lagged.update(X, innov, innov, Y_real, terms))
+            # a missing sample corrects nothing: its innovation counts as zero in the lagged sum
+            return self._smoothed(*self.lagged.update(X, np.nan_to_num(innov) if gapped else innov, innov, Y_real,
+                                                      terms))
         self.n_returned = self.n_steps
         return f.estimates(run, Y_real[None], t0=t0)[0]
+
+    def _remember(self, seen):
+        """Keep the observed samples of the last steps (a pattern of live channels that runs on
+        into the next chunk; :func:`core_akf.filter.kernels.steady_gapped`)."""
+        if self._seen_tail is None and seen.all():
+            return
+        tail = seen if self._seen_tail is None else np.vstack([self._seen_tail, seen])
+        tail = tail[-kernels.LONG_STRETCH:]
+        self._seen_tail = None if tail.all() else np.ascontiguousarray(tail)
 
     def started_at(self, state: ArrayLike | None, step: int) -> Estimator:
         """A copy of this steady estimator that continues from a filtered state at a step.
@@ -293,7 +310,9 @@ class Estimator:
         return {"n_steps": np.array(self.n_steps), "z": np.full(n, np.nan) if self._z is None else self._z.copy(),
                 "P": self._P.copy(), "L": self._gain().copy(), "switched": np.array(self._switched),
                 "started": np.array(self._z is not None), "fingerprint": np.array(self._fingerprint),
-                "n_returned": np.array(self.n_returned)} | ({} if self.lagged is None else self.lagged.state())
+                "n_returned": np.array(self.n_returned),
+                "seen_tail": np.ones((0, self.filter.G_a.shape[1]), bool) if self._seen_tail is None else self._seen_tail.copy()} | \
+            ({} if self.lagged is None else self.lagged.state())
 
     def restore(self, state: Mapping[str, np.ndarray]) -> Estimator:
         """Continue from a :meth:`state` saved by this filter (the same job).
@@ -329,6 +348,11 @@ class Estimator:
             except (KeyError, AKFInputError) as exc:
                 raise CheckpointError(f"the saved state lacks the steps the fixed-lag smoother held ({exc})") from None
         self.n_returned = int(state["n_returned"]) if "n_returned" in state else n_steps
+        tail = np.asarray(state["seen_tail"], bool) if "seen_tail" in state else np.ones((0, self.filter.G_a.shape[1]), bool)
+        if tail.ndim != 2 or tail.shape[1] != self.filter.G_a.shape[1]:
+            raise CheckpointError(f"the saved state's observed-sample tail has shape {tail.shape}; expected (steps, "
+                                  f"{self.filter.G_a.shape[1]})")
+        self._seen_tail = None if tail.all() else np.ascontiguousarray(tail)
         self.n_steps, self._P, self._switched = n_steps, np.ascontiguousarray(P), switched
         self._L = np.ascontiguousarray(L) if switched else None
         self._z = z.copy() if started else None

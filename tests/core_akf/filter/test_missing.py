@@ -1,0 +1,155 @@
+"""Missing samples (NaN) in every filter path, against statsmodels (an independent Kalman filter and
+smoother that handles NaN natively) and against the same filter on the record without holes."""
+import numpy as np
+import pytest
+
+from core_akf import estimate, simulate
+from core_akf.checks import AKFInputError
+from core_akf.filter import Estimator, filter_states, smooth
+from core_akf.models import s17_truss
+from test_likelihood import COV, DT, FORCES, SENSORS, _setup
+
+
+def _record(n=1500, seed=0):
+    rng = np.random.default_rng(seed)
+    loads = 200.0 * rng.standard_normal((n, 1)).cumsum(axis=0) / np.sqrt(n)
+    sim = simulate(s17_truss(), SENSORS, FORCES, loads, DT, relative_noise=0.02, seed=seed)
+    return sim.measurements, np.diag(sim.noise_std ** 2), loads
+
+
+def _holes(Y, fraction, seed, longest=40):
+    """Random blocks of missing samples, one channel each, until ``fraction`` of the samples are gone."""
+    rng, Y = np.random.default_rng(seed), Y.copy()
+    while np.isnan(Y).mean() < fraction:
+        j, a = rng.integers(Y.shape[1]), rng.integers(0, Y.shape[0] - longest)
+        Y[a:a + rng.integers(1, longest), j] = np.nan
+    return Y
+
+
+def _statsmodels(f, Y, P0, smooth=False):
+    from statsmodels.tsa.statespace.kalman_smoother import KalmanSmoother
+
+    n, m = f.A_a.shape[0], Y.shape[1]
+    kf = KalmanSmoother(k_endog=m, k_states=n, initialization="known", initial_state=np.zeros(n), initial_state_cov=P0)
+    kf.bind(Y)
+    kf["design"], kf["transition"], kf["selection"] = f.G_a[0], f.A_a, np.eye(n)
+    kf["state_cov"], kf["obs_cov"] = f.Q_a, f.R[0]
+    return kf.smooth() if smooth else kf.filter()
+
+
+@pytest.fixture(scope="module")
+def gappy():
+    Y, R, loads = _record()
+    Yn = _holes(Y, 0.08, 1)
+    Yn[700:760, :] = np.nan                           # every channel: pure prediction
+    Yn[300:500, 2] = np.nan                           # the accelerometer dead for 0.2 s
+    return Y, Yn, R, loads
+
+
+def test_the_time_varying_filter_through_holes_is_statsmodels(gappy):
+    _, Yn, R, _ = gappy
+    f = _setup(R)
+    ours = filter_states(f.A_a, f.G_a, f.Q_a, f.R, Yn[None], steady=False, loglik=True)
+    ref = _statsmodels(f, Yn, f.Q_a)
+    assert ours.loglik[0] == pytest.approx(ref.llf, rel=1e-9)
+    np.testing.assert_allclose(ours.loglik_terms[0].sum(axis=1), ref.llf_obs, rtol=1e-8,
+                               atol=1e-9 * np.abs(ref.llf_obs).max())
+    X = ours.states[0]
+    np.testing.assert_allclose(X, ref.filtered_state.T, rtol=0, atol=1e-9 * np.abs(X).max())
+    assert np.isnan(ours.innovations[0][np.isnan(Yn)]).all() and not np.isnan(ours.innovations[0][~np.isnan(Yn)]).any()
+
+
+def test_the_smoother_through_holes_is_statsmodels(gappy):
+    _, Yn, R, _ = gappy
+    f = _setup(R)
+    ours = smooth(f.A_a, f.G_a[0], f.Q_a, f.R[0], Yn, covariances="diagonal")
+    ref = _statsmodels(f, Yn, f.Q_a, smooth=True)
+    X = ours.states
+    np.testing.assert_allclose(X, ref.smoothed_state.T, rtol=0, atol=1e-8 * np.abs(X).max())
+    var = np.diagonal(ref.smoothed_state_cov, axis1=0, axis2=1)
+    np.testing.assert_allclose(ours.covariances, var, rtol=1e-6, atol=1e-9 * np.abs(var).max())
+    # the force's band widens where nothing is observed
+    force_std = ours.std[:, -1]
+    assert force_std[730] > 3 * np.median(force_std)
+
+
+def test_a_record_without_holes_takes_the_paths_it_took(gappy):
+    Y, _, R, _ = gappy
+    f = _setup(R)
+    for steady in (False, True):
+        a = filter_states(f.A_a, f.G_a, f.Q_a, f.R, Y[None], steady=steady)
+        b = filter_states(f.A_a, f.G_a, f.Q_a, f.R, np.where(np.isnan(Y), 0, Y)[None], steady=steady)
+        np.testing.assert_array_equal(a.states, b.states)
+
+
+def test_the_steady_filter_through_holes_is_close_to_the_exact_one(gappy):
+    Y, Yn, R, loads = gappy
+    kw = dict(noise_cov=R, **COV)
+    complete = estimate(s17_truss(), SENSORS, FORCES, Y, DT, steady=True, **kw)
+    exact = estimate(s17_truss(), SENSORS, FORCES, Yn, DT, steady=False, **kw)
+    fast = estimate(s17_truss(), SENSORS, FORCES, Yn, DT, steady=True, **kw)
+    k0 = 100
+
+    def err(est):
+        return float(np.sqrt(np.mean((est.forces[k0:] - loads[k0:]) ** 2)))
+    assert np.isfinite(fast.forces).all() and np.isfinite(exact.forces).all()
+    print(err(complete), err(exact), err(fast))
+    assert err(complete) < err(exact) < 2.5 * err(complete)          # 8 % of the samples and 60 steps gone
+    assert err(fast) < 1.25 * err(exact)
+
+
+@pytest.mark.parametrize("steady", [False, True])
+def test_a_streamed_record_with_holes_is_the_whole(gappy, steady):
+    _, Yn, R, _ = gappy
+    kw = dict(noise_cov=R, steady=steady, **COV)
+    whole = estimate(s17_truss(), SENSORS, FORCES, Yn, DT, **kw)
+    stream = Estimator(s17_truss(), SENSORS, FORCES, DT, **kw)
+    parts = [stream.update(Yn[a:b]) for a, b in [(0, 310), (310, 333), (333, 720), (720, 1500)]]
+    forces = np.vstack([p.forces for p in parts])
+    np.testing.assert_allclose(forces, whole.forces, rtol=0, atol=1e-8 * np.abs(whole.forces).max())
+    loglik = sum(p.loglik for p in parts)
+    assert loglik == pytest.approx(whole.loglik, rel=1e-9)
+
+
+def test_a_dead_channel_gets_its_own_steady_gain_and_a_stream_agrees():
+    Y, R, _ = _record(2000)
+    Yn = Y.copy()
+    Yn[600:1500, 0] = np.nan                          # strain:13 dead for 0.9 s: long enough for its own gain
+    kw = dict(noise_cov=R, steady=True, **COV)
+    whole = estimate(s17_truss(), SENSORS, FORCES, Yn, DT, **kw)
+    stream = Estimator(s17_truss(), SENSORS, FORCES, DT, **kw)
+    state = None
+    forces = []
+    for a in range(0, 2000, 250):                     # a checkpoint between every chunk
+        if state is not None:
+            stream = Estimator(s17_truss(), SENSORS, FORCES, DT, **kw).restore(state)
+        forces.append(stream.update(Yn[a:a + 250]).forces)
+        state = stream.state()
+    np.testing.assert_allclose(np.vstack(forces), whole.forces, rtol=0, atol=1e-8 * np.abs(whole.forces).max())
+
+
+def test_diagnostics_count_the_holes(gappy):
+    _, Yn, R, _ = gappy
+    est = estimate(s17_truss(), SENSORS, FORCES, Yn, DT, noise_cov=R, steady=False, **COV)
+    d = est.diagnostics()
+    for j, row in enumerate(d):
+        assert row["missing_fraction"] == pytest.approx(np.isnan(Yn[:, j]).mean())
+        assert np.isfinite(row["consistency"]) and np.isfinite(row["loglik"])
+    assert d[2]["longest_missing_s"] >= 0.2 - 1e-12
+    summary = est.summary()
+    assert {"missing_fraction", "missing_spans", "longest_missing_s"} <= set(summary.columns)
+
+
+def test_bad_records_are_still_refused():
+    Y, R, _ = _record(200)
+    kw = dict(noise_cov=R, **COV)
+    bad = Y.copy()
+    bad[5, 1] = np.inf
+    with pytest.raises(AKFInputError, match="infinite"):
+        estimate(s17_truss(), SENSORS, FORCES, bad, DT, **kw)
+    with pytest.raises(AKFInputError, match="no observed sample"):
+        estimate(s17_truss(), SENSORS, FORCES, np.full_like(Y, np.nan), DT, **kw)
+    text = Y.astype(object)
+    text[3, 0] = "12 ue"
+    with pytest.raises(AKFInputError, match="numeric"):
+        estimate(s17_truss(), SENSORS, FORCES, text, DT, **kw)
