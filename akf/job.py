@@ -274,6 +274,7 @@ class Job:
     def open_record(self):
         """The :class:`core_akf.io.Record` of ``[measurements]``, its time step checked against ``dt``."""
         from core_akf.io import Record
+        from core_akf.io.record import MAX_GAP
 
         meas = self.spec.measurements
         if meas is None or meas.file is None:
@@ -281,12 +282,76 @@ class Job:
         record = Record(meas.file, self.sensors, channels=meas.channels, units=meas.units,
                         gauge_factor=meas.gauge_factor, bridge=meas.bridge, invert=meas.invert or (),
                         remove_offset=meas.remove_offset or False, format=meas.format,
-                        time_column=meas.time_column or "time", group=meas.group)
+                        time_column=meas.time_column or "time", group=meas.group,
+                        max_gap=MAX_GAP if meas.max_gap is None else meas.max_gap)
         if record.n_steps < 2:
             raise AKFInputError(f"{record.files[0]}: {record.n_steps} data row(s); a record needs at least two time "
                                 "steps")
         record.check_dt(self.dt)
         return record
+
+    def open_live_record(self):
+        """The record, and the job without the channels that have no observed sample in it.
+
+        A channel whose every sample is missing (NaN) is dropped, with a note naming it; a record
+        with no channel of a kind left where the job had one is refused.
+
+        Returns
+        -------
+        record : Record
+            Over the live channels.
+        job : Job
+            This job, or a copy without the dead channels.
+        notes : list of str
+        """
+        record = self.open_record()
+        counts = record.observed_counts()
+        if counts.all():
+            return record, self, []
+        dead = [s for s, c in zip(self.sensors, counts) if c == 0]
+        live = [s for s, c in zip(self.sensors, counts) if c > 0]
+        for kind in sorted({s.kind for s in dead}):
+            if not any(s.kind == kind for s in live):
+                names = ", ".join(s.label for s in dead if s.kind == kind)
+                raise AKFInputError(f"every sample of {names} is missing (NaN) in the record, and the job has no other "
+                                    f"{kind} channel: there is no {kind} data to estimate from")
+        if not live:
+            raise AKFInputError("the record has no observed sample: every value is missing (NaN)")
+        job = self.without_sensors([s.label for s in dead])
+        notes = [f"channel {s.label} has no observed sample in the record (every value is missing): dropped from the "
+                 "sensors" for s in dead]
+        return job.open_record(), job, notes
+
+    def without_sensors(self, labels) -> Job:
+        """The same job without some sensors (their channel map, units and per-sensor noise too).
+
+        Parameters
+        ----------
+        labels : list of str
+            Sensor labels ("strain:9").
+
+        Returns
+        -------
+        Job
+        """
+        drop = set(labels)
+        data = self.to_dict()
+        keep = [i for i, s in enumerate(self.sensors) if s.label not in drop]
+        data["sensors"] = [data["sensors"][i] for i in keep]
+        meas = data.get("measurements") or {}
+        channels = meas.get("channels")
+        gone = {c for c, sensor in (channels or {}).items() if as_layout([sensor])[0].label in drop} if channels else drop
+        if channels:
+            meas["channels"] = {c: v for c, v in channels.items() if c not in gone}
+        for key in ("units", "gauge_factor", "bridge"):
+            if isinstance(meas.get(key), dict):
+                meas[key] = {c: v for c, v in meas[key].items() if c not in gone}
+        if meas.get("invert"):
+            meas["invert"] = [c for c in meas["invert"] if c not in gone]
+        noise = (data.get("filter") or {}).get("noise_cov")
+        if isinstance(noise, list):
+            data["filter"]["noise_cov"] = [noise[i] for i in keep]
+        return Job.from_dict(data, self.command, source=self.source)
 
     def with_record(self, path: str) -> Job:
         """The same job reading another record (``[measurements] file = path``), not checked again."""

@@ -274,6 +274,9 @@ class Measurements(Section):
         "whole record, a number the mean of its first that many seconds", used_by=("estimate", "locate"), unit="s")
     chunk: Positive = key("a positive number", "the record is filtered and written in pieces this long (constant "
                           "memory)", used_by=ESTIMATE, unit="s", default_text="65536 steps (fewer for a large model)")
+    max_gap: NonNegative = key("a number >= 0", "the longest gap between two files the filter predicts through (its "
+                            "steps are missing samples); after a longer one it restarts from its prior", used_by=ESTIMATE,
+                            unit="s", default_text="60")
 
 
 class Fatigue(Section):

@@ -15,12 +15,15 @@ import numpy as np
 
 from .checks import AKFInputError
 from .filter.results import WHITENESS_LAGS, sensor_diagnostics, skipped
+from .quality import HoleCounter
 from .sensors import UNITS
 
 #: a channel whose innovations are this many times their predicted size is flagged
 CONSISTENCY_LIMIT = 10.0
 #: a record should be this many filter time constants long (transient plus a useful part)
 TRANSIENT_MULTIPLE = 3.0
+#: what a checkpoint keeps of the hole counts
+HOLE_FIELDS = ("steps", "missing", "spans", "longest", "lead", "trail")
 
 
 class RunningDiagnostics:
@@ -53,6 +56,8 @@ class RunningDiagnostics:
         self.head, self.tail = np.zeros((0, m)), np.zeros((0, m))
         self.sum_f2, self.peak, self.peak_step = np.zeros(p), np.zeros(p), np.zeros(p, int)
         self.sum_loglik = np.zeros(m)
+        self.n_obs = np.zeros(m, int)           # observed samples counted, per channel
+        self.holes = HoleCounter(m)
 
     def update(self, est):
         """Add one chunk.
@@ -67,6 +72,7 @@ class RunningDiagnostics:
         k = est.forces.shape[0]
         self._seen = self.n_seen + k
         self.sum_loglik += est.loglik_channels            # the likelihood of the whole record: no skip
+        self.holes.update(est.measurements)               # every step: no skip
         cut = min(max(self.skip - self.step, 0), k)
         first = self.step + cut                      # record step of the first counted sample
         self.step += k
@@ -74,6 +80,10 @@ class RunningDiagnostics:
         if cut == k:
             return
         Y, E, F = est.measurements[cut:], est.innovations[cut:], est.forces[cut:]
+        seen = ~np.isnan(Y)
+        self.n_obs += seen.sum(axis=0)
+        if not seen.all():                       # a missing sample adds nothing to the sums
+            Y, E = np.where(seen, Y, 0.0), np.where(seen, E, 0.0)
         self.sum_y2 += np.sum(Y ** 2, axis=0)
         self.sum_e += E.sum(axis=0)
         self.sum_e2 += np.sum(E ** 2, axis=0)
@@ -93,7 +103,10 @@ class RunningDiagnostics:
         self.peak_step = np.where(better, first + i, self.peak_step)
 
     def _whiteness(self, j):
-        n, mu = self.n, self.sum_e[j] / self.n
+        n = int(self.n_obs[j])
+        if n < 2:
+            return float("nan"), float("nan")
+        mu = self.sum_e[j] / n
         denom = self.sum_e2[j] - n * mu ** 2
         lags = min(self.lags, n - 1)
         if denom <= 0 or lags < 1:
@@ -113,14 +126,16 @@ class RunningDiagnostics:
         """
         est = self.last
         out = []
-        for j, s in enumerate(est.sensors):
-            irms = float(np.sqrt(self.sum_e2[j] / self.n))
+        for j, (s, holes) in enumerate(zip(est.sensors, self.holes.statistics(est.dt))):
+            n = max(int(self.n_obs[j]), 1)
+            irms = float(np.sqrt(self.sum_e2[j] / n)) if self.n_obs[j] else float("nan")
             std = float(np.sqrt(max(est.innovation_cov[j, j], 0.0)))
             white, lag1 = self._whiteness(j)
-            out.append({"channel": s.label, "unit": UNITS[s.kind], "measured_rms": float(np.sqrt(self.sum_y2[j] / self.n)),
+            out.append({"channel": s.label, "unit": UNITS[s.kind],
+                        "measured_rms": float(np.sqrt(self.sum_y2[j] / n)) if self.n_obs[j] else float("nan"),
                         "innovation_rms": irms, "predicted_innovation_std": std,
                         "consistency": irms / std if std > 0 else float("inf"), "whiteness": white,
-                        "lag1_autocorrelation": lag1, "loglik": float(self.sum_loglik[j])})
+                        "lag1_autocorrelation": lag1, "loglik": float(self.sum_loglik[j]), **holes})
         return out
 
     def loglik(self):
@@ -195,8 +210,9 @@ class RunningDiagnostics:
             i = np.arange(max(0, l - H), min(l, T))  # left piece and the (l-1-i)-th first of the right one
             if i.size:
                 self.lag[l - 1] += np.sum(self.tail[T - 1 - i] * later.head[l - 1 - i], axis=0)
-        for k in ("sum_y2", "sum_e", "sum_e2", "lag", "sum_f2", "sum_loglik"):
+        for k in ("sum_y2", "sum_e", "sum_e2", "lag", "sum_f2", "sum_loglik", "n_obs"):
             setattr(self, k, getattr(self, k) + getattr(later, k))
+        self.holes.merge(later.holes)
         better = np.abs(later.peak) > np.abs(self.peak)
         self.peak = np.where(better, later.peak, self.peak)
         self.peak_step = np.where(better, later.peak_step, self.peak_step)
@@ -221,7 +237,7 @@ class RunningDiagnostics:
         """
         return {f"diag_{k}": np.asarray(getattr(self, k)) for k in
                 ("skip", "step", "n", "sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step",
-                 "sum_loglik")}
+                 "sum_loglik", "n_obs")} | {f"diag_holes_{k}": np.asarray(getattr(self.holes, k)) for k in HOLE_FIELDS}
 
     def restore(self, state, est):
         """Continue from a saved :meth:`state`.
@@ -242,6 +258,12 @@ class RunningDiagnostics:
         for k in ("sum_y2", "sum_e", "sum_e2", "lag", "head", "tail", "sum_f2", "peak", "peak_step", "sum_loglik"):
             setattr(self, k, np.array(state[f"diag_{k}"]))
         self.skip, self.step, self.n = (int(state[f"diag_{k}"]) for k in ("skip", "step", "n"))
+        self.n_obs = np.array(state["diag_n_obs"]) if "diag_n_obs" in state else np.full(self.sum_e.shape, self.n)
+        if "diag_holes_steps" in state:
+            for k in HOLE_FIELDS:
+                setattr(self.holes, k, np.array(state[f"diag_holes_{k}"]) if k != "steps" else int(state["diag_holes_steps"]))
+        else:                                   # a checkpoint of a record without holes
+            self.holes.steps = self.step
         self.last = est
         return self
 

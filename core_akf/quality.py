@@ -116,3 +116,78 @@ def live_spans(Y, min_steps):
                 dead[a:b, j] = True
     cuts = np.r_[0, np.flatnonzero(np.any(dead[1:] != dead[:-1], axis=1)) + 1, N]
     return [LiveSpan(int(a), int(b), tuple(bool(v) for v in ~dead[a])) for a, b in zip(cuts[:-1], cuts[1:])]
+
+
+class HoleCounter:
+    """:func:`missing_statistics` of a record seen chunk by chunk (a hole may span chunks), in
+    constant memory; pieces counted apart join with :meth:`merge`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = HoleCounter(1)
+    >>> for part in ([[1.0], [np.nan]], [[np.nan], [2.0]]):
+    ...     c.update(np.array(part))
+    >>> c.statistics(0.5)
+    [{'missing_fraction': 0.5, 'missing_spans': 1, 'longest_missing_s': 1.0}]
+    """
+
+    def __init__(self, m):
+        self.steps = 0
+        self.missing = np.zeros(m, int)
+        self.spans = np.zeros(m, int)
+        self.longest = np.zeros(m, int)
+        self.lead = np.zeros(m, int)          # the hole the first steps are in (0: none)
+        self.trail = np.zeros(m, int)         # the hole still open at the last step
+
+    def update(self, Y):
+        """Count one chunk (k, m) of the record, in order."""
+        gone = np.isnan(np.asarray(Y, float))
+        self._join(_Counts.of(gone))
+
+    def merge(self, later):
+        """Join the counts of the piece that follows this one."""
+        self._join(later)
+        return self
+
+    def _join(self, later):
+        if self.steps == 0:
+            for k in ("steps", "missing", "spans", "longest", "lead", "trail"):
+                setattr(self, k, np.copy(getattr(later, k)) if k != "steps" else later.steps)
+            return
+        bridged = (self.trail > 0) & (later.lead > 0)
+        joined = self.trail + later.lead
+        self.spans = self.spans + later.spans - bridged
+        self.longest = np.maximum(np.maximum(self.longest, later.longest), np.where(bridged, joined, 0))
+        self.lead = np.where(self.lead == self.steps, self.lead + later.lead, self.lead)
+        self.trail = np.where(later.trail == later.steps, self.trail + later.steps, later.trail)
+        self.missing = self.missing + later.missing
+        self.steps += later.steps
+
+    def statistics(self, dt):
+        """As :func:`missing_statistics`, over the steps counted."""
+        return [{"missing_fraction": float(self.missing[j] / self.steps) if self.steps else 0.0,
+                 "missing_spans": int(self.spans[j]), "longest_missing_s": int(self.longest[j]) * float(dt)}
+                for j in range(len(self.missing))]
+
+
+@dataclass
+class _Counts:
+    steps: int
+    missing: np.ndarray
+    spans: np.ndarray
+    longest: np.ndarray
+    lead: np.ndarray
+    trail: np.ndarray
+
+    @classmethod
+    def of(cls, gone):
+        k, m = gone.shape
+        spans, longest, lead, trail = (np.zeros(m, int) for _ in range(4))
+        for j in range(m):
+            r = runs(gone[:, j])
+            if len(r):
+                spans[j], longest[j] = len(r), int(np.max(r[:, 1] - r[:, 0]))
+                lead[j] = r[0, 1] if r[0, 0] == 0 else 0
+                trail[j] = k - r[-1, 0] if r[-1, 1] == k else 0
+        return cls(k, gone.sum(axis=0), spans, longest, lead, trail)

@@ -176,7 +176,11 @@ def _load_checkpoint(path):
         what = "was written by an earlier version of akf" if "next_step" in saved else "is not a checkpoint of akf estimate"
         raise CheckpointError(f"{path} {what} (it lacks {', '.join(missing)}); start anew with --overwrite")
     for k, v in saved.items():
-        if v.dtype.kind == "f" and k not in ("z",) and not np.all(np.isfinite(v)):
+        if v.dtype.kind != "f" or k == "z":
+            continue
+        # measurements and what is carried with them may hold missing samples (NaN), never inf
+        bad = np.isinf(v) if k in ("plot_y", "plot_p") or k.startswith("lag_held_") else ~np.isfinite(v)
+        if bad.any():
             raise CheckpointError(f"the checkpoint {path} holds NaN or infinite values in {k!r}: it cannot be "
                                   "continued; start anew with --overwrite")
     return saved

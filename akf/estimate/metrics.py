@@ -24,8 +24,9 @@ METRIC_UNITS = {"rms_force": "N", "rms_strain": "m/m", "avg_strain_error": "m/m"
                 "loglik": "the natural log of a probability density of the record in SI units (higher is likelier; "
                           "compare runs of one record only)",
                 "forces": {"rms": "N", "peak": "N", "time_of_peak": "s"},
-                "sensors": "per channel: the sensor's SI unit (m/m, m/s^2, m/s, m); consistency and whiteness "
-                           "are dimensionless"}
+                "sensors": "per channel: the sensor's SI unit (m/m, m/s^2, m/s, m); consistency, whiteness and "
+                           "missing_fraction are dimensionless, longest_missing_s in s; consistency, whiteness and "
+                           "loglik over the observed samples"}
 
 
 def summary_frame(metrics):
@@ -44,7 +45,8 @@ def summary_frame(metrics):
     rows += [{"quantity": "strain", "channel": k, "unit": "m/m", "rms_error": v}
              for k, v in m.get("rms_strain", {}).items()]
     columns = ["quantity", "channel", "unit", "rms_error", "rms", "peak", "time_of_peak", "innovation_rms",
-               "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation", "loglik"]
+               "predicted_innovation_std", "consistency", "whiteness", "lag1_autocorrelation", "loglik",
+               "missing_fraction", "missing_spans", "longest_missing_s"]
     return pd.DataFrame(rows, columns=columns)
 
 

@@ -55,6 +55,8 @@ class Setup:
     chunk : int
         Steps per chunk.
     notes : list of str
+    warnings : list of str
+        What the record made of the job (a dead channel dropped), for the run's warnings.
     """
 
     job: Job
@@ -71,6 +73,7 @@ class Setup:
     strains: list = field(default_factory=list)
     chunk: int = 0
     notes: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
 
     @classmethod
     def of(cls, job, out):
@@ -79,8 +82,10 @@ class Setup:
         model = job.filter_model()
         n_a = 2 * model.n + job.force_model.n_states(len(job.forces))
         sim = record = None
+        notes = []
         if spec.measurements is not None:
-            record = job.open_record()
+            record, job, notes = job.open_live_record()       # without channels that are never observed
+            spec, sensors = job.spec, job.sensors
             n_total, t0 = record.n_steps, record.start
             noise_cov = job.noise_cov()
             if out is None:           # in memory: the record is one chunk
@@ -93,7 +98,8 @@ class Setup:
             sim = job.simulate(4 * n_a + 2 * 2 * structure.n + 3 * structure.n_strain + 4 * len(sensors))
             n_total, t0 = sim.measurements.shape[0], 0.0
             noise_cov = job.noise_cov(sim)
-        setup = cls(job, out, sim, record, n_total, t0, model, job.model_error_cov, job.force_model, noise_cov)
+        setup = cls(job, out, sim, record, n_total, t0, model, job.model_error_cov, job.force_model, noise_cov,
+                    warnings=notes, notes=[] if record is None else record.gap_notes())
         if job.calibrate:        # learn the model and the covariances from the record first
             Y_cal = sim.measurements if sim is not None else calibration_record(job, record)
             setup.model, setup.Q, setup.force_model, setup.noise_cov, setup.calibration = calibrate_job(
@@ -135,7 +141,8 @@ class Setup:
         return next(iter(self.record.chunks(steps or self.chunk)))[1]
 
     def finished(self, metrics):
-        """``metrics`` with the calibration's report and warnings."""
+        """``metrics`` with the record's and the calibration's warnings, and the calibration's report."""
+        metrics["warnings"] = self.warnings + metrics["warnings"]
         if self.calibration is not None:
             metrics["calibration"] = self.calibration
             metrics["warnings"] = [f"calibration: {w}" for w in self.calibration["warnings"]] + metrics["warnings"]
@@ -189,7 +196,11 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     if n_jobs is not None and setup.record is not None and len(setup.record.files) > 1:
         if resume or stop_after is not None:
             raise AKFInputError("a time-parallel run is not resumed: its files run at once; run it again")
-        return estimate_in_pieces(setup, n_jobs, overwrite=overwrite, plot=plot, on_result=on_result)
+        holes = setup.record.gaps or not setup.record.observed_counts().sum() == setup.record.n_steps * len(job.sensors)
+        if not holes:
+            return estimate_in_pieces(setup, n_jobs, overwrite=overwrite, plot=plot, on_result=on_result)
+        setup.notes.append("the record has missing samples or gaps between its files: it was filtered sequentially "
+                           "(the time-parallel filter needs complete files that join step by step)")
     return Pipeline(setup, resume, overwrite, progress).run(stop_after, plot, on_result)
 
 
@@ -237,7 +248,8 @@ class Pipeline:
         self.start = self.files.start(self.estimator) if self.files is not None else 0
         if self.fatigue is not None and self.start:
             self.fatigue.restore(self.files.saved)
-        self.diag = RunningDiagnostics(setup.n_total)
+        self.n_filtered = setup.n_total if setup.record is None else setup.record.n_filtered
+        self.diag = RunningDiagnostics(self.n_filtered)
         self.restored = self.files is not None and self.start > 0     # the diagnostics come back with the first chunk
         self.progress = _progress(progress, setup.n_total, self.start)
         self.parts, self.last, self.first_chunk, self.done = [], None, None, 0
@@ -266,6 +278,8 @@ class Pipeline:
         """Filter, report and write; the :class:`EstimateResult` (a partial one when stopped)."""
         s = self.setup
         for step, Y in self.chunks():
+            if step != self.estimator.n_steps:            # a gap longer than max_gap: start again from the prior
+                self.restart(step)
             est = self.estimator.update(Y)
             if self.first_chunk is None and step == 0:
                 self.first_chunk = Y
@@ -290,12 +304,19 @@ class Pipeline:
             self.last, self.done = joined(self.parts), 1
         return self.report(plot, on_result)
 
+    def restart(self, step):
+        """The filter from its prior at record step ``step`` (after a long gap); a fixed-lag
+        smoother first gives the steps it holds."""
+        if self.lag is not None:
+            self.take(self.estimator.finish())
+        self.estimator = self.estimator.restarted_at(step)
+
     def report(self, plot, on_result):
         """The metrics and the result of the finished run; its files written, then the figures drawn."""
         s = self.setup
         whole = self.last if self.done == 1 and self.start == 0 else None
         first = self.first_chunk
-        metrics = run_metrics(s.job, self.estimator, self.diag, self.last, s.n_total, s.t0, whole, s.sim, s.model,
+        metrics = run_metrics(s.job, self.estimator, self.diag, self.last, self.n_filtered, s.t0, whole, s.sim, s.model,
                               s.noise_cov, (lambda: first) if first is not None else s.first_chunk)
         if s.job.smooth:
             metrics["smoothed"] = True

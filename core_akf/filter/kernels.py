@@ -25,6 +25,7 @@ or sensors.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +33,7 @@ import numpy as np
 from ..checks import AKFInputError
 from .likelihood import loglik_terms
 from .recursion import lti_response
-from .riccati import RiccatiError, steady_gain
+from .riccati import RiccatiError, RiccatiWarning, steady_gain
 
 #: the time-varying filter tests every this many steps whether its covariance has converged
 CHECK_EVERY = 32
@@ -568,13 +569,17 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch):
         if b - a <= long_stretch or patterns[p].all():     # short, or the complete layout (P_full)
             continue
         if p not in own:
-            try:
-                P_own, _ = steady_gain(A[None], G_p[p:p + 1], Q[None], R_p[p:p + 1])
-                own[p] = len(P)
-                pattern.append(p)
-                P.append(P_own[0])
-            except RiccatiError:              # not detectable: the gain from P_full holds
-                own[p] = None
+            own[p] = None                     # no steady state (nothing observed, or not detectable): the gain from P_full
+            if patterns[p].any():
+                try:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore", RiccatiWarning)
+                        P_own, _ = steady_gain(A[None], G_p[p:p + 1], Q[None], R_p[p:p + 1])
+                    own[p] = len(P)
+                    pattern.append(p)
+                    P.append(P_own[0])
+                except RiccatiError:
+                    pass
         if own[p] is not None:
             which[a + long_stretch:b] = own[p]
     return which, np.array(pattern), np.array(P)

@@ -455,6 +455,19 @@ class FixedLagSmoother:
         self.held = [h[:0] for h in self.held]
         return out
 
+    def fresh(self) -> FixedLagSmoother:
+        """A copy holding no steps (for a record that starts again).
+
+        Returns
+        -------
+        FixedLagSmoother
+        """
+        import copy
+
+        out = copy.copy(self)
+        out.held = [h[:0] for h in self.held]
+        return out
+
     def _tail_sum(self, E):
         """``sum_i C^i L e_i`` over the rows of ``E`` (i = 1..len(E)), by Horner's rule."""
         t = np.zeros(self.n)

@@ -243,6 +243,30 @@ class Estimator:
         tail = tail[-kernels.LONG_STRETCH:]
         self._seen_tail = None if tail.all() else np.ascontiguousarray(tail)
 
+    def restarted_at(self, step: int) -> Estimator:
+        """A copy of this estimator that starts again from its prior at a step (after a gap in the
+        record too long to predict through).
+
+        Parameters
+        ----------
+        step : int
+            The record step the copy filters next.
+
+        Returns
+        -------
+        Estimator
+        """
+        out = copy.copy(self)
+        out._z, out._seen_tail = None, None
+        out.n_steps = out.n_returned = int(step)
+        if not self.steady:
+            f = self.filter
+            out._P = f.Q_a.copy() if f.Pz0 is None else 0.5 * (f.Pz0 + f.Pz0.T)
+            out._switched, out._L = False, None
+        if self.lagged is not None:
+            out.lagged = self.lagged.fresh()
+        return out
+
     def started_at(self, state: ArrayLike | None, step: int) -> Estimator:
         """A copy of this steady estimator that continues from a filtered state at a step.
 

@@ -271,7 +271,8 @@ class CsvReader(Reader):
         if self._timing is None:
             parts = []
             for frame in self._read([self.time_column], 1 << 20):
-                parts.append(_numeric(frame[self.time_column], self.path, self.time_column, sum(map(len, parts))))
+                parts.append(_numeric(frame[self.time_column], self.path, self.time_column, sum(map(len, parts)),
+                                      missing=False))
             t = np.concatenate(parts) if parts else np.empty(0)
             self._timing = check_time_grid(t, self.path)
         return self._timing
@@ -293,17 +294,35 @@ def _check_unique_columns(names, path):
                             "needs a name of its own")
 
 
-def _numeric(column, path, name, row0):
-    """A column as floats; a located error for a missing or non-numeric entry."""
+#: cell texts that mean a missing sample (an empty cell is one too)
+MISSING_TEXTS = frozenset({"", "nan", "na", "n/a", "null", "none", "-"})
+
+
+def _numeric(column, path, name, row0, missing=True):
+    """A column as floats, NaN for a missing sample (an empty cell or a text of :data:`MISSING_TEXTS`);
+    a located error for text or an infinite value (and, with ``missing=False``, a missing sample)."""
     import pandas as pd
 
     values = pd.to_numeric(column, errors="coerce").to_numpy(float)
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
-        r = int(bad[0])
-        raise AKFInputError(f"{path}: column {name!r} has {bad.size} missing/NaN or non-numeric sample(s) or infinite "
-                            f"value(s); first {str(column.iloc[r])!r} in data row {row0 + r + 1}")
+    nan = np.isnan(values)
+    if nan.any():
+        text = column.astype(object).where(column.notna(), "").astype(str).str.strip().str.lower().to_numpy()
+        bad = np.flatnonzero(nan & ~np.isin(text, list(MISSING_TEXTS))) if missing else np.flatnonzero(nan)
+        if bad.size:
+            r = int(bad[0])
+            what = "non-numeric" if missing else "missing/NaN or non-numeric"
+            raise AKFInputError(f"{path}: column {name!r} has {bad.size} {what} sample(s); first {str(column.iloc[r])!r} "
+                                f"in data row {row0 + r + 1} (a missing sample is an empty cell or NaN)")
+    _refuse_infinite(values, path, name, row0)
     return values
+
+
+def _refuse_infinite(values, path, name, row0):
+    """A located error for an infinite sample (a missing one is NaN, not inf)."""
+    bad = np.flatnonzero(np.isinf(values))
+    if bad.size:
+        raise AKFInputError(f"{path}: channel {name!r} has {bad.size} infinite sample(s); first in data row "
+                            f"{row0 + int(bad[0]) + 1} (a missing sample is NaN or an empty cell)")
 
 
 class ParquetReader(Reader):
@@ -344,13 +363,18 @@ class ParquetReader(Reader):
         self._check_channels(channels)
         row = 0
         for batch in self._file.iter_batches(batch_size=size, columns=list(channels)):
-            block = np.column_stack([np.asarray(batch.column(i).to_numpy(zero_copy_only=False), float)
-                                     for i in range(len(channels))])
-            bad = np.argwhere(~np.isfinite(block))
-            if bad.size:
-                r, c = bad[0]
-                raise AKFInputError(f"{self.path}: column {channels[c]!r} has a missing/NaN or infinite sample in "
-                                    f"data row {row + r + 1}")
+            columns = []
+            for i, c in enumerate(channels):
+                values = batch.column(i).to_numpy(zero_copy_only=False)
+                try:
+                    values = np.asarray(values, float)          # a null is NaN: a missing sample
+                except (TypeError, ValueError):
+                    import pandas as pd
+
+                    values = _numeric(pd.Series(values), self.path, c, row)     # text: located
+                _refuse_infinite(values, self.path, c, row)
+                columns.append(values)
+            block = np.column_stack(columns)
             row += block.shape[0]
             yield block
 
@@ -407,10 +431,7 @@ class _SlicedReader(Reader):
                 except (TypeError, ValueError):
                     raise AKFInputError(f"{self.path}: channel {c!r} does not hold numbers (it holds "
                                         f"{np.asarray(self._series[c][start:start + 1]).dtype} values)") from None
-                bad = np.flatnonzero(~np.isfinite(values))
-                if bad.size:
-                    raise AKFInputError(f"{self.path}: channel {c!r} has a missing/NaN or infinite sample at sample "
-                                        f"{start + int(bad[0]) + 1}")
+                _refuse_infinite(values, self.path, c, start)
                 columns.append(values)
             yield np.column_stack(columns)
 

@@ -114,6 +114,56 @@ def _si(block, sources):
     return si
 
 
+#: the longest gap between a record's files the filter predicts through (s)
+MAX_GAP = 60.0
+
+
+@dataclass(frozen=True)
+class Gap:
+    """Steps missing between two files of a record.
+
+    Attributes
+    ----------
+    file : int
+        The file after the gap (0-based, time order).
+    start : float
+        Time of the first missing step (s).
+    steps : int
+        Steps missing.
+    restart : bool
+        Longer than the record's ``max_gap``: the filter restarts after it.
+    """
+
+    file: int
+    start: float
+    steps: int
+    restart: bool
+
+
+def _aligned(blocks, size):
+    """Blocks ``(step, rows)`` joined into chunks cut at the steps that are multiples of ``size``;
+    a jump in the steps ends a chunk early."""
+    pending, held, first = [], 0, None
+    for step, block in blocks:
+        if first is not None and step != first + held:
+            if held:
+                yield first, np.vstack(pending)
+            pending, held, first = [], 0, None
+        if first is None:
+            first = step
+        pending.append(block)
+        held += block.shape[0]
+        while held and first + held >= (first // size + 1) * size:
+            cut = (first // size + 1) * size - first
+            joined = np.vstack(pending) if len(pending) > 1 else pending[0]
+            yield first, joined[:cut]
+            rest = joined[cut:]
+            first += cut
+            pending, held = ([rest] if rest.shape[0] else []), rest.shape[0]
+    if held:
+        yield first, np.vstack(pending)
+
+
 class Record:
     """A measured record for a sensor layout, from one file or many.
 
@@ -144,6 +194,9 @@ class Record:
         The time column or channel.
     group : str, optional
         TDMS or HDF5 group holding the channels.
+    max_gap : float
+        The longest gap between two files (s) the filter predicts through (its steps come as
+        missing samples); after a longer one it restarts from its prior (:attr:`gaps`).
 
     Examples
     --------
@@ -168,7 +221,7 @@ class Record:
                  channels: Mapping[str, str] | None = None, units: Mapping[str, str] | None = None,
                  gauge_factor: float | Mapping[str, float] | None = None, bridge: str | Mapping[str, str] | None = None,
                  invert: Sequence[str] = (), remove_offset: bool | float = False, format: str | None = None,
-                 time_column: str = "time", group: str | None = None):
+                 time_column: str = "time", group: str | None = None, max_gap: float = MAX_GAP):
         self.layout = as_layout(sensors)
         self.labels = [s.label for s in self.layout]
         paths = record_files(files)
@@ -195,6 +248,9 @@ class Record:
             raise AKFInputError(f"remove_offset must be true, false or a positive time (s), got {remove_offset!r}")
         else:
             self.remove_offset = float(remove_offset)
+        if not (isinstance(max_gap, (int, float)) and np.isfinite(max_gap) and max_gap >= 0):
+            raise AKFInputError(f"max_gap must be a time >= 0 (s), got {max_gap!r}")
+        self.max_gap = float(max_gap)
         self.files, self.timings, self.sources = [], [], []
         for p in paths:
             reader = self._open(p)
@@ -261,17 +317,37 @@ class Record:
 
     # ---------------------------------------------------------------------------- time
     def _check_joins(self):
+        """The files' places on one time grid: ``first_steps`` (the record step of each file's first
+        row) and ``gaps``; an error for a file at another step, an overlap or a gap off the grid."""
         t0 = self.timings[0]
-        for (fa, a), (fb, b) in zip(zip(self.files, self.timings), zip(self.files[1:], self.timings[1:])):
+        self.first_steps, self.gaps = [0], []
+        for i, ((fa, a), (fb, b)) in enumerate(zip(zip(self.files, self.timings), zip(self.files[1:], self.timings[1:]))):
             if abs(b.dt - t0.dt) * max(b.n_steps, 1) > TIME_GRID_RTOL * t0.dt:     # drifts off the grid
                 raise AKFInputError(f"{fb}: time step {b.dt:.9g} s differs from {t0.dt:.9g} s of {self.files[0]}")
             delta = b.start - a.end
-            if abs(delta) > TIME_GRID_RTOL * t0.dt:
-                what = (f"a gap of {delta:.6g} s ({delta / t0.dt:.6g} steps)" if delta > 0
-                        else f"an overlap of {-delta:.6g} s ({-delta / t0.dt:.6g} steps)")
+            steps = delta / t0.dt
+            if delta < -TIME_GRID_RTOL * t0.dt or abs(steps - round(steps)) > TIME_GRID_RTOL:
+                what = (f"an overlap of {-delta:.6g} s ({-steps:.6g} steps)" if delta < 0
+                        else f"a gap of {delta:.6g} s ({steps:.6g} steps, not a whole number)")
                 raise AKFInputError(f"the record has {what} between {fa} (ends at {a.end - a.dt:.9g} s, next step "
-                                    f"{a.end:.9g} s) and {fb} (starts at {b.start:.9g} s); records must join step by "
-                                    "step: remove or fill the files in question")
+                                    f"{a.end:.9g} s) and {fb} (starts at {b.start:.9g} s); files must join step by "
+                                    "step or leave whole steps out: remove or fix the files in question")
+            gap = int(round(steps))
+            if gap:
+                self.gaps.append(Gap(i + 1, a.end, gap, gap * t0.dt > self.max_gap))
+            self.first_steps.append(self.first_steps[-1] + self.timings[i].n_steps + gap)
+
+    def gap_notes(self) -> list[str]:
+        """One line per gap between files: where, how long, and what the filter does there.
+
+        Returns
+        -------
+        list of str
+        """
+        return [f"a gap of {g.steps * self.dt:.6g} s ({g.steps} steps) from {g.start:.9g} s, before "
+                f"{os.path.basename(self.files[g.file])}: " + ("longer than max_gap = "
+                f"{self.max_gap:g} s, the filter restarts from its prior after it" if g.restart else
+                "the filter predicts through it (its steps are missing samples)") for g in self.gaps]
 
     @property
     def dt(self):
@@ -283,7 +359,13 @@ class Record:
 
     @property
     def n_steps(self):
-        return sum(t.n_steps for t in self.timings)
+        """Steps from the record's first to its last, gaps between files included."""
+        return self.first_steps[-1] + self.timings[-1].n_steps
+
+    @property
+    def n_filtered(self):
+        """Steps the filter runs: :attr:`n_steps` without the gaps it restarts after."""
+        return self.n_steps - sum(g.steps for g in self.gaps if g.restart)
 
     def check_dt(self, dt: float) -> None:
         """Check the record's time step.
@@ -304,32 +386,34 @@ class Record:
 
     # ---------------------------------------------------------------------------- data
     def _raw_chunks(self, size, start=0):
-        """SI chunks without offset removal, cut at multiples of ``size`` across file boundaries,
-        from step ``start`` (a multiple of ``size``; the files before it are not read)."""
-        pending, held, step, file_start = [], 0, start, 0
-        for path, sources, timing in zip(self.files, self.sources, self.timings):
-            file_start, first = file_start + timing.n_steps, file_start
-            if file_start <= start:
+        """SI chunks without offset removal, cut at the record steps that are multiples of ``size``,
+        from step ``start`` (a multiple of ``size``; the files before it are not read).  A gap up to
+        ``max_gap`` comes as missing samples (NaN); the chunks skip a longer one (the next chunk's
+        first step tells)."""
+        return _aligned(self._blocks(size, start), size)
+
+    def _blocks(self, size, start):
+        """``(record step, rows)`` of the data from ``start`` on, in order, a gap's NaN rows included."""
+        restarts = {g.file: g for g in self.gaps}
+        for i, (path, sources, timing) in enumerate(zip(self.files, self.sources, self.timings)):
+            first = self.first_steps[i]
+            if first + timing.n_steps <= start:
                 continue
+            gap = restarts.get(i)
+            if gap is not None and not gap.restart and first > start:     # predicted through: missing samples
+                a = max(first - gap.steps, start)
+                yield a, np.full((first - a, len(self.labels)), np.nan)
             drop = max(start - first, 0)          # rows of this file before ``start``
+            step = first + drop
             reader = self._open(path)
             for block in reader.chunks([s.name for s in sources], size):
                 if drop:
                     block, drop = block[drop:], max(drop - block.shape[0], 0)
                     if not block.shape[0]:
                         continue
-                si = _si(block, sources)
-                pending.append(si)
-                held += si.shape[0]
-                while held >= size:
-                    joined = np.vstack(pending) if len(pending) > 1 else pending[0]
-                    yield step, joined[:size]
-                    step += size
-                    rest = joined[size:]
-                    pending, held = ([rest] if rest.shape[0] else []), rest.shape[0]
+                yield step, _si(block, sources)
+                step += block.shape[0]
             del reader
-        if held:
-            yield step, np.vstack(pending)
 
     def _offsets(self, size):
         if self.remove_offset is False:
@@ -339,14 +423,19 @@ class Record:
             if n < 1 or n > self.n_steps:
                 raise AKFInputError(f"remove_offset = {self.remove_offset!r} s is not within the record "
                                     f"({self.n_steps * self.dt:.6g} s)")
-            total, count = np.zeros(len(self.labels)), 0
+            total, count, seen = np.zeros(len(self.labels)), 0, np.zeros(len(self.labels), int)
             for _, Y in self._raw_chunks(size):
                 take = Y[:n - count]
-                total += take.sum(axis=0)
+                total += np.nansum(take, axis=0)
+                seen += np.count_nonzero(~np.isnan(take), axis=0)
                 count += take.shape[0]
                 if count >= n:
                     break
-            self.offsets = total / count
+            if not seen.all():
+                j = int(np.flatnonzero(seen == 0)[0])
+                raise AKFInputError(f"remove_offset: channel {self._named(j)} has no observed sample in the first "
+                                    f"{count} steps; there is no offset to remove (set remove_offset to a longer time)")
+            self.offsets = total / seen
         return self.offsets
 
     def chunks(self, size: int = 65536, start: int = 0) -> Iterator[tuple[int, FloatArray]]:
@@ -382,11 +471,12 @@ class Record:
         where = f"{os.path.basename(self.files[0])}{' ...' if len(self.files) > 1 else ''}, steps {step}..{step + len(Y) - 1}"
         for j, s in enumerate(self.layout):
             col = Y[:, j]
+            col = col[~np.isnan(col)]               # the observed samples
             if col.size >= _CONSTANT_MIN_STEPS and np.ptp(col) == 0:
                 raise AKFInputError(f"channel {self._named(j)} is constant ({col[0]:.9g}) over "
                                     f"{col.size} steps ({where}): a disconnected or saturated sensor gives no "
                                     "information; remove it from the job's sensors")
-            if s.kind == "strain":
+            if s.kind == "strain" and col.size:
                 level = float(np.sqrt(np.mean(col ** 2)))
                 if level > MAX_PLAUSIBLE_STRAIN:
                     raise AKFInputError(
@@ -398,6 +488,25 @@ class Record:
         """Channel ``j`` for messages: ``'SG13' (strain:13)``, or ``'strain:13'`` if named so."""
         name, label = self.sources[0][j].name, self.labels[j]
         return repr(name) if name == label else f"{name!r} ({label})"
+
+    def observed_counts(self, size: int = 65536) -> np.ndarray:
+        """The observed (not missing) samples of every channel over the record: one pass, computed once.
+
+        Parameters
+        ----------
+        size : int
+            Steps read at a time.
+
+        Returns
+        -------
+        ndarray (m,) of int
+        """
+        if getattr(self, "_observed", None) is None:
+            counts = np.zeros(len(self.labels), int)
+            for _, Y in self._raw_chunks(size):
+                counts += np.count_nonzero(~np.isnan(Y), axis=0)
+            self._observed = counts
+        return self._observed
 
     def channel_offsets(self, size: int = 65536) -> FloatArray:
         """The offset subtracted from each channel (``remove_offset``; zeros without), computed once.
@@ -438,7 +547,7 @@ class Record:
         blocks = [_si(b, sources) for b in reader.chunks([s.name for s in sources], size)]
         del reader
         Y = (np.vstack(blocks) if blocks else np.empty((0, len(self.labels)))) - offsets
-        self._check_chunk(sum(t.n_steps for t in self.timings[:index]), Y)
+        self._check_chunk(self.first_steps[index], Y)
         return Y
 
     def read(self, size: int = 65536) -> tuple[Time, FloatArray]:
@@ -452,13 +561,15 @@ class Record:
         Returns
         -------
         t : ndarray (N,)
-            Time (s).
+            Time (s); it jumps over a gap longer than ``max_gap``.
         Y : ndarray (N, m)
             Samples in SI, columns in sensor order.
         """
-        parts = [Y for _, Y in self.chunks(size)]
-        Y = np.vstack(parts)
-        return self.start + self.dt * np.arange(Y.shape[0]), Y
+        steps, parts = [], []
+        for step, Y in self.chunks(size):
+            steps.append(step + np.arange(Y.shape[0]))
+            parts.append(Y)
+        return self.start + self.dt * np.concatenate(steps), np.vstack(parts)
 
     def describe(self) -> list[str]:
         """One line per sensor: ``sensor <- channel [unit, sign]`` (for logs and summaries).

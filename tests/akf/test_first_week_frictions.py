@@ -195,15 +195,21 @@ def test_hdf5_channels_that_do_not_hold_numbers_or_are_not_1d(tmp_path):
         read_channels(tmp_path / "m.h5")
 
 
-def test_tdms_channel_with_a_nan_sample(tmp_path):
+def test_tdms_channel_with_a_nan_sample_is_missing_and_an_infinite_one_an_error(tmp_path):
     nptdms = pytest.importorskip("nptdms")
-    y = np.zeros(50)
+    y, other = np.random.default_rng(0).normal(size=(2, 50))
     y[17] = np.nan
     with nptdms.TdmsWriter(tmp_path / "r.tdms") as w:
         w.write_segment([nptdms.ChannelObject("g", "acc:4:y", y, properties={"wf_increment": 1e-3}),
-                         nptdms.ChannelObject("g", "acc:6:y", np.zeros(50), properties={"wf_increment": 1e-3})])
-    with pytest.raises(ValueError, match="channel 'acc:4:y' has a missing/NaN or infinite sample at sample 18"):
-        read_channels(tmp_path / "r.tdms")
+                         nptdms.ChannelObject("g", "acc:6:y", other, properties={"wf_increment": 1e-3})])
+    Y = read_channels(tmp_path / "r.tdms")[1]
+    assert np.isnan(Y[17, 0]) and np.isnan(Y).sum() == 1
+    y[17] = np.inf
+    with nptdms.TdmsWriter(tmp_path / "i.tdms") as w:
+        w.write_segment([nptdms.ChannelObject("g", "acc:4:y", y, properties={"wf_increment": 1e-3}),
+                         nptdms.ChannelObject("g", "acc:6:y", other, properties={"wf_increment": 1e-3})])
+    with pytest.raises(ValueError, match="channel 'acc:4:y' has 1 infinite sample.*row 18"):
+        read_channels(tmp_path / "i.tdms")
 
 
 def test_csv_separated_by_semicolons(tmp_path):

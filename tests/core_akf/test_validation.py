@@ -18,11 +18,14 @@ def truss():
     return s17_truss()
 
 
-def test_nan_in_measurements_is_named(truss):
+def test_an_infinite_measurement_is_named_and_nan_is_a_missing_sample(truss):
     Y = np.zeros((50, 2))
-    Y[17, 1] = np.nan
-    with pytest.raises(AKFInputError, match=r"measurements contains 1 NaN.*\(17, 1\)"):
+    Y[17, 1] = np.inf
+    with pytest.raises(AKFInputError, match=r"measurements contains 1 infinite value.*\(17, 1\)"):
         estimate(truss, ["strain:13", "acc:8:y"], ["8:y"], Y, 1e-3, **KW)
+    Y[17, 1] = np.nan
+    est = estimate(truss, ["strain:13", "acc:8:y"], ["8:y"], Y, 1e-3, **KW)
+    assert np.isfinite(est.forces).all() and np.isnan(est.innovations[17, 1])
 
 
 def test_wrong_measurement_shape(truss):
@@ -136,7 +139,12 @@ def test_measurement_file_checks(tmp_path):
     df.drop(columns=["acc:8:y"]).to_csv(tmp_path / "missing.csv", index=False)
     with pytest.raises(AKFInputError, match=r"no channel\(s\) \['acc:8:y'\]"):
         read_record(tmp_path / "missing.csv", sensors, 0.001)
-    df.loc[4, "strain:13"] = np.nan
+    df.loc[4, "strain:13"] = np.nan                     # an empty cell: a missing sample
     df.to_csv(tmp_path / "nan.csv", index=False)
-    with pytest.raises(AKFInputError, match="'strain:13' has 1 missing/NaN or non-numeric sample.*'nan' in data row 5"):
-        read_record(tmp_path / "nan.csv", sensors, 0.001)
+    Y = read_record(tmp_path / "nan.csv", sensors, 0.001)
+    assert np.isnan(Y[4, 0]) and np.isnan(Y).sum() == 1
+    df["strain:13"] = df["strain:13"].astype(object)
+    df.loc[4, "strain:13"] = "1.2 ue"
+    df.to_csv(tmp_path / "text.csv", index=False)
+    with pytest.raises(AKFInputError, match="'strain:13' has 1 non-numeric sample.*'1.2 ue' in data row 5"):
+        read_record(tmp_path / "text.csv", sensors, 0.001)

@@ -5,9 +5,20 @@ import pytest
 
 from core_akf import estimate, simulate
 from core_akf.checks import AKFInputError
-from core_akf.filter import Estimator, filter_states, smooth
+from core_akf.filter import Estimator, Filter, filter_states, smooth
 from core_akf.models import s17_truss
-from test_likelihood import COV, DT, FORCES, SENSORS, _setup
+from core_akf.sensors import as_layout, parse_force_locations
+
+SENSORS = ["strain:13", "strain:26", "acc:8:y"]
+FORCES = ["8:y"]
+DT = 1e-3
+COV = dict(model_error_cov=1e-16, force_increment_cov=1e4)
+
+
+def _setup(R):
+    s = s17_truss().scaled(1.05)
+    return Filter(s, [as_layout(SENSORS)], parse_force_locations(s, FORCES), DT, model_error_cov=COV["model_error_cov"],
+                  force_increment_cov=COV["force_increment_cov"], noise_cov=R)
 
 
 def _record(n=1500, seed=0):

@@ -129,9 +129,8 @@ def _toml(job):
     return "\n".join(top) + "\n\n" + "\n\n".join(tables) + "\n"
 
 
-@pytest.mark.parametrize("gap, message", [(3, "a gap of 0.000732422 s \\(3 steps\\) between .*part-08.tdms .* and .*part-05.tdms"),
-                                          (-2, "an overlap of 0.000488281 s \\(2 steps\\)")])
-def test_gap_or_overlap_between_files_is_refused(tmp_path, gap, message):
+@pytest.mark.parametrize("gap, message", [(-2, "an overlap of 0.000488281 s \\(2 steps\\)")])
+def test_an_overlap_between_files_is_refused(tmp_path, gap, message):
     _split_tdms(tmp_path / "pieces", gap=gap)
     with pytest.raises(AKFInputError, match=message):
         Record(tmp_path / "pieces", SENSORS, **{k: v for k, v in _channel_map("record.tdms").items()})
