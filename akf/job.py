@@ -273,13 +273,13 @@ class Job:
 
     def open_record(self):
         """The :class:`core_akf.io.Record` of ``[measurements]``, its time step checked against ``dt``."""
-        from core_akf.io import Record
+        from core_akf.io import open_record
         from core_akf.io.record import MAX_GAP
 
         meas = self.spec.measurements
         if meas is None or meas.file is None:
             raise AKFInputError("[measurements] needs file = 'data.csv' (a file, a folder or a glob pattern)")
-        record = Record(meas.file, self.sensors, channels=meas.channels, units=meas.units,
+        record = open_record(meas.file, self.sensors, channels=meas.channels, units=meas.units,
                         gauge_factor=meas.gauge_factor, bridge=meas.bridge, invert=meas.invert or (),
                         remove_offset=meas.remove_offset or False, format=meas.format,
                         time_column=meas.time_column or "time", group=meas.group,

@@ -248,7 +248,7 @@ class Record:
             raise AKFInputError(f"remove_offset must be true, false or a positive time (s), got {remove_offset!r}")
         else:
             self.remove_offset = float(remove_offset)
-        if not (isinstance(max_gap, (int, float)) and np.isfinite(max_gap) and max_gap >= 0):
+        if not (isinstance(max_gap, (int, float)) and not np.isnan(max_gap) and max_gap >= 0):
             raise AKFInputError(f"max_gap must be a time >= 0 (s), got {max_gap!r}")
         self.max_gap = float(max_gap)
         self.files, self.timings, self.sources = [], [], []
@@ -581,3 +581,190 @@ class Record:
         return [f"{s.sensor} <- {s.name} [{s.unit}{', inverted' if s.sign < 0 else ''}"
                 f"{f', bridge {s.convert.bridge} GF {s.convert.gauge_factor:g}' if s.convert.bridge else ''}]"
                 for s in self.sources[0]]
+
+
+# ------------------------------------------------------------------------------ mixed rates
+def open_record(files: str | os.PathLike | Sequence[str | os.PathLike], sensors: Layout, *,
+                channels: Mapping[str, str] | None = None, **kw) -> Record | MixedRecord:
+    """A record whose files hold all its channels (:class:`Record`), or channel sets at their own
+    sampling rates in files of their own (:class:`MixedRecord`).
+
+    Parameters
+    ----------
+    files, sensors, channels, **kw
+        As :class:`Record` (``units``, ``invert``, ``gauge_factor`` and ``bridge`` name file
+        channels of any of the files).
+
+    Returns
+    -------
+    Record or MixedRecord
+    """
+    paths = record_files(files)
+    labels = [s.label for s in as_layout(sensors)]
+    sensor_of = {name: as_layout([s])[0].label for name, s in channels.items()} if isinstance(channels, dict) else \
+        {label: label for label in labels}
+    sets = {}
+    for p in paths:
+        reader = open_file(p, kw.get("format"), kw.get("time_column", "time"), kw.get("group"))
+        present = tuple(sorted({sensor_of[c] for c in reader.channels() if c in sensor_of}, key=labels.index))
+        del reader
+        sets.setdefault(present, []).append(p)
+    if len(sets) == 1:
+        return Record(paths, sensors, channels=channels, **kw)
+    seen = {}
+    for present, group in sets.items():
+        if not present:
+            raise AKFInputError(f"{group[0]} holds none of the sensors' channels {labels}")
+        for label in present:
+            if label in seen:
+                raise AKFInputError(f"sensor {label} is in files of two channel sets ({seen[label][0]} and {group[0]}); "
+                                    "a record's files either hold all its channels or channel sets of their own")
+            seen[label] = group
+    lost = [label for label in labels if label not in seen]
+    if lost:
+        raise AKFInputError(f"sensor(s) {lost} have no channel in any file of the record")
+    subs = []
+    for present, group in sets.items():
+        names = {c for c, label in sensor_of.items() if label in present}
+        part = {k: ({c: v for c, v in value.items() if c in names} if isinstance(value, dict) else value)
+                for k, value in kw.items()}
+        if part.get("invert"):
+            part["invert"] = [c for c in part["invert"] if c in names]
+        part["max_gap"] = np.inf          # the mixed record predicts through every gap
+        sub_channels = {c: s for c, s in channels.items() if c in names} if isinstance(channels, dict) else None
+        subs.append(Record(group, list(present), channels=sub_channels, **part))
+    return MixedRecord(sensors, subs)
+
+
+class MixedRecord:
+    """A record of channel sets at their own sampling rates, each in files of its own.
+
+    The filter steps at the fastest rate; a slower channel is observed at its own samples and
+    missing (NaN) in between -- no resampling, no interpolation.  Every rate must divide into the
+    fastest one (a whole number of its steps), and every set's first sample lie on its grid.  A
+    gap in a set's files is missing samples, however long.
+
+    Parameters
+    ----------
+    sensors : sequence of sensor specs
+        The layout (columns of every chunk, in order).
+    parts : list of Record
+        One record per channel set.
+    """
+
+    def __init__(self, sensors: Layout, parts: list):
+        self.layout = as_layout(sensors)
+        self.labels = [s.label for s in self.layout]
+        self.parts = sorted(parts, key=lambda r: r.dt)
+        fastest = self.parts[0]
+        self.start = min(r.start for r in self.parts)
+        self.columns, self.ratios, self.offsets_steps = [], [], []
+        for r in self.parts:
+            ratio = r.dt / fastest.dt
+            if abs(ratio - round(ratio)) > TIME_GRID_RTOL * max(ratio, 1.0):
+                raise AKFInputError(f"channels {', '.join(r.labels)} sample every {r.dt:.6g} s ({1 / r.dt:.6g} Hz), which is "
+                                    f"not a whole number of the fastest channels' step {fastest.dt:.6g} s ({1 / fastest.dt:.6g} "
+                                    f"Hz; {', '.join(fastest.labels)}): the ratio {ratio:.6g} must be an integer")
+            shift = (r.start - self.start) / fastest.dt
+            if abs(shift - round(shift)) > TIME_GRID_RTOL:
+                raise AKFInputError(f"channels {', '.join(r.labels)} start at {r.start:.9g} s, {shift:.6g} steps of "
+                                    f"{fastest.dt:.6g} s after the record's start: not on its time grid")
+            self.columns.append([self.labels.index(label) for label in r.labels])
+            self.ratios.append(int(round(ratio)))
+            self.offsets_steps.append(int(round(shift)))
+        self.dt = fastest.dt
+        self.files = [f for r in self.parts for f in r.files]
+        self.gaps = []
+        self._observed = None
+
+    @property
+    def n_steps(self):
+        """Steps of the fastest grid from the first sample of any set to the last."""
+        return max(o + (r.n_steps - 1) * k + 1 for r, o, k in zip(self.parts, self.offsets_steps, self.ratios))
+
+    @property
+    def n_filtered(self):
+        return self.n_steps
+
+    def check_dt(self, dt: float) -> None:
+        """Check that the fastest channels sample at the job's time step (s)."""
+        if abs(self.dt - dt) > TIME_GRID_RTOL * dt:
+            rates = ", ".join(f"{', '.join(r.labels)} at {1 / r.dt:.6g} Hz" for r in self.parts)
+            raise AKFInputError(f"the record's fastest channels sample every {self.dt:.9g} s, not at the job's dt = "
+                                f"{dt:.9g} s ({rates})")
+
+    def gap_notes(self) -> list[str]:
+        return [note for r in self.parts for note in r.gap_notes()]
+
+    def describe(self) -> list[str]:
+        lines = {}
+        for r in self.parts:
+            for label, line in zip(r.labels, r.describe()):
+                lines[label] = f"{line} at {1 / r.dt:.6g} Hz"
+        return [lines[label] for label in self.labels]
+
+    def channel_offsets(self, size: int = 65536):
+        out = np.zeros(len(self.labels))
+        for r, cols in zip(self.parts, self.columns):
+            out[cols] = r.channel_offsets(size)
+        return out
+
+    def chunks(self, size: int = 65536, start: int = 0):
+        """The record in chunks on the fastest grid, NaN where a channel has no sample (as
+        :meth:`Record.chunks`)."""
+        if size < 1:
+            raise AKFInputError(f"chunk size must be at least one step, got {size}")
+        if start % size:
+            raise AKFInputError(f"a record is resumed at a multiple of the chunk size {size}, not at step {start}")
+        cursors = [_Cursor(r, cols, o, k, size, start) for r, cols, o, k in
+                   zip(self.parts, self.columns, self.offsets_steps, self.ratios)]
+        for a in range(start, self.n_steps, size):
+            Y = np.full((min(a + size, self.n_steps) - a, len(self.labels)), np.nan)
+            for c in cursors:
+                c.fill(Y, a)
+            yield a, Y
+
+    def observed_counts(self, size: int = 65536):
+        if self._observed is None:
+            self._observed = sum(np.count_nonzero(~np.isnan(Y), axis=0) for _, Y in self.chunks(size))
+        return self._observed
+
+    def read(self, size: int = 65536):
+        parts = [Y for _, Y in self.chunks(size)]
+        Y = np.vstack(parts)
+        return self.start + self.dt * np.arange(Y.shape[0]), Y
+
+    def read_file(self, index, size=65536):
+        raise AKFInputError("a record of channels at different rates is read as a whole, not file by file")
+
+
+class _Cursor:
+    """One channel set of a :class:`MixedRecord`: its chunks placed on the fastest grid."""
+
+    def __init__(self, record, columns, offset, ratio, size, start):
+        self.columns, self.offset, self.ratio = columns, offset, ratio
+        local = max(0, -(-(start - offset) // ratio))          # its first sample at or after ``start``
+        sub = max(1, size // ratio)
+        self.skip = local - (local // sub) * sub
+        self.chunks = record.chunks(sub, (local // sub) * sub)
+        self.steps, self.rows = np.empty(0, int), np.empty((0, len(columns)))
+
+    def fill(self, Y, a):
+        b = a + Y.shape[0]
+        while True:
+            if not self.steps.size:
+                nxt = next(self.chunks, None)
+                if nxt is None:
+                    return
+                step, rows = nxt
+                if self.skip:
+                    cut = min(self.skip, rows.shape[0])
+                    rows, step, self.skip = rows[cut:], step + cut, self.skip - cut
+                self.steps = self.offset + (step + np.arange(rows.shape[0])) * self.ratio
+                self.rows = rows
+            inside = self.steps < b
+            take = inside & (self.steps >= a)
+            Y[np.ix_(self.steps[take] - a, self.columns)] = self.rows[take]
+            self.steps, self.rows = self.steps[~inside], self.rows[~inside]
+            if self.steps.size:
+                return
