@@ -191,3 +191,111 @@ class _Counts:
                 lead[j] = r[0, 1] if r[0, 0] == 0 else 0
                 trail[j] = k - r[-1, 0] if r[-1, 1] == k else 0
         return cls(k, gone.sum(axis=0), spans, longest, lead, trail)
+
+
+#: a set of live channels is checked for detectability once it has lasted this long (s)
+LIVE_SET_MIN_S = 0.1
+
+
+class LiveSets:
+    """The spans over which channels are dead (missing for at least ``min_steps`` steps in a row),
+    tracked chunk by chunk; :meth:`undetectable` names the spans whose live set is not detectable.
+
+    Parameters
+    ----------
+    labels : list of str
+        The channels.
+    min_steps : int
+        The shortest hole that makes a channel dead.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> live = LiveSets(["a", "b"], 3)
+    >>> Y = np.ones((10, 2))
+    >>> Y[2:7, 1] = np.nan
+    >>> live.update(Y[:4], 0); live.update(Y[4:], 4)
+    >>> live.spans(10)
+    [(2, 7, ('b',))]
+    """
+
+    def __init__(self, labels, min_steps):
+        self.labels, self.min_steps = list(labels), max(1, int(min_steps))
+        self.open = np.full(len(self.labels), -1)        # the step a channel's current hole began (-1: none)
+        self.holes = []                                    # (channel, first, stop)
+
+    def update(self, Y, step):
+        """Take the next chunk (k, m) of the record, which starts at record step ``step``."""
+        gone = np.isnan(np.asarray(Y, float))
+        for j in range(gone.shape[1]):
+            col = gone[:, j]
+            if not col.size:
+                continue
+            if self.open[j] >= 0 and not col[0]:           # the hole from the chunks before ends here
+                self._close(j, self.open[j], step)
+                self.open[j] = -1
+            for a, b in runs(col):
+                first = self.open[j] if a == 0 and self.open[j] >= 0 else step + a
+                if b < len(col):
+                    self._close(j, first, step + b)
+                    self.open[j] = -1
+                else:
+                    self.open[j] = first
+
+    def state(self):
+        """What a checkpoint keeps (:meth:`restore` takes it back)."""
+        return {"live_open": self.open.copy(), "live_holes": np.array(self.holes, int).reshape(-1, 3)}
+
+    def restore(self, state):
+        """Continue from a :meth:`state` (a checkpoint without one: no hole before it)."""
+        if "live_open" in state:
+            self.open = np.array(state["live_open"], int)
+            self.holes = [tuple(int(v) for v in row) for row in np.asarray(state["live_holes"]).reshape(-1, 3)]
+        return self
+
+    def _close(self, j, first, stop):
+        if stop - first >= self.min_steps:
+            self.holes.append((j, int(first), int(stop)))
+
+    def spans(self, end):
+        """``[(first, stop, dead labels), ...]``: the spans with the same dead channels, up to step ``end``."""
+        holes = self.holes + [(j, int(a), int(end)) for j, a in enumerate(self.open) if a >= 0 and end - a >= self.min_steps]
+        cuts = sorted({c for _, a, b in holes for c in (a, b)})
+        out = []
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            dead = tuple(self.labels[j] for j in sorted({j for j, x, y in holes if x <= a and b <= y}))
+            if not dead:
+                continue
+            if out and out[-1][2] == dead and out[-1][1] == a:
+                out[-1] = (out[-1][0], b, dead)
+            else:
+                out.append((a, b, dead))
+        return out
+
+    def undetectable(self, report_of, end, dt, t0=0.0):
+        """Warnings for the spans whose live set is not detectable.
+
+        Parameters
+        ----------
+        report_of : callable
+            ``report_of(live labels) -> DetectabilityReport`` (:meth:`core_akf.filter.Filter.report_of`).
+        end : int
+            The record's last step + 1.
+        dt, t0 : float
+            Time step and time of step 0 (s).
+
+        Returns
+        -------
+        list of str
+        """
+        out, reports = [], {}
+        for a, b, dead in self.spans(end):
+            if dead not in reports:
+                reports[dead] = report_of([x for x in self.labels if x not in dead])
+            report = reports[dead]
+            if report.detectable:
+                continue
+            why = "; ".join(f["unseen"].split(": ", 1)[-1].split(";")[0] for f in report.failures) or "PBH test"
+            out.append(f"t = {t0 + a * dt:.6g}-{t0 + b * dt:.6g} s: {', '.join(dead)} missing; the remaining set is not "
+                       f"detectable ({why}): there the forces carry their prior, and the bands show it")
+        return out

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from core_akf.checks import AKFInputError, check_memory
 from core_akf.diagnostics import RunningDiagnostics
 from core_akf.filter import Estimator
+from core_akf.quality import LIVE_SET_MIN_S, LiveSets
 
 from ..calibrating import calibrate_job, calibration_record
 from ..job import Job
@@ -250,6 +251,9 @@ class Pipeline:
             self.fatigue.restore(self.files.saved)
         self.n_filtered = setup.n_total if setup.record is None else setup.record.n_filtered
         self.diag = RunningDiagnostics(self.n_filtered)
+        self.live = LiveSets([s.label for s in job.sensors], round(LIVE_SET_MIN_S / job.dt))
+        if self.start:
+            self.live.restore(self.files.saved)
         self.restored = self.files is not None and self.start > 0     # the diagnostics come back with the first chunk
         self.progress = _progress(progress, setup.n_total, self.start)
         self.parts, self.last, self.first_chunk, self.done = [], None, None, 0
@@ -267,6 +271,7 @@ class Pipeline:
         self.diag.update(est)
         self.last = est
         step = self.estimator.n_returned - est.forces.shape[0]
+        self.live.update(est.measurements, step)
         if self.fatigue is not None:
             self.fatigue.update(est, self.setup.sim, step)
         if self.files is not None:
@@ -290,7 +295,8 @@ class Pipeline:
             self.take(est)
             end = step + Y.shape[0]
             if self.files is not None and end < s.n_total:     # after the last chunk the summary follows
-                self.files.checkpoint(self.estimator, self.diag, end, {} if self.fatigue is None else self.fatigue.state())
+                self.files.checkpoint(self.estimator, self.diag, end,
+                                      self.live.state() | ({} if self.fatigue is None else self.fatigue.state()))
                 if stop_after is not None and self.done >= stop_after:
                     s.notes.append(f"stopped after {self.done} chunk(s) at step {end} of {s.n_total}; continue with "
                                    "--resume")
@@ -328,6 +334,8 @@ class Pipeline:
                                               "calibrate)")
         if self.fatigue is not None:
             metrics["fatigue"] = self.fatigue.metrics(s.job.dt)
+        metrics["warnings"] += self.live.undetectable(self.estimator.filter.report_of, self.estimator.n_steps,
+                                                      s.job.dt, s.t0)
         metrics = s.finished(metrics)
         result = EstimateResult(s.job, metrics, {}, s.record.describe() if s.record is not None else [], s.notes,
                                 self.start, estimate=whole, simulation=s.sim)

@@ -392,6 +392,21 @@ class Filter:
                                               allow_undetectable, self.force_model)
         return [found[tuple(s.label for s in layout)] for layout in self.layouts]
 
+    def report_of(self, sensors: Layout):
+        """The PBH report of a subset of the sensors (with the filter's dummies): is the set of live
+        channels detectable (:class:`core_akf.quality.LiveSets`)?
+
+        Parameters
+        ----------
+        sensors : sequence of sensor specs
+
+        Returns
+        -------
+        DetectabilityReport
+        """
+        return check_detectable(self.structure, list(as_layout(sensors)) + self.dummy_layout, self.locs, True,
+                                self.force_model)
+
     def _noise(self, noise_cov):
         """R of every layout (with the dummies' variances), (B, m_f, m_f)."""
         per_layout = (isinstance(noise_cov, (list, tuple)) and len(noise_cov) > 0
