@@ -290,8 +290,13 @@ class LiveSets:
         """
         out, reports = [], {}
         for a, b, dead in self.spans(end):
+            live = [x for x in self.labels if x not in dead]
+            if not live:
+                out.append(f"t = {t0 + a * dt:.6g}-{t0 + b * dt:.6g} s: every channel missing: the filter predicts, the "
+                           "forces carry their prior, and the bands show it")
+                continue
             if dead not in reports:
-                reports[dead] = report_of([x for x in self.labels if x not in dead])
+                reports[dead] = report_of(live)
             report = reports[dead]
             if report.detectable:
                 continue
