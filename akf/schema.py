@@ -243,6 +243,23 @@ class Simulation(Section):
 Bridge = Literal["quarter", "half", "full"]
 
 
+class FaultThresholds(Section):
+    """``[measurements.fault_thresholds]``: the thresholds of the sensor-fault tests (:mod:`core_akf.faults`)."""
+
+    stuck_steps: Count = key("a whole number >= 1", "identical samples in a row that make a stuck span",
+                             used_by=ESTIMATE, default_text="25")
+    clip_count: Count = key("a whole number >= 1", "samples at one extreme value that make it a rail (clipping)",
+                            used_by=ESTIMATE, default_text="3")
+    spike_sigma: Positive = key("a positive number", "robust standard deviations off the neighbours' median that make a "
+                                "spike", used_by=ESTIMATE, default_text="15")
+    spike_width: Count = key("a whole number >= 1", "the most outliers in a row that count as a spike", used_by=ESTIMATE,
+                             default_text="2")
+    cusum_drift: Positive = key("a positive number", "the drift test's allowance, in robust standard deviations of the "
+                                "innovations per step", used_by=ESTIMATE, default_text="2")
+    cusum_threshold: Positive = key("a positive number", "the drift test's alarm level (its CUSUM)", used_by=ESTIMATE,
+                                    default_text="60")
+
+
 class Measurements(Section):
     """``[measurements]``: measured data: one file, or a record in many files, with a channel map."""
 
@@ -274,6 +291,11 @@ class Measurements(Section):
         "whole record, a number the mean of its first that many seconds", used_by=("estimate", "locate"), unit="s")
     chunk: Positive = key("a positive number", "the record is filtered and written in pieces this long (constant "
                           "memory)", used_by=ESTIMATE, unit="s", default_text="65536 steps (fewer for a large model)")
+    faults: Literal["flag", "drop", "off"] = key(
+        "\"flag\", \"drop\" or \"off\"", "sensor faults (stuck, clipped, spikes, drift): \"flag\" reports them "
+        "(data_quality.csv, the JSON, warnings), \"drop\" also treats the faulty samples as missing, \"off\" does "
+        "not look", used_by=ESTIMATE, default_text="\"flag\"")
+    fault_thresholds: FaultThresholds = key("a table", "the thresholds of the fault tests", used_by=ESTIMATE)
     max_gap: NonNegative = key("a number >= 0", "the longest gap between two files the filter predicts through (its "
                             "steps are missing samples); after a longer one it restarts from its prior", used_by=ESTIMATE,
                             unit="s", default_text="60")

@@ -2,18 +2,20 @@
 isolated spikes and drift or offset jumps.
 
 - **stuck**: ``stuck_steps`` or more identical raw samples in a row;
-- **clipped**: the samples at a value that is the channel's largest (or smallest) so far and
-  occurs ``clip_count`` times or more -- a rail;
+- **clipped**: the samples at a value among the chunk's largest (or smallest) 1 % that occurs
+  ``clip_count`` times or more, in more than one run or in a run shorter than a stuck one -- a rail;
 - **spike**: at most ``spike_width`` samples in a row that stand out of the median of their
   ``2 (spike_width + 1)`` neighbours by more than ``spike_sigma`` robust standard deviations of that residual (the
   median absolute deviation over the chunk, times 1.4826);
 - **drift**: a two-sided CUSUM on the normalised innovations, ``g_k = max(0, g_k-1 + nu_k - kappa)``,
-  above ``cusum_threshold``; the span runs from the last step ``g`` was zero.
+  above ``cusum_threshold``; the span runs from the last step ``g`` was zero.  ``nu = e / s`` with
+  ``s`` the smallest robust scale of any chunk so far (1.4826 times the median of ``|e|``).
 
 The raw tests (stuck, clipped, spike) see a chunk before the filter; the innovation test (drift)
-after it, on the innovations normalised by their robust scale, so that ``faults = "drop"`` filters a chunk a second time with its faulty samples
-missing.  A drift of a channel that no other channel checks (a gauge without static redundancy)
-leaves no trace in the innovations: the filter moves the forces to fit it.
+after it, on the innovations normalised by their robust scale, so that ``faults = "drop"``
+filters a chunk a second time with its faulty samples missing.  A drift of a channel that no
+other channel checks (a gauge without static redundancy) leaves no trace of its own in the
+innovations: the filter moves the forces to fit it, and the other channels' innovations drift.
 """
 from __future__ import annotations
 
@@ -26,6 +28,10 @@ from .quality import runs
 
 #: what ``[measurements] faults`` may be
 FAULT_MODES = ("flag", "drop", "off")
+#: the share of a chunk's largest (and smallest) samples where a rail is looked for
+EXTREME_SHARE = 0.01
+#: extreme values held per channel before those met once are forgotten
+MAX_CANDIDATES = 4096
 
 
 @dataclass(frozen=True)
@@ -52,7 +58,7 @@ class FaultSettings:
     clip_count: int = 3
     spike_sigma: float = 15.0
     spike_width: int = 2
-    cusum_drift: float = 1.0
+    cusum_drift: float = 2.0
     cusum_threshold: float = 60.0
 
 
@@ -97,10 +103,10 @@ class FaultDetector:
         m = len(self.labels)
         self.last = np.full(m, np.nan)            # the last raw sample, and how long it has repeated
         self.repeat = np.zeros(m, int)
-        self.high, self.low = np.full(m, -np.inf), np.full(m, np.inf)
         self.rails = [set() for _ in range(m)]
-        self.at_extreme = ([[] for _ in range(m)], [[] for _ in range(m)])   # steps at the largest, smallest value
+        self.candidates = [{} for _ in range(m)]      # extreme values met before a rail is known: their steps
         self.g = np.zeros((2, m))                # the CUSUM, up and down
+        self.scale = np.full(m, np.inf)          # the innovations' robust scale, the smallest of any chunk
         self.g_zero = np.zeros((2, m), int)      # the last step it was zero
         self.found = []
 
@@ -115,50 +121,51 @@ class FaultDetector:
         Y = np.asarray(Y, float)
         bad = np.zeros(Y.shape, bool)
         for j in range(Y.shape[1]):
-            bad[:, j] = self._stuck(j, Y[:, j], step) | self._clipped(j, Y[:, j], step)
+            clipped = self._clipped(j, Y[:, j], step)
+            bad[:, j] = clipped | self._stuck(j, Y[:, j], step)
         return bad | self.spikes(np.where(bad, np.nan, Y), step)
 
     def _stuck(self, j, y, step):
-        s = self.settings.stuck_steps
         same = np.r_[y[:1] == self.last[j], y[1:] == y[:-1]]      # equal to the sample before
         out = np.zeros(y.size, bool)
-        for a, b in runs(same):
-            before = self.repeat[j] if a == 0 else 0             # the run carried over from the chunk before
-            length = b - a + 1 + before                          # the first sample of the run too
-            if length >= s:
-                first = max(a - 1, 0)
-                out[first:b] = True
-                self._add(j, "stuck", step + a - 1 - before, step + b,
-                          f"{length} identical samples ({y[b - 1]:.6g})")
-        tail = runs(same)
-        self.repeat[j] = (tail[-1, 1] - tail[-1, 0] + 1 + (self.repeat[j] if tail[-1, 0] == 0 else 0)) \
-            if len(tail) and tail[-1, 1] == y.size else 0
+        before = self.repeat[j]                                   # identical samples that ended the chunk before
+        found = runs(same)
+        for a, b in found:
+            # the identical samples: y[a-1 .. b-1], or with a = 0 the ``before`` ones of the chunk before too
+            count, first = (b + before, step - before) if a == 0 else (b - a + 1, step + a - 1)
+            if count >= self.settings.stuck_steps and float(y[b - 1]) not in self.rails[j]:   # at a rail: clipped
+                out[max(a - 1, 0):b] = True
+                self._add(j, "stuck", first, step + b, f"{count} identical samples ({y[b - 1]:.6g})")
         if y.size:
+            last = found[-1] if len(found) and found[-1, 1] == y.size else None
+            self.repeat[j] = 1 if last is None else (y.size + before if last[0] == 0 else y.size - last[0] + 1)
             self.last[j] = y[-1]
         return out
 
     def _clipped(self, j, y, step):
-        seen = y[~np.isnan(y)]
-        if not seen.size:
-            return np.zeros(y.size, bool)
-        for side, value in ((0, seen.max()), (1, seen.min())):
-            old = self.high[j] if side == 0 else self.low[j]
-            if value == old:                                     # the extreme so far, met again
-                self.at_extreme[side][j] += np.flatnonzero(y == value).tolist()
-            elif (value > old) if side == 0 else (value < old):  # a new extreme
-                self.at_extreme[side][j] = (step + np.flatnonzero(y == value)).tolist()
-                if side == 0:
-                    self.high[j] = value
-                else:
-                    self.low[j] = value
-            else:
+        seen = ~np.isnan(y)
+        if not seen.any() or np.ptp(y[seen]) == 0:              # nothing, or a constant chunk (stuck, not clipped)
+            return np.isin(y, list(self.rails[j])) if self.rails[j] else np.zeros(y.size, bool)
+        values = y[seen]
+        hi, lo = np.quantile(values, [1 - EXTREME_SHARE, EXTREME_SHARE]) if values.size >= 1 / EXTREME_SHARE else \
+            (values.max(), values.min())
+        candidates = self.candidates[j]
+        extreme = np.flatnonzero(seen & ((y >= hi) | (y <= lo)))
+        for v in np.unique(y[extreme]):
+            v = float(v)
+            if v in self.rails[j]:
                 continue
-            at = self.at_extreme[side][j]
-            if len(at) >= self.settings.clip_count and float(value) not in self.rails[j]:
-                self.rails[j].add(float(value))
-                for k in at:                                     # the samples at the rail before it was known
-                    if k < step:
-                        self._add(j, "clipped", k, k + 1, f"at the rail {value:.6g}")
+            steps = candidates.setdefault(v, [])
+            steps += (step + extreme[y[extreme] == v]).tolist()
+            separate = 1 + int(np.count_nonzero(np.diff(steps) > 1))
+            # a value met again and again at the extremes, not in one long run (that is stuck)
+            if len(steps) >= self.settings.clip_count and (separate > 1 or len(steps) < self.settings.stuck_steps):
+                self.rails[j].add(v)
+                for earlier in candidates.pop(v):
+                    if earlier < step:                            # before this chunk: reported now
+                        self._add(j, "clipped", earlier, earlier + 1, f"at the rail {v:.6g}")
+        if len(candidates) > MAX_CANDIDATES:                      # forget the values met once
+            self.candidates[j] = {v: s for v, s in candidates.items() if len(s) > 1}
         out = np.isin(y, list(self.rails[j])) if self.rails[j] else np.zeros(y.size, bool)
         for a, b in runs(out):
             self._add(j, "clipped", step + a, step + b, f"at the rail {y[a]:.6g}")
@@ -227,10 +234,11 @@ class FaultDetector:
             seen = ~np.isnan(e) & (True if skip is None else ~skip[:, j])
             if seen.sum() < 10:
                 continue
-            centre = np.median(e[seen])
-            scale = 1.4826 * np.median(np.abs(e[seen] - centre))
+            # about zero (a filter's innovations have zero mean), and the smallest so far: a drift only raises it
+            scale = 1.4826 * np.median(np.abs(e[seen]))
             if scale > 0:
-                bad[:, j] = self._drift(j, np.where(seen, (e - centre) / scale, 0.0), step)
+                self.scale[j] = min(self.scale[j], scale)
+                bad[:, j] = self._drift(j, np.where(seen, e / self.scale[j], 0.0), step)
         return bad
 
     def _drift(self, j, nu, step):
@@ -276,8 +284,10 @@ class FaultDetector:
 
     def state(self):
         """What a checkpoint keeps (:meth:`restore` takes it back)."""
-        return {"fault_last": self.last.copy(), "fault_repeat": self.repeat.copy(), "fault_high": self.high.copy(),
-                "fault_low": self.low.copy(), "fault_g": self.g.copy(), "fault_g_zero": self.g_zero.copy(),
+        return {"fault_last": self.last.copy(), "fault_repeat": self.repeat.copy(),
+                "fault_candidates": np.array([[j, v, k] for j, c in enumerate(self.candidates) for v, steps in c.items()
+                                              for k in steps], float).reshape(-1, 3),
+                "fault_g": self.g.copy(), "fault_g_zero": self.g_zero.copy(), "fault_scale": self.scale.copy(),
                 "fault_rails": np.array([[j, v] for j, r in enumerate(self.rails) for v in sorted(r)], float).reshape(-1, 2),
                 "fault_found": np.array([repr(asdict(f)) for f in self.found], str)}
 
@@ -288,8 +298,11 @@ class FaultDetector:
         if "fault_last" not in state:
             return self
         self.last, self.repeat = np.array(state["fault_last"], float), np.array(state["fault_repeat"], int)
-        self.high, self.low = np.array(state["fault_high"], float), np.array(state["fault_low"], float)
+        self.candidates = [{} for _ in self.labels]
+        for j, v, k in np.asarray(state["fault_candidates"], float).reshape(-1, 3):
+            self.candidates[int(j)].setdefault(float(v), []).append(int(k))
         self.g, self.g_zero = np.array(state["fault_g"], float), np.array(state["fault_g_zero"], int)
+        self.scale = np.array(state["fault_scale"], float)
         self.rails = [set() for _ in self.labels]
         for j, v in np.asarray(state["fault_rails"], float).reshape(-1, 2):
             self.rails[int(j)].add(float(v))

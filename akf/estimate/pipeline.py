@@ -21,6 +21,7 @@ from core_akf.quality import LIVE_SET_MIN_S, LiveSets
 
 from ..calibrating import calibrate_job, calibration_record
 from ..job import Job
+from .faults import NO_FAULT_CHECK, FaultCheck
 from .files import RunFiles, default_chunk, strain_outputs
 from .metrics import SMOOTH_CONSISTENCY_LIMIT, EstimateResult, joined, run_metrics
 from .pieces import estimate_in_pieces
@@ -252,8 +253,10 @@ class Pipeline:
         self.n_filtered = setup.n_total if setup.record is None else setup.record.n_filtered
         self.diag = RunningDiagnostics(self.n_filtered)
         self.live = LiveSets([s.label for s in job.sensors], round(LIVE_SET_MIN_S / job.dt))
+        self.faults = FaultCheck(job, [s.label for s in job.sensors]) if setup.record is not None else NO_FAULT_CHECK
         if self.start:
             self.live.restore(self.files.saved)
+            self.faults.restore(self.files.saved)
         self.restored = self.files is not None and self.start > 0     # the diagnostics come back with the first chunk
         self.progress = _progress(progress, setup.n_total, self.start)
         self.parts, self.last, self.first_chunk, self.done = [], None, None, 0
@@ -285,7 +288,12 @@ class Pipeline:
         for step, Y in self.chunks():
             if step != self.estimator.n_steps:            # a gap longer than max_gap: start again from the prior
                 self.restart(step)
-            est = self.estimator.update(Y)
+            if self.faults.on:
+                saved = self.estimator.state()
+                Y = self.faults.before(Y, step)
+                est = self.faults.after(self.estimator, self.estimator.update(Y), Y, saved)
+            else:
+                est = self.estimator.update(Y)
             if self.first_chunk is None and step == 0:
                 self.first_chunk = Y
             self.done += 1
@@ -295,8 +303,8 @@ class Pipeline:
             self.take(est)
             end = step + Y.shape[0]
             if self.files is not None and end < s.n_total:     # after the last chunk the summary follows
-                self.files.checkpoint(self.estimator, self.diag, end,
-                                      self.live.state() | ({} if self.fatigue is None else self.fatigue.state()))
+                self.files.checkpoint(self.estimator, self.diag, end, self.live.state() | self.faults.state() |
+                                      ({} if self.fatigue is None else self.fatigue.state()))
                 if stop_after is not None and self.done >= stop_after:
                     s.notes.append(f"stopped after {self.done} chunk(s) at step {end} of {s.n_total}; continue with "
                                    "--resume")
@@ -336,11 +344,16 @@ class Pipeline:
             metrics["fatigue"] = self.fatigue.metrics(s.job.dt)
         metrics["warnings"] += self.live.undetectable(self.estimator.filter.report_of, self.estimator.n_steps,
                                                       s.job.dt, s.t0)
+        if self.faults.on:
+            metrics["faults"] = self.faults.rows(s.t0)
+            metrics["warnings"] += self.faults.warnings(s.t0)
         metrics = s.finished(metrics)
         result = EstimateResult(s.job, metrics, {}, s.record.describe() if s.record is not None else [], s.notes,
                                 self.start, estimate=whole, simulation=s.sim)
         if self.files is not None:
             result.files = self.files.write_summary(metrics, self.fatigue)
+            if self.faults.on:
+                result.files["data_quality"] = self.files.write_table("data_quality.csv", self.faults.frame(s.t0))
         if on_result is not None:
             on_result(result)
         if self.files is not None:
