@@ -64,7 +64,19 @@ class FaultSettings:
 
 @dataclass(frozen=True)
 class Fault:
-    """One fault: a channel, a kind and a span of steps ``[first, stop)``, with its evidence."""
+    """One fault: a channel, a kind and a span of steps ``[first, stop)``, with its evidence.
+
+    Parameters
+    ----------
+    channel : str
+        The sensor label.
+    kind : str
+        "stuck", "clipped", "spike" or "drift".
+    first, stop : int
+        Record steps ``[first, stop)``.
+    evidence : str
+        What the test saw.
+    """
 
     channel: str
     kind: str
@@ -73,7 +85,18 @@ class Fault:
     evidence: str
 
     def row(self, dt, t0=0.0):
-        """The fault as a table row (times in s)."""
+        """The fault as a table row.
+
+        Parameters
+        ----------
+        dt, t0 : float
+            Time step and time of step 0 (s).
+
+        Returns
+        -------
+        dict
+            ``channel``, ``kind``, ``start_s``, ``end_s`` (s), ``samples``, ``evidence``.
+        """
         return {"channel": self.channel, "kind": self.kind, "start_s": t0 + self.first * dt,
                 "end_s": t0 + self.stop * dt, "samples": self.stop - self.first, "evidence": self.evidence}
 
@@ -112,7 +135,14 @@ class FaultDetector:
 
     # ----------------------------------------------------------------------- before the filter
     def raw(self, Y, step):
-        """Stuck, clipped and spiking samples of a chunk (k, m) starting at record step ``step``.
+        """Stuck, clipped and spiking samples of a chunk.
+
+        Parameters
+        ----------
+        Y : ndarray (k, m)
+            The chunk's raw samples (NaN where missing).
+        step : int
+            The record step of its first row.
 
         Returns
         -------
@@ -172,9 +202,15 @@ class FaultDetector:
         return out
 
     def spikes(self, Y, step):
-        """Isolated outliers of a chunk (k, m): samples that stand out of their neighbours'
-        median by ``spike_sigma`` robust standard deviations of that residual, at most
-        ``spike_width`` in a row.
+        """Isolated outliers of a chunk: samples that stand out of their neighbours' median by
+        ``spike_sigma`` robust standard deviations of that residual, at most ``spike_width`` in a row.
+
+        Parameters
+        ----------
+        Y : ndarray (k, m)
+            The chunk's samples (NaN where missing or already found faulty).
+        step : int
+            The record step of its first row.
 
         Returns
         -------
@@ -283,7 +319,12 @@ class FaultDetector:
         return sorted(self.found, key=lambda f: (f.first, f.channel, f.kind))
 
     def state(self):
-        """What a checkpoint keeps (:meth:`restore` takes it back)."""
+        """What a checkpoint keeps (:meth:`restore` takes it back).
+
+        Returns
+        -------
+        dict of str to ndarray
+        """
         return {"fault_last": self.last.copy(), "fault_repeat": self.repeat.copy(),
                 "fault_candidates": np.array([[j, v, k] for j, c in enumerate(self.candidates) for v, steps in c.items()
                                               for k in steps], float).reshape(-1, 3),
@@ -292,7 +333,17 @@ class FaultDetector:
                 "fault_found": np.array([repr(asdict(f)) for f in self.found], str)}
 
     def restore(self, state):
-        """Continue from a :meth:`state` (a checkpoint without one: from scratch)."""
+        """Continue from a :meth:`state` (a checkpoint without one: from scratch).
+
+        Parameters
+        ----------
+        state : mapping of str to ndarray
+
+        Returns
+        -------
+        FaultDetector
+            ``self``.
+        """
         import ast
 
         if "fault_last" not in state:

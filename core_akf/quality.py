@@ -130,6 +130,11 @@ class HoleCounter:
     ...     c.update(np.array(part))
     >>> c.statistics(0.5)
     [{'missing_fraction': 0.5, 'missing_spans': 1, 'longest_missing_s': 1.0}]
+
+    Parameters
+    ----------
+    m : int
+        Channels.
     """
 
     def __init__(self, m):
@@ -141,12 +146,28 @@ class HoleCounter:
         self.trail = np.zeros(m, int)         # the hole still open at the last step
 
     def update(self, Y):
-        """Count one chunk (k, m) of the record, in order."""
+        """Count one chunk of the record, in order.
+
+        Parameters
+        ----------
+        Y : ndarray (k, m)
+            NaN where missing.
+        """
         gone = np.isnan(np.asarray(Y, float))
         self._join(_Counts.of(gone))
 
     def merge(self, later):
-        """Join the counts of the piece that follows this one."""
+        """Join the counts of the piece that follows this one.
+
+        Parameters
+        ----------
+        later : HoleCounter
+
+        Returns
+        -------
+        HoleCounter
+            ``self``.
+        """
         self._join(later)
         return self
 
@@ -165,7 +186,17 @@ class HoleCounter:
         self.steps += later.steps
 
     def statistics(self, dt):
-        """As :func:`missing_statistics`, over the steps counted."""
+        """As :func:`missing_statistics`, over the steps counted.
+
+        Parameters
+        ----------
+        dt : float
+            Time step (s).
+
+        Returns
+        -------
+        list of dict
+        """
         return [{"missing_fraction": float(self.missing[j] / self.steps) if self.steps else 0.0,
                  "missing_spans": int(self.spans[j]), "longest_missing_s": int(self.longest[j]) * float(dt)}
                 for j in range(len(self.missing))]
@@ -225,7 +256,15 @@ class LiveSets:
         self.holes = []                                    # (channel, first, stop)
 
     def update(self, Y, step):
-        """Take the next chunk (k, m) of the record, which starts at record step ``step``."""
+        """Take the next chunk of the record.
+
+        Parameters
+        ----------
+        Y : ndarray (k, m)
+            NaN where missing.
+        step : int
+            The record step of its first row.
+        """
         gone = np.isnan(np.asarray(Y, float))
         for j in range(gone.shape[1]):
             col = gone[:, j]
@@ -243,11 +282,26 @@ class LiveSets:
                     self.open[j] = first
 
     def state(self):
-        """What a checkpoint keeps (:meth:`restore` takes it back)."""
+        """What a checkpoint keeps (:meth:`restore` takes it back).
+
+        Returns
+        -------
+        dict of str to ndarray
+        """
         return {"live_open": self.open.copy(), "live_holes": np.array(self.holes, int).reshape(-1, 3)}
 
     def restore(self, state):
-        """Continue from a :meth:`state` (a checkpoint without one: no hole before it)."""
+        """Continue from a :meth:`state` (a checkpoint without one: no hole before it).
+
+        Parameters
+        ----------
+        state : mapping of str to ndarray
+
+        Returns
+        -------
+        LiveSets
+            ``self``.
+        """
         if "live_open" in state:
             self.open = np.array(state["live_open"], int)
             self.holes = [tuple(int(v) for v in row) for row in np.asarray(state["live_holes"]).reshape(-1, 3)]
@@ -258,7 +312,18 @@ class LiveSets:
             self.holes.append((j, int(first), int(stop)))
 
     def spans(self, end):
-        """``[(first, stop, dead labels), ...]``: the spans with the same dead channels, up to step ``end``."""
+        """The spans with the same dead channels.
+
+        Parameters
+        ----------
+        end : int
+            The record's last step + 1 (a hole still open ends there).
+
+        Returns
+        -------
+        list of (int, int, tuple of str)
+            ``(first, stop, dead labels)``.
+        """
         holes = self.holes + [(j, int(a), int(end)) for j, a in enumerate(self.open) if a >= 0 and end - a >= self.min_steps]
         cuts = sorted({c for _, a, b in holes for c in (a, b)})
         out = []

@@ -32,6 +32,7 @@ from ..defaults import resolve_modes
 from ..forcemodels import DummyMeasurements, ForceModel, as_force_model
 from ..sensors import as_layout, parse_force_locations
 from ..statespace import (
+    DetectabilityReport,
     check_detectable,
     continuous,
     modal_blocks,
@@ -392,7 +393,7 @@ class Filter:
                                               allow_undetectable, self.force_model)
         return [found[tuple(s.label for s in layout)] for layout in self.layouts]
 
-    def report_of(self, sensors: Layout):
+    def report_of(self, sensors: Layout) -> DetectabilityReport:
         """The PBH report of a subset of the sensors (with the filter's dummies): is the set of live
         channels detectable (:class:`core_akf.quality.LiveSets`)?
 

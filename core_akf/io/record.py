@@ -585,7 +585,7 @@ class Record:
 
 # ------------------------------------------------------------------------------ mixed rates
 def open_record(files: str | os.PathLike | Sequence[str | os.PathLike], sensors: Layout, *,
-                channels: Mapping[str, str] | None = None, **kw) -> Record | MixedRecord:
+                channels: Mapping[str, str] | None = None, **kw: object) -> Record | MixedRecord:
     """A record whose files hold all its channels (:class:`Record`), or channel sets at their own
     sampling rates in files of their own (:class:`MixedRecord`).
 
@@ -598,6 +598,22 @@ def open_record(files: str | os.PathLike | Sequence[str | os.PathLike], sensors:
     Returns
     -------
     Record or MixedRecord
+
+    Examples
+    --------
+    Accelerometers at 1 kHz in one file, a gauge at 250 Hz in another:
+
+    >>> import os, tempfile
+    >>> import numpy as np, pandas as pd
+    >>> folder = tempfile.mkdtemp()
+    >>> t = np.arange(100) * 1e-3
+    >>> pd.DataFrame({"time": t, "acc:8:y": np.cos(20 * t)}).to_csv(os.path.join(folder, "acc.csv"), index=False)
+    >>> pd.DataFrame({"time": t[::4], "strain:13": 1e-6 * np.sin(20 * t[::4])}).to_csv(
+    ...     os.path.join(folder, "gauge.csv"), index=False)
+    >>> rec = open_record(folder, ["acc:8:y", "strain:13"])
+    >>> t, Y = rec.read()                   # on the 1 kHz grid, the gauge missing between its samples
+    >>> Y.shape, int(np.isnan(Y[:, 1]).sum())
+    ((100, 2), 75)
     """
     paths = record_files(files)
     labels = [s.label for s in as_layout(sensors)]
@@ -678,40 +694,84 @@ class MixedRecord:
         self._observed = None
 
     @property
-    def n_steps(self):
+    def n_steps(self) -> int:
         """Steps of the fastest grid from the first sample of any set to the last."""
         return max(o + (r.n_steps - 1) * k + 1 for r, o, k in zip(self.parts, self.offsets_steps, self.ratios))
 
     @property
-    def n_filtered(self):
+    def n_filtered(self) -> int:
+        """Steps the filter runs (every gap is predicted through): :attr:`n_steps`."""
         return self.n_steps
 
     def check_dt(self, dt: float) -> None:
-        """Check that the fastest channels sample at the job's time step (s)."""
+        """Check that the fastest channels sample at the job's time step.
+
+        Parameters
+        ----------
+        dt : float
+            The job's time step (s).
+        """
         if abs(self.dt - dt) > TIME_GRID_RTOL * dt:
             rates = ", ".join(f"{', '.join(r.labels)} at {1 / r.dt:.6g} Hz" for r in self.parts)
             raise AKFInputError(f"the record's fastest channels sample every {self.dt:.9g} s, not at the job's dt = "
                                 f"{dt:.9g} s ({rates})")
 
     def gap_notes(self) -> list[str]:
+        """The gap notes of every channel set (:meth:`Record.gap_notes`).
+
+        Returns
+        -------
+        list of str
+        """
         return [note for r in self.parts for note in r.gap_notes()]
 
     def describe(self) -> list[str]:
+        """One line per sensor, with its rate.
+
+        Returns
+        -------
+        list of str
+        """
         lines = {}
         for r in self.parts:
             for label, line in zip(r.labels, r.describe()):
                 lines[label] = f"{line} at {1 / r.dt:.6g} Hz"
         return [lines[label] for label in self.labels]
 
-    def channel_offsets(self, size: int = 65536):
+    def channel_offsets(self, size: int = 65536) -> FloatArray:
+        """The offset subtracted from each channel (:meth:`Record.channel_offsets`).
+
+        Parameters
+        ----------
+        size : int
+            Steps read at a time.
+
+        Returns
+        -------
+        ndarray (m,)
+        """
         out = np.zeros(len(self.labels))
         for r, cols in zip(self.parts, self.columns):
             out[cols] = r.channel_offsets(size)
         return out
 
-    def chunks(self, size: int = 65536, start: int = 0):
-        """The record in chunks on the fastest grid, NaN where a channel has no sample (as
-        :meth:`Record.chunks`)."""
+    def chunks(self, size: int = 65536, start: int = 0) -> Iterator[tuple[int, FloatArray]]:
+        """The record in chunks on the fastest grid, NaN where a channel has no sample.
+
+        Parameters
+        ----------
+        size : int
+            Steps per chunk (the last one shorter).
+        start : int
+            The first step, a multiple of ``size``.
+
+        Yields
+        ------
+        step : int
+            The record step of the chunk's first row.
+        Y : ndarray (k, m)
+            SI, columns in sensor order.
+        """
         if size < 1:
             raise AKFInputError(f"chunk size must be at least one step, got {size}")
         if start % size:
@@ -724,17 +784,61 @@ class MixedRecord:
                 c.fill(Y, a)
             yield a, Y
 
-    def observed_counts(self, size: int = 65536):
+    def observed_counts(self, size: int = 65536) -> np.ndarray:
+        """The observed samples of every channel (:meth:`Record.observed_counts`).
+
+        Parameters
+        ----------
+        size : int
+            Steps read at a time.
+
+        Returns
+        -------
+        ndarray (m,) of int
+        """
         if self._observed is None:
             self._observed = sum(np.count_nonzero(~np.isnan(Y), axis=0) for _, Y in self.chunks(size))
         return self._observed
 
-    def read(self, size: int = 65536):
+    def read(self, size: int = 65536) -> tuple[Time, FloatArray]:
+        """The whole record in memory, on the fastest grid.
+
+        Parameters
+        ----------
+        size : int
+            Steps read per chunk.
+
+        Returns
+        -------
+        t : ndarray (N,)
+            Time (s).
+        Y : ndarray (N, m)
+            SI, NaN where a channel has no sample.
+        """
         parts = [Y for _, Y in self.chunks(size)]
         Y = np.vstack(parts)
         return self.start + self.dt * np.arange(Y.shape[0]), Y
 
-    def read_file(self, index, size=65536):
+    def read_file(self, index: int, size: int = 65536) -> FloatArray:
+        """Not for a record of several rates (it is read as a whole).
+
+        Parameters
+        ----------
+        index : int
+            The file.
+        size : int
+            Steps read at a time.
+
+        Returns
+        -------
+        ndarray
+            Never: it raises.
+
+        Raises
+        ------
+        AKFInputError
+            Always.
+        """
         raise AKFInputError("a record of channels at different rates is read as a whole, not file by file")
 
 

@@ -8,7 +8,8 @@ from helpers import ROOT, run_estimate
 from akf.job import load_job_file
 from core_akf.checks import AKFInputError
 from core_akf.filter import estimate
-from core_akf.io import MixedRecord, open_record
+from core_akf.io import open_record
+from core_akf.io.record import MixedRecord
 from core_akf.models import s17_truss
 
 DAQ = ROOT / "examples" / "daq"
