@@ -529,8 +529,7 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     terms = np.zeros((B, N, m)) if loglik else None
     h = 0 if seen_before is None else seen_before.shape[1]
     for b in range(B):
-        patterns, which = np.unique(seen[b] if not h else np.vstack([seen_before[b], seen[b]]), axis=0,
-                                    return_inverse=True)
+        patterns, which = _patterns(seen[b] if not h else np.vstack([seen_before[b], seen[b]]))
         G_p, R_p = masked(np.broadcast_to(G[b], (len(patterns),) + G.shape[1:]),
                           np.broadcast_to(R[b], (len(patterns),) + R.shape[1:]), patterns)
         which, pattern, P = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which.reshape(-1), long_stretch)
@@ -549,6 +548,17 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     if loglik:
         terms[~seen] = 0.0
     return FilterRun(states, innovations(A, G, states, Y, x), L_full, P_full, True, terms)
+
+
+def _patterns(seen):
+    """The distinct rows of ``seen`` (N, m) and the index of each step's row: (K, m), (N,)."""
+    m = seen.shape[1]
+    if m > 62:
+        patterns, which = np.unique(seen, axis=0, return_inverse=True)
+        return patterns, which.reshape(-1)
+    codes = seen.astype(np.int64) @ (np.int64(1) << np.arange(m, dtype=np.int64))    # one integer per row
+    values, which = np.unique(codes, return_inverse=True)
+    return ((values[:, None] >> np.arange(m)) & 1).astype(bool), which.reshape(-1)
 
 
 def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch):
@@ -612,22 +622,26 @@ def switched_filter(A, G, L, which, Y0, x):
     """
     N, n = len(which), A.shape[-1]
     I_LG, F = closed_loop(A, G, L)
+    # the inputs L_i y_k, computed a gain at a time into one buffer in that order (no scatter)
+    order = np.argsort(which, kind="stable")
+    bounds = np.r_[0, np.flatnonzero(np.diff(which[order])) + 1, N]
     U = np.empty((N, n))
-    for e in np.unique(which):
-        rows = which == e
-        U[rows] = Y0[rows] @ L[e].T
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        np.matmul(Y0[order[a:b]], L[which[order[a]]].T, out=U[a:b])
+    at = np.empty(N, int)
+    at[order] = np.arange(N)                                       # step k's input is U[at[k]]
     X = np.empty((N, n))
-    X[0] = I_LG[which[0]] @ x + U[0]
+    X[0] = I_LG[which[0]] @ x + U[at[0]]
     Ft = [np.ascontiguousarray(f.T) for f in F]
     rows, gains, dot, add = list(X), which.tolist(), np.dot, np.add
-    inputs = list(U)
+    inputs, at = list(U), at.tolist()
 
     def stepwise(k0, k1):
         x = rows[k0 - 1]
         for k in range(k0, k1):
             xk = rows[k]
             dot(x, Ft[gains[k]], out=xk)          # x_k = F_i x_k-1 + L_i y_k, in place, no temporaries
-            add(xk, inputs[k], out=xk)
+            add(xk, inputs[at[k]], out=xk)
             x = xk
 
     cuts = np.r_[0, np.flatnonzero(np.diff(which)) + 1, N]
