@@ -69,7 +69,7 @@ def throughput():
     base = best(lambda: kernels.steady(f, Y[None]))
     rows = [("complete", base)]
     for name, rec in (("5 % in channel blocks", blocks), ("5 % of the steps, every channel", drop)):
-        rows.append((name, best(lambda: kernels.steady(f, rec[None]))))
+        rows.append((name, best(lambda rec=rec: kernels.steady(f, rec[None]))))
     print(f"\n1. steady filter, 60 s at 4096 Hz ({N} steps, 9 channels, 70 states)")
     print(f"{'record':34s} {'time (s)':>9s} {'throughput vs complete':>23s}")
     for name, t in rows:
