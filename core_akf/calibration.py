@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .checks import AKFInputError, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
+from .checks import AKFInputError, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_measurements
 from .covariances import noise_covariance
 from .defaults import default
 from .filter import kernels
@@ -315,7 +315,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     forces : sequence of force specs
         The unknown force locations.
     measurements : array_like (N, m)
-        The record (SI).
+        The record (SI); NaN is a missing sample (the steady filter's likelihood with its cached gains per
+        pattern of observed channels, :func:`core_akf.filter.kernels.steady_gapped`).
     dt : float
         Time step (s).
     parameters : list of str
@@ -369,7 +370,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     from scipy.optimize import minimize
 
     start_time = time.perf_counter()
-    Y = as_finite_array(measurements, "measurements", ndim=2)
+    Y = as_measurements(measurements, "measurements", ndim=2)
     force_model = as_force_model(force_model, force_increment_cov)
     asked = [str(n) for n in ([parameters] if isinstance(parameters, str) else parameters)]
     if force_model.stationary and "force_increment_cov" in asked:

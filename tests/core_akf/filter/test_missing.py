@@ -164,3 +164,16 @@ def test_bad_records_are_still_refused():
     text[3, 0] = "12 ue"
     with pytest.raises(AKFInputError, match="numeric"):
         estimate(s17_truss(), SENSORS, FORCES, text, DT, **kw)
+
+
+def test_calibration_learns_from_a_record_with_holes():
+    from core_akf.calibration import calibrate
+    from core_akf.loads import band_limited_white_noise
+
+    loads = band_limited_white_noise(2000, 1e-3, 200.0, 0, 50, seed=1)
+    sim = simulate(s17_truss(), SENSORS, FORCES, loads[:, None], DT, relative_noise=0.02, seed=0)
+    Y = _holes(sim.measurements, 0.05, 0, longest=30)
+    fit = calibrate(s17_truss().scaled(1.05), SENSORS, FORCES, Y, DT, parameters=["stiffness_factor"],
+                    model_error_cov=1e-16, force_increment_cov=1e3, noise_cov=np.diag(sim.noise_std ** 2))
+    assert 1.05 * fit.values["stiffness_factor"] == pytest.approx(1.0, abs=3e-3)      # measured 0.9998
+    assert fit.loglik_after > fit.loglik_before
