@@ -181,8 +181,13 @@ class FaultDetector:
             (values.max(), values.min())
         candidates = self.candidates[j]
         extreme = np.flatnonzero(seen & ((y >= hi) | (y <= lo)))
-        for v in np.unique(y[extreme]):
-            v = float(v)
+        values, first_at, counts = np.unique(y[extreme], return_index=True, return_counts=True)
+        known = np.isin(values, np.fromiter(candidates, float, len(candidates))) if candidates else np.zeros(len(values), bool)
+        once = (counts == 1) & ~known
+        for v, k in zip(values[once].tolist(), extreme[first_at[once]].tolist()):     # met once so far: remembered
+            if v not in self.rails[j]:
+                candidates[v] = [step + k]
+        for v in values[~once].tolist():
             if v in self.rails[j]:
                 continue
             steps = candidates.setdefault(v, [])
@@ -222,12 +227,16 @@ class FaultDetector:
         half = st.spike_width + 1
         if Y.shape[0] < 2 * half + 4:
             return bad
-        windows = np.lib.stride_tricks.sliding_window_view(np.pad(Y, ((half, half), (0, 0)), mode="edge"), 2 * half + 1,
-                                                           axis=0)
-        neighbours = np.delete(windows, half, axis=-1)                 # the sample itself left out
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)            # an all-missing window
-            residual = Y - np.nanmedian(neighbours, axis=-1)
+        padded = np.pad(Y, ((half, half), (0, 0)), mode="edge")
+        k = Y.shape[0]
+        neighbours = np.stack([padded[i:i + k] for i in range(2 * half + 1) if i != half], axis=-1)   # itself left out
+        if np.isnan(neighbours).any():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)        # an all-missing window
+                residual = Y - np.nanmedian(neighbours, axis=-1)
+        else:                                                          # the middle two of its 2 half values
+            part = np.partition(neighbours, [half - 1, half], axis=-1)
+            residual = Y - 0.5 * (part[..., half - 1] + part[..., half])
         for j in range(Y.shape[1]):
             d = residual[:, j]
             seen = ~np.isnan(d)
@@ -280,25 +289,24 @@ class FaultDetector:
     def _drift(self, j, nu, step):
         st = self.settings
         out = np.zeros(nu.size, bool)
+        if not nu.size:
+            return out
         for side, sign in enumerate((1.0, -1.0)):
-            g, zero = self.g[side, j], self.g_zero[side, j]
-            alarm = None
-            for k, v in enumerate(sign * nu):
-                g = max(0.0, g + v - st.cusum_drift)
-                if g == 0.0:
-                    if alarm is not None:
-                        self._add(j, "drift", alarm, step + k, f"CUSUM {'up' if sign > 0 else 'down'} above "
-                                                               f"{st.cusum_threshold:g}")
-                        alarm = None
-                    zero = step + k + 1
-                elif g > st.cusum_threshold and alarm is None:
-                    alarm = zero
-                if alarm is not None:
-                    out[max(alarm - step, 0):k + 1] = True
-            if alarm is not None:
-                self._add(j, "drift", alarm, step + nu.size, f"CUSUM {'up' if sign > 0 else 'down'} above "
-                                                             f"{st.cusum_threshold:g}")
-            self.g[side, j], self.g_zero[side, j] = g, zero
+            # g_k = max(0, g_k-1 + v_k) for all k at once: S_k - min(0, min_{i<=k} S_i), S the running sum from g
+            S = self.g[side, j] + np.cumsum(sign * nu - st.cusum_drift)
+            g = S - np.minimum(np.minimum.accumulate(S), 0.0)
+            g[g < 0] = 0.0
+            above = g > 0
+            for a, b in runs(above):                       # excursions above zero
+                first = self.g_zero[side, j] if a == 0 and self.g[side, j] > 0 else step + a
+                if g[a:b].max() > st.cusum_threshold:
+                    out[a:b] = True
+                    self._add(j, "drift", int(first), step + int(b), f"CUSUM {'up' if sign > 0 else 'down'} above "
+                                                                      f"{st.cusum_threshold:g}")
+            last = runs(above)
+            self.g_zero[side, j] = (self.g_zero[side, j] if len(last) and last[-1, 0] == 0 and self.g[side, j] > 0
+                                    else step + int(last[-1, 0])) if len(last) and last[-1, 1] == nu.size else step + nu.size
+            self.g[side, j] = g[-1]
         return out
 
     # ----------------------------------------------------------------------------- the findings
