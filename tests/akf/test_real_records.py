@@ -68,3 +68,23 @@ def test_a_record_with_holes_completes_and_names_what_it_could_not_see(case4, st
     # is not reached; see docs/guide/real-records.md).
     ratio = errors["holes"] / errors["complete"]
     assert 1.0 < ratio < (2.1 if steady is None else 1.75)
+
+
+def test_a_channel_never_observed_is_dropped_or_the_job_refused(case4, tmp_path):
+    from core_akf.checks import AKFInputError
+
+    jobs, _, _, folder = case4
+    frame = pd.read_csv(folder / "complete.csv")
+    frame["acc:6:x"] = np.nan                                      # one accelerometer of five: dropped
+    frame.to_csv(tmp_path / "dead.csv", index=False, float_format="%.17g", na_rep="")
+    job = dict(jobs["complete"], measurements={"file": str(tmp_path / "dead.csv"), "chunk": 0.25})
+    res = run_estimate(job, str(tmp_path / "out"), plot=False)
+    assert res.complete and [d["channel"] for d in res.metrics["sensors"]] == [
+        s for s in jobs["complete"]["sensors"] if s != "acc:6:x"]
+    assert any(w.startswith("channel acc:6:x has no observed sample") and "dropped" in w for w in res.metrics["warnings"])
+    for gauge in ("strain:5", "strain:9", "strain:13", "strain:26"):              # every gauge: refused
+        frame[gauge] = np.nan
+    frame.to_csv(tmp_path / "no-gauges.csv", index=False, float_format="%.17g", na_rep="")
+    job = dict(jobs["complete"], measurements={"file": str(tmp_path / "no-gauges.csv")})
+    with pytest.raises(AKFInputError, match="every sample of strain:5, strain:9, strain:13, strain:26 is missing"):
+        run_estimate(job, str(tmp_path / "out2"), plot=False)
