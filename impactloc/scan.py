@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core_akf.checks import AKFInputError, FloatArray, ForceLocation, Layout, Measurements, as_finite_array
+from core_akf.checks import AKFInputError, FloatArray, ForceLocation, Layout, Measurements, as_measurements
 from core_akf.defaults import default, resolve_modes
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
@@ -132,7 +132,7 @@ def default_covariances(sensors: Layout, measurements: Measurements, model_error
     noise = {}
     for kind in dict.fromkeys(s.kind for s in layout):
         cols = [i for i, s in enumerate(layout) if s.kind == kind]
-        level = float(np.median(np.sqrt(np.mean(Y[:, cols] ** 2, axis=0))))
+        level = float(np.median(np.sqrt(np.nanmean(Y[:, cols] ** 2, axis=0))))     # over the observed samples
         noise[kind] = (relative_noise * level) ** 2 if level > 0 else 1.0
     return Covariances(model_error, force_increment, noise)
 
@@ -317,7 +317,7 @@ def rms_errors(pred, Y_ad, skip=0):
     pred : ndarray (B, N, a)
         Predicted AD channels.
     Y_ad : ndarray (B, N, a)
-        Measured AD channels.
+        Measured AD channels (NaN where missing: left out).
     skip : int
         Samples left out at the start.
 
@@ -328,8 +328,12 @@ def rms_errors(pred, Y_ad, skip=0):
     rel_err : ndarray (B, a)
         Relative to the RMS of the measured channel.
     """
-    err = rms_error(pred[:, skip:], Y_ad[:, skip:], axis=1)
-    return err, err / np.maximum(rms(Y_ad[:, skip:], axis=1), np.finfo(float).tiny)
+    pred, Y_ad = pred[:, skip:], Y_ad[:, skip:]
+    if np.isnan(Y_ad).any():                       # over the observed samples of each channel
+        err = np.sqrt(np.nanmean((pred - Y_ad) ** 2, axis=1))
+        return err, err / np.maximum(np.sqrt(np.nanmean(Y_ad ** 2, axis=1)), np.finfo(float).tiny)
+    err = rms_error(pred, Y_ad, axis=1)
+    return err, err / np.maximum(rms(Y_ad, axis=1), np.finfo(float).tiny)
 
 
 def location_errors(model, loc, splits, Y, covs, skip=0):
@@ -461,9 +465,10 @@ def check_measurements(layout, Y):
     Raises
     ------
     AKFInputError
-        For values that are not finite, another number of columns, or fewer than 10 samples.
+        For text or infinite values (NaN is a missing sample), another number of columns, or fewer
+        than 10 samples.
     """
-    Y = as_finite_array(Y, "measurements", ndim=2)
+    Y = as_measurements(Y, "measurements", ndim=2)
     if Y.shape[1] != len(layout):
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} installed sensors")
     if Y.shape[0] < 10:

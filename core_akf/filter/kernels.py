@@ -218,7 +218,8 @@ def steady_outputs(A, G, Q, R, Y, H):
     """Outputs ``H X_k`` of a stack of steady-state AKFs (filtered states, prior mean zero).
 
     One batched Riccati solve, then the lifted recursion straight to the outputs: with few output
-    rows the n states per step are never formed.
+    rows the n states per step are never formed.  With missing samples (NaN) the states come from
+    :func:`steady_gapped`.
 
     Parameters
     ----------
@@ -238,6 +239,10 @@ def steady_outputs(A, G, Q, R, Y, H):
     B, n = Y.shape[0], G.shape[-1]
     A, Q = np.broadcast_to(A, (B, n, n)), np.broadcast_to(Q, (B, n, n))
     P, L = steady_gain(A, G, Q, R)
+    seen = observed(Y)
+    if seen is not None:
+        X = steady_gapped(A, G, Q, R, Y, seen, np.zeros((B, n)), full=(P, L)).states
+        return X @ np.swapaxes(np.broadcast_to(H, (B,) + np.shape(H)[-2:]), -1, -2)
     return fixed_gain(A, G, L, Y, outputs=H)
 
 
