@@ -199,11 +199,11 @@ def figure():
     t = est.time
     w = slice(int(0.85 / DT), int(0.975 / DT))
     fig, ax = plt.subplots(figsize=(7, 3.2))
+    ax.axvspan(t[a], t[b - 1], color="0.9", zorder=0, label="every channel missing")     # behind the band
     ax.fill_between(t[w], est.forces[w, k] - 2 * est.force_std[w, k], est.forces[w, k] + 2 * est.force_std[w, k],
-                    color="C0", alpha=0.25, label="smoothed ± 2σ")
+                    color="C0", alpha=0.3, lw=0, label="smoothed ± 2σ")
     ax.plot(t[w], loads[w, k], "k", lw=1, label="true load")
     ax.plot(t[w], est.forces[w, k], "C0", lw=1, label="smoothed estimate")
-    ax.axvspan(t[a], t[b - 1], color="0.85", label="every channel missing")
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"force {FORCES[k]} (N)")
     ax.legend(loc="upper left", fontsize=8)
