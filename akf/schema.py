@@ -25,6 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, PlainValidator, ValidationErr
 from core_akf.checks import AKFInputError
 from core_akf.defaults import DEFAULTS
 from core_akf.fatigue import EC3_CATEGORIES
+from core_akf.faults import FAULT_MODES
 
 #: the commands that read job files
 COMMANDS = ("estimate", "place", "locate")
@@ -291,7 +292,7 @@ class Measurements(Section):
         "whole record, a number the mean of its first that many seconds", used_by=("estimate", "locate"), unit="s")
     chunk: Positive = key("a positive number", "the record is filtered and written in pieces this long (constant "
                           "memory)", used_by=ESTIMATE, unit="s", default_text="65536 steps (fewer for a large model)")
-    faults: Literal["flag", "drop", "off"] = key(
+    faults: Literal[FAULT_MODES] = key(
         "\"flag\", \"drop\" or \"off\"", "sensor faults (stuck, clipped, spikes, drift): \"flag\" reports them "
         "(data_quality.csv, the JSON, warnings), \"drop\" also treats the faulty samples as missing, \"off\" does "
         "not look", used_by=ESTIMATE, default_text="\"flag\"")

@@ -3,8 +3,8 @@ channels over time.
 
 A NaN sample is missing: the filter skips it (:func:`core_akf.filter.kernels.gapped_filter`).  This
 module describes the holes -- per channel, the missing fraction, the number of missing spans and
-the longest one -- and cuts a record into the spans over which the same channels are live
-(:func:`live_spans`), the unit the detectability over time is checked on.
+the longest one -- and tracks the spans over which the same channels are dead
+(:class:`LiveSets`), the unit the detectability over time is checked on.
 """
 from __future__ import annotations
 
@@ -65,57 +65,6 @@ def missing_statistics(Y, dt):
         out.append({"missing_fraction": float(missing[:, j].mean()) if missing.shape[0] else 0.0,
                     "missing_spans": int(len(spans)), "longest_missing_s": longest * float(dt)})
     return out
-
-
-@dataclass(frozen=True)
-class LiveSpan:
-    """A span of steps over which the same channels are live.
-
-    Attributes
-    ----------
-    first, stop : int
-        Steps ``[first, stop)``.
-    live : tuple of bool
-        Which channels are observed at least once in the span.
-    """
-
-    first: int
-    stop: int
-    live: tuple
-
-    @property
-    def steps(self):
-        return self.stop - self.first
-
-
-def live_spans(Y, min_steps):
-    """The spans over which a channel is missing throughout (a dead channel), longer than a threshold.
-
-    A channel counts as dead over a span when every one of its samples there is missing for at
-    least ``min_steps`` steps; a short hole does not change the live set.
-
-    Parameters
-    ----------
-    Y : ndarray (N, m)
-        The record, NaN where missing.
-    min_steps : int
-        The shortest hole that counts.
-
-    Returns
-    -------
-    list of LiveSpan
-        Consecutive spans covering the record, each with its live set (neighbours with the same
-        set merged).
-    """
-    missing = np.isnan(np.asarray(Y, float))
-    N, m = missing.shape
-    dead = np.zeros((N, m), bool)
-    for j in range(m):
-        for a, b in runs(missing[:, j]):
-            if b - a >= min_steps:
-                dead[a:b, j] = True
-    cuts = np.r_[0, np.flatnonzero(np.any(dead[1:] != dead[:-1], axis=1)) + 1, N]
-    return [LiveSpan(int(a), int(b), tuple(bool(v) for v in ~dead[a])) for a, b in zip(cuts[:-1], cuts[1:])]
 
 
 class HoleCounter:

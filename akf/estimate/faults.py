@@ -29,7 +29,7 @@ class FaultCheck:
         self.mode = (meas.faults if meas is not None and meas.faults is not None else "flag")
         given = {} if meas is None or meas.fault_thresholds is None else meas.fault_thresholds.model_dump(exclude_none=True)
         self.detector = FaultDetector(labels, FaultSettings(**given))
-        self.dt, self.flagged = job.dt, 0
+        self.dt = job.dt
 
     @property
     def on(self):
@@ -38,7 +38,6 @@ class FaultCheck:
     def before(self, Y, step):
         """The chunk to filter: with "drop", the samples of the raw tests missing."""
         bad = self.detector.raw(Y, step)
-        self.flagged += int(bad.sum())
         return np.where(bad, np.nan, Y) if self.mode == "drop" and bad.any() else Y
 
     def after(self, estimator, est, Y, saved):
@@ -58,7 +57,6 @@ class FaultCheck:
         """
         step = estimator.n_returned - est.forces.shape[0]
         bad = self.detector.innovations(est.innovations, step, np.isnan(est.measurements))
-        self.flagged += int(bad.sum())
         if self.mode != "drop" or not bad.any() or estimator.lagged is not None:
             return est
         estimator.restore(saved)
