@@ -13,6 +13,7 @@ import logging
 import os
 import sys
 import traceback
+import warnings
 from importlib.metadata import entry_points
 
 from core_akf.checks import AKFInputError, UndetectableError
@@ -115,11 +116,32 @@ def configure_logging(verbosity=0):
         _TQDM_SWITCHED_OFF = False
 
 
+#: the packages whose warnings are the toolkit's own words
+OWN_PACKAGES = ("akf", "core_akf", "sensoropt", "impactloc")
+
+
+def show_warning(message, category, filename, lineno, file=None, line=None):
+    """A Python warning as one line in the user's words, ``akf: warning: ...``: no file path and
+    no source line; one from another library names its kind and where it came from."""
+    source = os.path.splitext(os.path.basename(filename or ""))[0]
+    own = category.__module__.split(".")[0] in OWN_PACKAGES or any(
+        f"{os.sep}{p}{os.sep}" in (filename or "") for p in OWN_PACKAGES)
+    text = cli_wording(str(message)) if own else f"{category.__name__} from {source}: {message}"
+    print(f"akf: warning: {text}", file=sys.stderr if file is None else file)
+
+
 def main(argv=None):
     """Run ``akf`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     args = build_parser().parse_args(argv)
     verbosity = getattr(args, "sub_verbosity", None)
     configure_logging(verbosity if verbosity is not None else (args.verbosity or 0))
+    with warnings.catch_warnings():
+        warnings.showwarning = show_warning
+        return _run(args)
+
+
+def _run(args):
+    """``args.func(args)``, every error an exit code and one line on stderr."""
     try:
         return args.func(args)
     except UndetectableError as exc:

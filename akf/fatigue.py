@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from core_akf.checks import AKFInputError
-from core_akf.fatigue import FatigueAccumulator, SNCurve, stress_operator
+from core_akf.fatigue import FatigueAccumulator, SNCurve, check_youngs_modulus, stress_operator
 
 #: seconds per year (365.25 days) for the damage per year
 YEAR = 365.25 * 86400.0
@@ -61,6 +61,8 @@ class FatigueRun:
         self.curve = fatigue_curve(section)
         self.index = fatigue_outputs(structure, section)
         self.labels = [structure.strain_labels[i] for i in self.index]
+        if section.youngs_modulus is not None:
+            check_youngs_modulus(section.youngs_modulus)
         self.W = stress_operator(structure, self.index, section.youngs_modulus)
         self.m = DEL_SLOPE if section.del_slope is None else float(section.del_slope)
         self.n_eq = DEL_CYCLES if section.del_cycles is None else float(section.del_cycles)

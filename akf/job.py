@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import copy
 import os
+from collections.abc import Mapping
 from functools import cached_property
 
 import numpy as np
@@ -77,18 +78,26 @@ def load_job(path: str | os.PathLike, command: str, overrides: dict | None = Non
     return Job.from_dict(load_job_file(path), command, source=os.fspath(path), overrides=overrides)
 
 
+def data_path_keys(job) -> list[tuple[str, str]]:
+    """The ``(section, key)`` of every data path a job dict (or a parsed TOML document) holds: its
+    record's ``[measurements] file`` and the files of a ``model = "matrices"`` structure."""
+    keys = []
+    meas = job.get("measurements")
+    if isinstance(meas, Mapping) and isinstance(meas.get("file"), str):
+        keys.append(("measurements", "file"))
+    structure = job.get("structure")
+    if isinstance(structure, Mapping) and structure.get("model") == "matrices":
+        keys += [("structure", k) for k in MATRIX_FILES if isinstance(structure.get(k), str)]
+    return keys
+
+
 def resolve_paths(job: dict, base: str | os.PathLike) -> dict:
     """The data paths of a job dict (its record, its model's files) made relative to the folder
     ``base`` (in place; returns ``job``): the one place where job-relative paths are resolved."""
     here = os.path.abspath(base)
-    meas = job.get("measurements")
-    if isinstance(meas, dict) and isinstance(meas.get("file"), str) and not os.path.isabs(meas["file"]):
-        meas["file"] = os.path.join(here, meas["file"])
-    structure = job.get("structure")
-    if isinstance(structure, dict) and structure.get("model") == "matrices":
-        for k in MATRIX_FILES:
-            if isinstance(structure.get(k), str) and not os.path.isabs(structure[k]):
-                structure[k] = os.path.join(here, structure[k])
+    for section, k in data_path_keys(job):
+        if not os.path.isabs(job[section][k]):
+            job[section][k] = os.path.join(here, job[section][k])
     return job
 
 

@@ -48,6 +48,9 @@ def problem_from_job(job: Job):
     :class:`~akf.job.Job`."""
     spec = job.spec
     sim, p, f = spec.simulation, spec.place, spec.filter
+    if p.del_slope is not None and p.objective != "fatigue":
+        raise AKFInputError(f"[place] del_slope = {p.del_slope:g} is a setting of objective = \"fatigue\", but the "
+                            "objective is \"strain\" (the default): set objective = \"fatigue\" or remove del_slope")
     loads = job.loads()
     if p.sensors is None and p.budget is None:
         raise AKFInputError("[place] needs sensors = N or budget = {strain = N, acc = M}")

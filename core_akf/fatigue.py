@@ -15,6 +15,7 @@ ranges are in Pa throughout; detail categories are named in MPa, as the standard
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -551,6 +552,73 @@ class FatigueAccumulator:
         self.residue = np.asarray(state["fatigue_residue"], float)
         self.residue_output = np.asarray(state["fatigue_residue_output"], int)
         return self
+
+
+#: Young's moduli (Pa) of structural materials: polymers and timber (~1-10 GPa) to steels (~210 GPa)
+YOUNGS_MODULUS_RANGE = (1e9, 1e12)
+
+
+def check_youngs_modulus(E, key="[output.fatigue] youngs_modulus"):
+    """Refuse a Young's modulus typed in another unit; warn about one outside structural materials.
+
+    Below 1 MPa or above 10 TPa it is an error (``210`` or ``210000`` meant as GPa or MPa would give
+    stresses 1e9 or 1e6 times too small); outside :data:`YOUNGS_MODULUS_RANGE`, a warning.
+
+    Parameters
+    ----------
+    E : float or ndarray
+        Pa.
+    key : str
+        Where it was given, for the message.
+
+    Raises
+    ------
+    AKFInputError
+        For a value no material has.
+
+    Examples
+    --------
+    >>> check_youngs_modulus(210e9)
+    """
+    E = np.atleast_1d(np.asarray(E, float))
+    low, high = float(E.min()), float(E.max())
+    if low < 1e6 or high > 1e13:
+        bad = low if low < 1e6 else high
+        raise AKFInputError(f"{key} = {bad:.4g} Pa is no structural material's (steel 210e9, aluminium 70e9, "
+                            "concrete 30e9 Pa): give it in Pa, e.g. 210e9 for 210 GPa")
+    if low < YOUNGS_MODULUS_RANGE[0] or high > YOUNGS_MODULUS_RANGE[1]:
+        bad = low if low < YOUNGS_MODULUS_RANGE[0] else high
+        warnings.warn(f"{key} = {bad:.4g} Pa is outside the structural materials' 1e9-1e12 Pa: is it in Pa?",
+                      UserWarning)
+
+
+def relative_stress_operator(structure, outputs: list, youngs_modulus: float | None = None) -> FloatArray:
+    """:func:`stress_operator` for measures relative to the truth (the relative error of a DEL):
+    ``youngs_modulus``, else the model's E, else 1 Pa -- a uniform E scales every stress of the
+    estimate and of the truth alike, so a model of one's own without E needs none.
+
+    Parameters
+    ----------
+    structure : Structure
+        The model.
+    outputs : list of int
+        Strain output indices (0-based).
+    youngs_modulus : float, optional
+        E (Pa), instead of the model's.
+
+    Returns
+    -------
+    ndarray (k, n_strain)
+
+    Examples
+    --------
+    >>> from core_akf.models import s17_truss
+    >>> float(relative_stress_operator(s17_truss(), [12])[0, 12]) / 1e9
+    200.0
+    """
+    if youngs_modulus is None and structure.meta.get("E") is None:
+        youngs_modulus = 1.0
+    return stress_operator(structure, outputs, youngs_modulus)
 
 
 def stress_operator(structure, outputs: list, youngs_modulus: float | None = None) -> FloatArray:

@@ -264,7 +264,8 @@ class FatigueErrorObjective(StrainErrorObjective):
     m : float
         The slope of the DEL (3 for steel details).
     youngs_modulus : float, optional
-        E (Pa) for the stresses (default the model's own).
+        E (Pa) for the stresses (default the model's own; a model without one needs none: a
+        uniform E does not change the relative error).
     **settings
         The other settings of :class:`StrainErrorObjective` (window, stiffness_factor,
         relative_noise, model_error_cov, force_increment_cov, n_modes, seed, targets).
@@ -284,14 +285,14 @@ class FatigueErrorObjective(StrainErrorObjective):
 
     def __init__(self, structure: Structure, forces: Forces, loads: ForceHistories, dt: float, encoding: CandidateSet, *,
                  m: float = 3.0, youngs_modulus: float | None = None, **settings: object):
-        from core_akf.fatigue import equivalent_range, rainflow, stress_operator
+        from core_akf.fatigue import equivalent_range, rainflow, relative_stress_operator
 
         if not (np.isfinite(m) and m > 0):
             raise AKFInputError(f"the DEL slope m must be a positive number, got {m!r}")
         super().__init__(structure, forces, loads, dt, encoding, **settings)
         targets = settings.get("targets")
         rows = list(range(structure.n_strain)) if targets is None else structure.strain_label_index(targets)
-        W = stress_operator(structure, rows, youngs_modulus)          # (k, n_strain)
+        W = relative_stress_operator(structure, rows, youngs_modulus)          # (k, n_strain)
         self.m = float(m)
         self.H = W @ self.model.strain_rows()                         # the targets' stresses on the filter state
         self.reference = self.true_strains @ W.T                      # (n, k) Pa

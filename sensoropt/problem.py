@@ -195,10 +195,10 @@ class PlacementProblem:
         float
             %.
         """
-        from core_akf.fatigue import equivalent_range, rainflow, stress_operator
+        from core_akf.fatigue import equivalent_range, rainflow, relative_stress_operator
 
         rows = self.target_rows() or list(range(self.structure.n_strain))
-        W = stress_operator(self.structure, rows)
+        W = relative_stress_operator(self.structure, rows)
         est, sim = self._full_record(sensors, seed, lambda fm: W @ fm.strain_rows())
         true = equivalent_range(rainflow(sim.strains @ W.T), self.del_slope, 1.0)
         got = equivalent_range(rainflow(est), self.del_slope, 1.0)

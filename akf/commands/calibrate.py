@@ -75,35 +75,114 @@ WRITTEN = ("stiffness_factor", "frequency_factors", "noise_cov", "force_incremen
 
 def write_calibrated(source, report, path):
     """Write the job file ``source`` with the fitted ``[filter]`` values of ``report`` (and without
-    ``calibrate``, ``calibrate_window`` and ``calibrate_modes``) to ``path``; comments and layout
-    are kept (tomlkit)."""
+    ``calibrate``, ``calibrate_window`` and ``calibrate_modes``) to ``path``.
+
+    Comments and layout are kept (tomlkit), a replaced value keeps its comment (its unit), and
+    the relative data paths (the record, a model's files) are rewritten to point from ``path``'s
+    folder at the same files, so the written job runs as it is.  A ``[filter]`` written as an
+    inline table or as dotted keys becomes a ``[filter]`` table.  The text written is checked
+    by reading it back: it must hold the job with the fitted values.
+    """
+    import tomllib
+
     import tomlkit
 
     from core_akf.outputs import atomic_path
 
+    from ..job import data_path_keys
+
     with open(source, encoding="utf-8-sig") as fh:
-        doc = tomlkit.parse(fh.read())
-    if "filter" not in doc:
-        doc["filter"] = tomlkit.table()
-    table = doc["filter"]
+        text = fh.read()
+    doc = tomlkit.parse(text)
+    expected = tomllib.loads(text)
+    fitted = {key: report[key] for key in WRITTEN if key in report}
+    for key in ("calibrate", "calibrate_window", "calibrate_modes"):
+        expected.get("filter", {}).pop(key, None)
+    expected.setdefault("filter", {}).update(fitted)
+    table = _plain_table(doc, "filter")
     for key in ("calibrate", "calibrate_window", "calibrate_modes"):
         if key in table:
             del table[key]
-    for key in WRITTEN:
-        if key in report:
-            table[key] = report[key]
+    for key, value in fitted.items():
+        _set_keeping_comment(table, key, value)
     if "damping" in report:            # the model's own damping: [structure] of a job on measured data
         if "measurements" in doc and "structure" in doc:
-            doc["structure"]["damping"] = report["damping"]
+            _set_keeping_comment(_plain_table(doc, "structure"), "damping", report["damping"])
+            expected["structure"]["damping"] = report["damping"]
         else:
             table.add(tomlkit.comment(f"fitted modal damping ratio {report['damping']}: not written into [structure], "
                                       "which also makes the simulated truth"))
+    here, there = (os.path.dirname(os.path.abspath(f)) for f in (source, path))
+    for section, key in data_path_keys(expected):
+        value = expected[section][key]
+        if not os.path.isabs(value):
+            expected[section][key] = _relocated(value, here, there)
+            _set_keeping_comment(_plain_table(doc, section), key, expected[section][key])
     table.add(tomlkit.comment(f"fitted by akf calibrate: log-likelihood {report['loglik_before']:.8g} -> "
                               f"{report['loglik_after']:.8g}"))
+    written = tomlkit.dumps(doc)
+    try:
+        kept = tomllib.loads(written) == expected
+    except tomllib.TOMLDecodeError:
+        kept = False
+    if not kept:                       # a layout tomlkit cannot edit in place: the data, without the comments
+        written = ("# written by akf calibrate from " + os.path.basename(source) + " (its comments could not be "
+                   "kept)\n" + tomlkit.dumps(expected))
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(tomlkit.dumps(doc))
+            fh.write(written)
     return path
+
+
+def _plain_table(doc, name):
+    """The ``[name]`` table of a tomlkit document, to edit in place: an inline table, dotted keys or
+    a table split over the file become one ``[name]`` table at the end (their comments are lost)."""
+    import tomlkit
+    from tomlkit.items import Table
+
+    item = doc.get(name)
+    if item is None:
+        doc[name] = tomlkit.table()
+    elif not isinstance(item, Table) or item.is_super_table():
+        data = item.unwrap()
+        del doc[name]
+        table = tomlkit.table()
+        for key, value in data.items():
+            table[key] = _inline(value)
+        doc[name] = table
+    return doc[name]
+
+
+def _inline(value):
+    """A value for a table key: a dict as an inline table (not a sub-table)."""
+    import tomlkit
+
+    if not isinstance(value, dict):
+        return value
+    table = tomlkit.inline_table()
+    table.update({k: _inline(v) for k, v in value.items()})
+    return table
+
+
+def _set_keeping_comment(table, key, value):
+    """``table[key] = value``, keeping the comment (a unit, say) of the value it replaces."""
+    import tomlkit
+
+    new = tomlkit.item(_inline(value))
+    if key in table:
+        old = table.item(key)
+        new.trivia.comment, new.trivia.comment_ws = old.trivia.comment, old.trivia.comment_ws
+    table[key] = new
+
+
+def _relocated(value, here, there):
+    """A path relative to the folder ``here`` made relative to the folder ``there`` (absolute when
+    no relative path joins them, as across Windows drives)."""
+    target = os.path.normpath(os.path.join(here, value))
+    try:
+        return os.path.relpath(target, there).replace(os.sep, "/")
+    except ValueError:
+        return target
 
 
 def register(sub):

@@ -3,6 +3,7 @@ import json
 import os
 import shutil
 
+import numpy as np
 import pandas as pd
 import pytest
 from helpers import PLACE_3D, ROOT, SIMULATION
@@ -34,6 +35,30 @@ def test_place_on_a_3d_model_of_ones_own_with_operator_rows_and_extensometers(fr
         else:
             assert row["source"] == "dof" and row["node"] in (106, 108) and row["x"] == pytest.approx(
                 {106: 3.0, 108: 4.0}[row["node"]])
+
+
+def test_fatigue_placement_on_a_model_of_ones_own_without_a_youngs_modulus(frame3d, tmp_path, capsys):
+    """objective = "fatigue" asked for a Young's modulus that no [place] key could give; the
+    relative DEL error does not depend on a uniform E, so it runs without one, and a model with
+    E = 1 Pa or 200 GPa gives the same fitness."""
+    from core_akf.loads import sine
+    from sensoropt.encoding import CandidateSet
+    from sensoropt.objective import FatigueErrorObjective
+
+    d, structure = frame3d
+    job = d / "fatigue3d.toml"
+    job.write_text('name = "fatigue3d"\n' + structure + 'strains = "S.mtx"\nextensometers = [[101, 118], [103, 117]]\n'
+                   + PLACE_3D + 'objective = "fatigue"\n' + SIMULATION)
+    assert main(["place", str(job), "--json", "--out", str(tmp_path / "o")]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert len(res["sensors"]) == 3 and 0 < res["fatigue_error"] < 100
+    s = s17_truss()
+    loads = sine(np.arange(512) * 1 / 512, 3.0, 300.0)[:, None]
+    enc = CandidateSet(s, candidates=["strain:5", "strain:13", "acc:8:y"], n_sensors=2)
+    layouts = [["strain:5", "acc:8:y"], ["strain:5", "strain:13"]]
+    own = FatigueErrorObjective(s, ["8:y"], loads, 1 / 512, enc, window=1.0, youngs_modulus=1.0).evaluate(layouts)
+    steel = FatigueErrorObjective(s, ["8:y"], loads, 1 / 512, enc, window=1.0).evaluate(layouts)
+    np.testing.assert_allclose(own, steel, rtol=1e-9)
 
 
 def test_place_whose_figure_fails_still_writes_and_prints_its_layout(tmp_path, capsys, monkeypatch):

@@ -15,6 +15,7 @@ from core_akf.fatigue import (
     EC3_CATEGORIES,
     FatigueAccumulator,
     SNCurve,
+    check_youngs_modulus,
     damage,
     equivalent_range,
     rainflow,
@@ -185,6 +186,8 @@ BAD_FATIGUE = {
     "outputs and members": ({"detail_category": 71, "outputs": ["strain:4"], "members": [4]}, "not both"),
     "unknown output": ({"detail_category": 71, "outputs": ["strain:99"]}, "99"),
     "gamma below 1": ({"detail_category": 71, "gamma_mf": 0.8}, "gamma_mf"),
+    "E in GPa": ({"detail_category": 71, "youngs_modulus": 210}, r"youngs_modulus = 210 Pa .* e\.g\. 210e9"),
+    "E in MPa": ({"detail_category": 71, "youngs_modulus": 210000}, r"youngs_modulus = 2\.1e\+05 Pa"),
 }
 
 
@@ -204,6 +207,8 @@ def test_a_model_of_ones_own_without_e_or_strain_outputs_is_named():
     with pytest.raises(AKFInputError, match="no Young's modulus.*youngs_modulus"):
         stress_operator(structure, [0])
     assert stress_operator(structure, [0], youngs_modulus=70e9)[0, 0] == 70e9
+    with pytest.warns(UserWarning, match="youngs_modulus = 5e\\+08 Pa is outside"):
+        check_youngs_modulus(5e8)
     with pytest.raises(AKFInputError, match="S-N points"):
         SNCurve.from_points([1e4, 300])
     with pytest.raises(AKFInputError, match="unknown detail category"):

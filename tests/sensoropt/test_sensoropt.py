@@ -309,6 +309,20 @@ def test_place_for_fatigue_from_a_job(tmp_path, capsys):
         _truss_fatigue_problem("damage").objective()
 
 
+def test_a_fatigue_setting_under_the_strain_objective_is_refused():
+    from akf.job import Job
+    from akf.placement import problem_from_job
+
+    data = {"name": "t", "dt": 1e-3, "forces": ["8:y"], "structure": {"model": "s17_truss"},
+            "place": {"sensors": 2, "del_slope": 5.0},
+            "simulation": {"duration": 0.5, "loads": [{"components": [{"type": "sine", "frequency": 3.0,
+                                                                        "amplitude": 300.0}]}]}}
+    with pytest.raises(AKFInputError, match=r"del_slope = 5 is a setting of objective = \"fatigue\""):
+        problem_from_job(Job.from_dict(data, "place"))
+    data["place"]["objective"] = "fatigue"
+    assert problem_from_job(Job.from_dict(data, "place"))[0].del_slope == 5.0
+
+
 @pytest.mark.parametrize("k", [1, 3, 5, 6])
 def test_batched_diversity_is_the_pairwise_matching(k):
     """The population's diversity (every pair matched at once, by enumerating the matchings up to
