@@ -83,9 +83,8 @@ def write_calibrated(source, report, path):
     inline table or as dotted keys becomes a ``[filter]`` table.  The text written is checked
     by reading it back: it must hold the job with the fitted values.
     """
-    import tomllib
-
     import tomlkit
+    import tomllib
 
     from core_akf.outputs import atomic_path
 

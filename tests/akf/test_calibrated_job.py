@@ -2,9 +2,9 @@
 was written -- its data paths rewritten, its comments (units) kept, whatever TOML layout the
 user's ``[filter]`` had."""
 import json
-import tomllib
 
 import pytest
+import tomllib
 from helpers import DAQ
 
 from akf.cli import main
