@@ -95,25 +95,38 @@ class FatigueRun:
         self.steps += steps
 
     def frame(self, dt):
-        """``fatigue.csv``: one row per output (Pa, cycles, Miner's sum, per year at this record's rate)."""
+        """``fatigue.csv``: one row per output, each header with its unit (stress ranges in MPa, as
+        the S-N curves; cycles; Miner's sum; per year at this record's rate)."""
         import pandas as pd
 
         s = self.estimated.summary()
         duration = self.steps * dt
-        out = pd.DataFrame({"channel": self.labels, "cycles": s.cycles, "max_range": s.max_range, "damage": s.damage,
-                            "del": s.equivalent_range,
+        out = pd.DataFrame({"channel": self.labels, "cycles": s.cycles, "max_range_MPa": s.max_range / 1e6,
+                            "damage": s.damage, "del_MPa": s.equivalent_range / 1e6,
                             "damage_per_year": s.damage * (YEAR / duration) if duration > 0 else np.nan})
         if self.reference is not None:
             r = self.reference.summary()
             out["damage_reference"] = r.damage
-            out["del_reference"] = r.equivalent_range
+            out["del_reference_MPa"] = r.equivalent_range / 1e6
         return out
 
     def metrics(self, dt):
-        """The JSON ``fatigue`` object: the curve, the settings and the rows of :meth:`frame`."""
+        """The JSON ``fatigue`` object: the curve, the settings, the rows of :meth:`frame` and the
+        caveat of the yearly rate (:meth:`per_year_caveat`)."""
         return {"curve": self.curve.name, "del_slope": self.m, "del_cycles": self.n_eq,
-                "units": {"max_range": "Pa", "del": "Pa", "damage": "Miner's sum", "damage_per_year": "1/year"},
+                "units": {"max_range_MPa": "MPa", "del_MPa": "MPa", "damage": "Miner's sum",
+                          "damage_per_year": "1/year"},
+                "per_year": self.per_year_caveat(dt),
                 "outputs": self.frame(dt).to_dict(orient="records")}
+
+    def per_year_caveat(self, dt):
+        """What ``damage_per_year`` assumes: the record's rate of damage held for a year (365.25 days)."""
+        duration = self.steps * dt
+        if duration <= 0:
+            return "no record counted"
+        text = (f"damage_per_year is the damage of {duration:.4g} s of record times {YEAR / duration:.3g}: it holds "
+                "only if the record's loading is that of the whole year")
+        return text + ("; a record shorter than a day rarely is" if duration < 86400 else "")
 
     def state(self):
         """The accumulators' state, for a checkpoint."""

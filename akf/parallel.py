@@ -15,10 +15,10 @@ from __future__ import annotations
 import contextlib
 import os
 
-from core_akf.checks import AKFInputError
+from core_akf.checks import AKFInputError, install_hint
 
 #: how to get dask
-INSTALL_HINT = 'the dask scheduler needs dask.distributed: python -m pip install "akf-toolkit[dask]"'
+INSTALL_HINT = "the dask scheduler needs dask.distributed: " + install_hint("dask")
 
 
 @contextlib.contextmanager

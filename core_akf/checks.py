@@ -108,6 +108,48 @@ CandidateLayout = tuple[int, ...]
 
 
 # ---------------------------------------------------------------------------------- checks
+def install_hint(extra: str) -> str:
+    """The command that installs the optional dependencies ``extra`` into this installation.
+
+    From a source folder (an editable install) it names that folder; from a local folder or wheel
+    (pip's ``direct_url.json``) that path; else the distribution on the package index.
+
+    Parameters
+    ----------
+    extra : str
+        An extra of ``pyproject.toml`` ("tdms", "dask", "opensees", ...).
+
+    Returns
+    -------
+    str
+        e.g. ``python -m pip install -e "/home/me/akf[tdms]"``.
+
+    Examples
+    --------
+    >>> install_hint("tdms").startswith("python -m pip install")
+    True
+    """
+    import json
+    import os
+    from importlib import metadata
+    from urllib.parse import unquote, urlparse
+
+    folder = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        with open(os.path.join(folder, "pyproject.toml"), encoding="utf-8") as fh:
+            if 'name = "akf-toolkit"' in fh.read():
+                return f'python -m pip install -e "{folder}[{extra}]"'
+    except OSError:
+        pass
+    try:
+        url = json.loads(metadata.distribution("akf-toolkit").read_text("direct_url.json") or "{}").get("url", "")
+    except (metadata.PackageNotFoundError, ValueError):
+        url = ""
+    if url.startswith("file://"):
+        return f'python -m pip install "{unquote(urlparse(url).path)}[{extra}]"'
+    return f'python -m pip install "akf-toolkit[{extra}]"'
+
+
 def as_finite_array(value, name, ndim=None, shape=None, dtype=float):
     """Return ``value`` as a finite float array, or raise :class:`AKFInputError` naming it.
 

@@ -20,6 +20,8 @@ from .sensors import UNITS
 
 #: a channel whose innovations are this many times their predicted size is flagged
 CONSISTENCY_LIMIT = 10.0
+#: ... and one whose innovations are this small a share of it
+LOW_CONSISTENCY = 0.2
 #: a record should be this many filter time constants long (transient plus a useful part)
 TRANSIENT_MULTIPLE = 3.0
 #: what a checkpoint keeps of the hole counts
@@ -283,7 +285,7 @@ def warnings_for(est, sensors=None, duration=None):
     Returns
     -------
     list of str
-        Channels whose innovations do not fit their predicted size, a filter whose error does not
+        Channels whose innovations are far larger or smaller than their predicted size, a filter whose error does not
         decay (an undetectable set), and a record shorter than the filter's transient.
     """
     sensors = sensor_diagnostics(est) if sensors is None else sensors
@@ -293,6 +295,14 @@ def warnings_for(est, sensors=None, duration=None):
         listed = ", ".join(f"{d['channel']} ({d['consistency']:.3g}x)" for d in off)
         notes.append(f"innovations larger than predicted at {listed}: the data do not fit the model and noise_cov "
                      "there; check each channel's unit (SI), sign and noise variance")
+    low = sorted((d for d in sensors if d["consistency"] < LOW_CONSISTENCY), key=lambda d: d["consistency"])
+    if low:
+        listed = ", ".join(f"{d['channel']} ({d['consistency']:.2g}x)" for d in low)
+        notes.append(f"innovations smaller than predicted at {listed}: the filter expects more than these channels "
+                     "see. Most likely force_increment_cov (S) is larger than the loads' steps (an accelerometer "
+                     "feels a force step at once, so S sets its predicted spread), else the channel's noise_cov, "
+                     "else model_error_cov is too large; [filter] calibrate = [\"force_increment_cov\", "
+                     "\"noise_cov\"] fits both")
     duration = est.forces.shape[0] * est.dt if duration is None else duration
     tau = est.transient_time
     if not np.isfinite(tau):

@@ -106,6 +106,30 @@ def _kind_of(sensor):
     return f"{sensor.kind}:{sensor.direction}"
 
 
+
+def sensor_label(sensor) -> object:
+    """A sensor as its string: a string as it is, a record of :attr:`PlacementResult.layout
+    <sensoropt.ga.PlacementResult>` (``{"sensor": "acc:8:y", ...}``) or a
+    :class:`~core_akf.sensors.Sensor` as its label; anything else unchanged (for the caller to refuse).
+
+    Parameters
+    ----------
+    sensor : str, dict or Sensor
+
+    Returns
+    -------
+    str, or ``sensor`` itself
+
+    Examples
+    --------
+    >>> sensor_label({"sensor": "acc:8:y", "kind": "acc:y", "node": 8})
+    'acc:8:y'
+    """
+    if isinstance(sensor, Mapping) and "sensor" in sensor:
+        return str(sensor["sensor"])
+    label = getattr(sensor, "label", None)
+    return label if isinstance(label, str) else sensor
+
 class CandidateSet:
     """Admissible sensors of any kind at any place of a structure, and the GA operators on layouts.
 
@@ -277,7 +301,7 @@ class CandidateSet:
         Parameters
         ----------
         sensors : sequence of str
-            Candidates, e.g. ``["strain:13", "acc:8:y"]``.
+            Candidates, e.g. ``["strain:13", "acc:8:y"]`` (or a result's ``layout`` records).
 
         Returns
         -------
@@ -287,7 +311,7 @@ class CandidateSet:
         from core_akf.sensors import as_layout
 
         out = []
-        for s in sensors:
+        for s in map(sensor_label, sensors):
             label = as_layout([s])[0].label
             if label not in self.index:
                 raise AKFInputError(f"sensor {s!r} is not a candidate (kinds {list(self.kinds)}; an output that "
@@ -734,7 +758,7 @@ class PlateGrid(CandidateSet):
             Sorted candidate indices.
         """
         out = []
-        for s in sensors:
+        for s in map(sensor_label, sensors):
             if isinstance(s, str):
                 parts = s.split(":")
                 node, kind = int(parts[1]), ("acc" if parts[0] == "acc" else parts[2])

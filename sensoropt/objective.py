@@ -87,14 +87,16 @@ class FunctionObjective:
         Parameters
         ----------
         layouts : sequence of sequence of str
-            Layouts as sensor lists.
+            Layouts as sensor lists (or a result's ``layout`` records).
 
         Returns
         -------
         list
             ``fn`` of each layout.
         """
-        return [self.fn(list(l)) for l in layouts]
+        from .encoding import sensor_label
+
+        return [self.fn([sensor_label(s) for s in l]) for l in layouts]
 
 
 class StrainErrorObjective:

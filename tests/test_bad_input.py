@@ -429,4 +429,8 @@ def test_estimates_say_when_they_cannot_be_trusted():
     res = run_estimate(job)
     assert any("shorter than 3 time constants" in w for w in res.metrics["warnings"])
     job["simulation"]["duration"] = 1.0
+    said = run_estimate(job).metrics["warnings"]        # the paper's S (1e5 N^2) is far above the loads' steps
+    assert len(said) == 1 and said[0].startswith("innovations smaller than predicted at acc:")
+    assert "Most likely force_increment_cov (S)" in said[0]
+    job["filter"]["force_increment_cov"] = 5e3          # about what calibration finds: a good run says nothing
     assert run_estimate(job).metrics["warnings"] == []

@@ -97,16 +97,17 @@ def _print_results(job, res):
               f"  {d['whiteness']:6.2f}  {d['loglik']:12.6g}")
     print(f"  log-likelihood of the innovations: {m['loglik']:.8g}")
     if "fatigue" in m:
-        rows = sorted(m["fatigue"]["outputs"], key=lambda r: (-r["damage"], -r["del"]))
+        rows = sorted(m["fatigue"]["outputs"], key=lambda r: (-r["damage"], -r["del_MPa"]))
         f = m["fatigue"]
         print(f"  fatigue ({f['curve']}; DEL with m = {f['del_slope']:g}, N_eq = {f['del_cycles']:g}), the 5 outputs "
               f"most damaged of {len(rows)}:")
         print("    output           cycles   max range (MPa)   DEL (MPa)    damage     per year")
         for r in rows[:5]:
-            print(f"    {r['channel']:>14s}  {r['cycles']:8.1f}   {r['max_range'] / 1e6:12.4g}   {r['del'] / 1e6:10.4g}"
+            print(f"    {r['channel']:>14s}  {r['cycles']:8.1f}   {r['max_range_MPa']:12.4g}   {r['del_MPa']:10.4g}"
                   f"   {r['damage']:9.3g}   {r['damage_per_year']:9.3g}")
         if not rows[0]["damage"]:
             print("    (every range below the curve's cut-off: no damage; ranked by DEL)")
+        print(f"    ({f['per_year']})")
     for w in m["warnings"]:
         print(f"  WARNING: {w}")
     sys.stdout.flush()

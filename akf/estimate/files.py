@@ -11,6 +11,7 @@ resumed run cuts the output back to the checkpoint and goes on from there.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 
@@ -29,6 +30,10 @@ DEFAULT_CHUNK_STEPS = 65536
 CHUNK_BYTES = 256e6
 #: above this many (strain output x step) rows, ``[output] strains`` left at its default writes none
 MAX_STRAIN_ROWS = 2_000_000
+#: bytes per tidy row of the time series (time, quantity, channel, unit, estimate, reference, std)
+BYTES_PER_ROW = {"csv": 80, "parquet": 25}
+#: a time series larger than this is announced before the run
+LARGE_OUTPUT_BYTES = 200e6
 #: points per channel kept for the figures (the record decimated to at most this)
 PLOT_POINTS = 20000
 CHECKPOINT = ".akf-resume.npz"
@@ -42,20 +47,32 @@ def default_chunk(n_states, n_channels, n_outputs):
     return int(min(DEFAULT_CHUNK_STEPS, max(1024, CHUNK_BYTES // per_step)))
 
 
-def strain_outputs(job, structure, n_steps, notes):
+def strain_outputs(job, structure, n_steps, notes, warnings=None):
     """Indices of the strain outputs whose histories are written: ``[output] strains``, or all of
     them unless that is more than :data:`MAX_STRAIN_ROWS` rows (then none, with a note) when the
-    job leaves it at its default."""
+    job leaves it at its default.  A time series that will be larger than
+    :data:`LARGE_OUTPUT_BYTES` is announced before the run (logged and added to ``warnings``)."""
     wanted = job.spec.output.strains if job.spec.output is not None else None
     if wanted is None:
         if structure.n_strain * n_steps <= MAX_STRAIN_ROWS:
-            return list(range(structure.n_strain))
-        notes.append(f"strain histories not written ({structure.n_strain} channels x {n_steps} steps); list the "
-                     "channels you want in [output] strains (summary.csv has every RMS error of a simulated job)")
-        return []
-    if wanted == "all":
-        return list(range(structure.n_strain))
-    return structure.strain_label_index(wanted)
+            index = list(range(structure.n_strain))
+        else:
+            notes.append(f"strain histories not written ({structure.n_strain} channels x {n_steps} steps); list the "
+                         "channels you want in [output] strains (summary.csv has every RMS error of a simulated job)")
+            index = []
+    elif wanted == "all":
+        index = list(range(structure.n_strain))
+    else:
+        index = structure.strain_label_index(wanted)
+    fmt = job.spec.output.format if job.spec.output is not None and job.spec.output.format else "csv"
+    size = n_steps * (len(job.forces) + len(index)) * BYTES_PER_ROW[fmt]
+    if size > LARGE_OUTPUT_BYTES and warnings is not None:
+        text = (f"timeseries.{fmt} will hold about {size / 1e6:.0f} MB ({len(index)} strain outputs and "
+                f"{len(job.forces)} forces x {n_steps} steps): list the channels you need in [output] strains"
+                + (", or write format = \"parquet\" (about a third of the size)" if fmt == "csv" else ""))
+        logging.getLogger("akf").warning("akf: warning: " + text)
+        warnings.append(text)
+    return index
 
 
 class TimeseriesWriter:
@@ -304,7 +321,7 @@ class RunFiles:
                 frame = self.fatigue.frame(self.job.dt)
                 damaged = bool((frame["damage"] > 0).any())       # else every range is below the cut-off: the DEL
                 draw(files, "fatigue_figure", metrics["warnings"], plot_fatigue, self.job.structure, frame["channel"],
-                     (frame["damage"] if damaged else frame["del"] / 1e6).to_numpy(),
+                     (frame["damage"] if damaged else frame["del_MPa"]).to_numpy(),
                      os.path.join(self.out, "fatigue.png"),
                      f"{title}: fatigue of the estimated stresses ({self.fatigue.curve.name}"
                      + ("" if damaged else "; every range below its cut-off: no damage") + ")", sensors,

@@ -106,7 +106,7 @@ class Setup:
             Y_cal = sim.measurements if sim is not None else calibration_record(job, record)
             setup.model, setup.Q, setup.force_model, setup.noise_cov, setup.calibration = calibrate_job(
                 job, model, sensors, job.forces, Y_cal, noise_cov)
-        setup.strains = strain_outputs(job, structure, n_total, setup.notes) if out is not None else []
+        setup.strains = strain_outputs(job, structure, n_total, setup.notes, setup.warnings) if out is not None else []
         setup.chunk = setup.chunk_length(n_a)
         return setup
 
@@ -203,6 +203,10 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
             return estimate_in_pieces(setup, n_jobs, overwrite=overwrite, plot=plot, on_result=on_result)
         setup.notes.append("the record has missing samples or gaps between its files: it was filtered sequentially "
                            "(the time-parallel filter needs complete files that join step by step)")
+    elif n_jobs is not None and n_jobs != 1:
+        what = "a simulated record" if setup.record is None else "a record of one file"
+        setup.notes.append(f"--n-jobs {n_jobs} not used: {what} is filtered sequentially (the time-parallel filter "
+                           "runs the files of a record of many files at once)")
     return Pipeline(setup, resume, overwrite, progress).run(stop_after, plot, on_result)
 
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import AKFInputError, first_repeat
+from ..checks import AKFInputError, first_repeat, install_hint
 
 #: a time stamp may lie off the uniform grid ``t_0 + k dt`` by this fraction of a step
 TIME_GRID_RTOL = 0.01
@@ -156,8 +156,7 @@ def _require(module, extra, fmt):
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise MissingExtraError(f"reading {fmt} files needs the package {module!r}: pip install "
-                                f"\"akf-toolkit[{extra}]\"") from None
+        raise MissingExtraError(f"reading {fmt} files needs the package {module!r}: {install_hint(extra)}") from None
 
 
 def check_time_grid(t, path, dt=None, offset=0):

@@ -3,7 +3,7 @@ and the equation numbering, K and M (and C, if the model has Rayleigh damping) t
 itself, and every two-node element (truss, beam-column) turned into a strain output -- the
 axial strain between its end nodes, ``strain:k`` for the k-th element in OpenSees' tag order.
 
-Needs the optional ``openseespy`` package (``pip install "akf-toolkit[opensees]"``; on Linux it
+Needs the optional ``openseespy`` package (the ``opensees`` extra; on Linux it
 loads the system's BLAS and LAPACK, e.g. Debian's ``libblas3`` and ``liblapack3``).
 
 Build the model with ``openseespy.opensees`` as usual (``model``, ``node``, ``fix``, ``element``
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import AKFInputError
+from ..checks import AKFInputError, install_hint
 from .sparse import DENSE_LIMIT
 
 #: OpenSees' DOF order per (ndm, ndf)
@@ -35,8 +35,8 @@ def _ops():
             raise AKFInputError(f"openseespy is installed but cannot load ({exc}): it needs the system's BLAS and LAPACK "
                                 "(on Debian/Ubuntu `apt-get install libblas3 liblapack3`, on Fedora/RHEL `dnf install "
                                 "blas lapack`)") from None
-        raise AKFInputError("reading an OpenSees model needs the package 'openseespy': pip install "
-                            f"\"akf-toolkit[opensees]\" ({exc})") from None
+        raise AKFInputError(f"reading an OpenSees model needs the package 'openseespy': {install_hint('opensees')} "
+                            f"({exc})") from None
     return ops
 
 

@@ -12,7 +12,7 @@ from akf.examples import TH_CASE2, TH_CASE3, th_job
 from akf.job import build_loads
 from akf.placement import example_problem
 from core_akf import AKFInputError
-from core_akf.models import plate, th_plate
+from core_akf.models import plate, s17_truss, th_plate
 from sensoropt import THESIS, FunctionObjective, PlacementProblem, PlateGrid, StrainErrorObjective, pareto, place
 
 
@@ -379,3 +379,26 @@ def test_th_case5_on_the_band_model_finds_a_layout_as_good_as_the_full_models():
     p.n_modes = None                                           # the full model's verdict
     assert p.full_record_error(res.sensors) < 0.99 * p.full_record_error(["strain:7:ey", "strain:88:gxy",
                                                                            "strain:103:gxy"])
+
+
+def _far_from_clamp_and_spread(sensors):
+    """The objective of the README and the placement guide."""
+    nodes = [int(s.split(":")[1]) for s in sensors]
+    return -min(nodes) - 0.1 * (max(nodes) - min(nodes)) + 1000.0 * (len(nodes) - len(set(nodes)))
+
+
+def test_a_result_layout_goes_back_into_the_objective_and_the_encoding():
+    """res.layout (records) and res.sensors (strings) are one layout to an objective and to
+    from_sensors; the README's objective places one gauge per node."""
+    from sensoropt import FunctionObjective, PlateGrid, place
+    from sensoropt.encoding import CandidateSet
+
+    enc = PlateGrid(th_plate(), kinds=("ex", "ey", "gxy"), n_sensors=4)
+    objective = FunctionObjective(_far_from_clamp_and_spread)
+    res = place(objective, enc, population=30, generations=40, seed=0)
+    assert len({d["node"] for d in res.layout}) == 4
+    assert objective.evaluate([res.layout]) == objective.evaluate([res.sensors]) == [res.best_error]
+    assert enc.from_sensors(res.layout) == enc.from_sensors(res.sensors) == tuple(res.best)
+    truss = CandidateSet(s17_truss(), kinds=("strain",), n_sensors=2)
+    assert truss.from_sensors(truss.records(truss.from_sensors(["strain:13", "strain:5"]))) == truss.from_sensors(
+        ["strain:5", "strain:13"])

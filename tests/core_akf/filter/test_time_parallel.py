@@ -127,7 +127,7 @@ def test_akf_estimate_of_many_files_in_parallel_equals_the_sequential_run(tmp_pa
     assert np.all(np.abs(a["estimated"] - b["estimated"]) <= 1e-9 * scale)
     fa, fb = pd.read_csv(sequential.files["fatigue"]), pd.read_csv(parallel.files["fatigue"])
     np.testing.assert_array_equal(fa["cycles"], fb["cycles"])
-    np.testing.assert_allclose(fa[["max_range", "damage", "del"]], fb[["max_range", "damage", "del"]], rtol=1e-8)
+    np.testing.assert_allclose(fa[["max_range_MPa", "damage", "del_MPa"]], fb[["max_range_MPa", "damage", "del_MPa"]], rtol=1e-8)
     assert parallel.metrics["loglik"] == pytest.approx(sequential.metrics["loglik"], rel=1e-9)
     for s, p in zip(sequential.metrics["sensors"], parallel.metrics["sensors"]):
         assert p["consistency"] == pytest.approx(s["consistency"], rel=1e-9)
