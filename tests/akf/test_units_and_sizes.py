@@ -59,22 +59,3 @@ def test_n_jobs_on_a_job_it_cannot_split_says_so(tmp_path, capsys):
     notes = json.loads(capsys.readouterr().out)["notes"]
     assert any(n.startswith("--n-jobs 2 not used: a simulated record is filtered sequentially") for n in notes)
 
-
-def test_a_missing_extra_names_a_command_that_installs_it(monkeypatch):
-    """The hint was pip install "akf-toolkit[tdms]", which fails: the package is not on the index.
-    It names the source folder (or the path pip installed from) instead."""
-    import importlib
-
-    from core_akf.io import readers
-
-    real = importlib.import_module
-    monkeypatch.setattr(readers.importlib, "import_module",
-                        lambda name, *a: (_ for _ in ()).throw(ImportError(name)) if name == "nptdms" else real(name, *a))
-    with pytest.raises(readers.MissingExtraError) as info:
-        readers._require("nptdms", "tdms", "TDMS")
-    command = str(info.value).split(": ", 1)[1]
-    assert command.startswith("python -m pip install")
-    target = command.split('"')[1]
-    assert target.endswith("[tdms]")
-    folder = target[:-len("[tdms]")]
-    assert folder == "akf-toolkit" or os.path.exists(os.path.join(folder, "pyproject.toml")) or os.path.exists(folder)
