@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import re
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -245,7 +246,7 @@ class CsvReader(Reader):
             hint = (f"; the header looks {'tab' if sep == chr(9) else repr(sep)}-separated: CSV files here are "
                     "comma-separated with a decimal point (save as CSV, or convert with pandas: "
                     "pd.read_csv(path, sep=..., decimal=...).to_csv(new, index=False))") if sep else ""
-            raise AKFInputError(f"{self.path}: no time column {time_column!r}; found {self._columns}{hint}")
+            raise AKFInputError(f"{self.path}: no time column {time_column!r}; {_found(self._columns)}{hint}")
         self._timing = None
 
     def _header(self):
@@ -310,10 +311,37 @@ def _numeric(column, path, name, row0, missing=True):
         if bad.size:
             r = int(bad[0])
             what = "non-numeric" if missing else "missing/NaN or non-numeric"
-            raise AKFInputError(f"{path}: column {name!r} has {bad.size} {what} sample(s); first {str(column.iloc[r])!r} "
-                                f"in data row {row0 + r + 1} (a missing sample is an empty cell or NaN)")
+            raise AKFInputError(f"{path}: column {name!r} has {bad.size} {what} sample(s); the first, in data row "
+                                f"{row0 + r + 1}, is {_kind_of_text(column.iloc[r])} (a missing sample is an empty "
+                                "cell or NaN)")
     _refuse_infinite(values, path, name, row0)
     return values
+
+
+#: a number followed by text: a unit written into the cells
+_NUMBER_THEN_TEXT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[^\d\s.,;+-]")
+#: how a column name may look to be quoted in a message (a file that is no table is not quoted)
+_COLUMN_NAME = re.compile(r"^[\w .:/()\[\]%^*#+-]{1,64}$")
+
+
+def _kind_of_text(cell):
+    """What a non-numeric cell holds, in words: messages name a problem, never a file's content."""
+    text = str(cell).strip()
+    if _NUMBER_THEN_TEXT.match(text):
+        return "a number followed by text (a unit in the cells? give the unit in [measurements] units and numbers alone)"
+    if re.fullmatch(r"[-+]?\d+,\d+", text):
+        return "a number with a decimal comma (the files are read with a decimal point)"
+    return "text, not a number"
+
+
+def _found(columns):
+    """The columns a table was found to have, quoted only when they look like column names: a
+    file that is no table (a system file, a log) has its first line read as a header."""
+    if len(columns) > 1 and all(_COLUMN_NAME.match(str(c)) for c in columns):
+        shown = [str(c) for c in columns[:20]]
+        return f"found {shown}" + (f" and {len(columns) - 20} more" if len(columns) > 20 else "")
+    return (f"found {len(columns)} column(s) whose header does not look like column names (is it a comma-separated "
+            "table with a header row?)")
 
 
 def _refuse_infinite(values, path, name, row0):
@@ -346,7 +374,7 @@ class ParquetReader(Reader):
         self._columns = [c for c in self._file.schema_arrow.names if not c.startswith("__index_level")]
         _check_unique_columns(self._columns, self.path)
         if time_column not in self._columns:
-            raise AKFInputError(f"{self.path}: no time column {time_column!r}; found {self._columns}")
+            raise AKFInputError(f"{self.path}: no time column {time_column!r}; {_found(self._columns)}")
         self._timing = None
 
     def channels(self):

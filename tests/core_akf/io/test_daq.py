@@ -379,3 +379,14 @@ def test_a_wrong_unit_in_the_channel_map_is_named(tmp_path):
     res = run_estimate(_job(DAQ / "record.tdms", **meas), str(tmp_path), plot=False)
     text = " ".join(res.metrics["warnings"])
     assert "acc:8:y" in text and "millimetres" in text and "check the channel map" in text
+
+
+@pytest.mark.parametrize("first_line", ["root:x:0:0:root:/root:/bin/bash", 'PRETTY_NAME="Debian GNU/Linux 12"',
+                                        "root:$y$j9T$abc$def:19000:0:99999:7:::"])
+def test_a_file_that_is_no_table_is_not_quoted(tmp_path, first_line):
+    """A data path pointing at a system file was refused with its first line in the message."""
+    path = tmp_path / "passwd"
+    path.write_text(first_line + "\ndaemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\n")
+    with pytest.raises(AKFInputError, match="no time column 'time'; found 1 column") as info:
+        Record(path, ["strain:13"], format="csv")
+    assert first_line.split(":")[0].split("=")[0] not in str(info.value).replace(str(path), "")
