@@ -412,12 +412,76 @@ def load_job_file(path: str | os.PathLike) -> dict:
         raise AKFInputError(f"job file {path!r} not found")
     if os.path.isdir(path):
         raise AKFInputError(f"job file {path!r} is a folder; give the TOML file")
+    size = os.path.getsize(path)
+    if size > MAX_JOB_BYTES:
+        raise AKFInputError(f"{path}: the job file is {size / 1e6:.3g} MB; a job file is a few kB of settings (at most "
+                            f"{MAX_JOB_BYTES / 1e6:g} MB): data belong in files that [measurements] or [structure] name")
     with open(path, "rb") as fh:
         raw = fh.read()
+    text = job_text(raw, path)
+    depth = nesting_depth(text)
+    if depth > MAX_JOB_DEPTH:
+        raise AKFInputError(f"{path}: arrays or inline tables nested {depth} deep; a job nests at most "
+                            f"{MAX_JOB_DEPTH} (an S-N curve is [[N, range], ...]: 2)")
     try:
-        return tomllib.loads(job_text(raw, path))
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise AKFInputError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise AKFInputError(f"{path}: tables, arrays or keys nested too deep to read") from None
+    depth = _data_depth(data)
+    if depth > MAX_JOB_DEPTH:
+        raise AKFInputError(f"{path}: tables or dotted keys nested deeper than {MAX_JOB_DEPTH}, the most a job nests "
+                            "([output.fatigue] and [locate.covariances] are 2)")
+    return data
+
+
+#: a job file larger than this is refused before it is parsed (the built-in jobs are 1-3 kB)
+MAX_JOB_BYTES = 1_000_000
+#: nesting of tables, arrays and inline tables a job may have
+MAX_JOB_DEPTH = 8
+
+
+def nesting_depth(text: str) -> int:
+    """The deepest nesting of ``[`` and ``{`` in TOML text outside strings and comments (a table
+    header's brackets count too), found without parsing, so a hostile file is refused before the
+    parser recurses into it."""
+    depth = deepest = i = 0
+    n = len(text)
+    while i < n:
+        c = text[i]
+        if c == "#":                                   # a comment, to the end of the line
+            j = text.find("\n", i)
+            i = n if j < 0 else j
+        elif c in "\"'":
+            quote = c * 3 if text.startswith(c * 3, i) else c
+            i += len(quote)
+            while i < n and not text.startswith(quote, i):
+                i += 2 if (c == '"' and text[i] == "\\") else 1
+            i += len(quote)
+            continue
+        elif c in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in "]}":
+            depth = max(0, depth - 1)
+        i += 1
+    return deepest
+
+
+def _data_depth(data) -> int:
+    """How deep dicts and lists nest in parsed data (without recursion)."""
+    deepest, stack = 0, [(data, 0)]
+    while stack:
+        value, d = stack.pop()
+        deepest = max(deepest, d)
+        if d > MAX_JOB_DEPTH:
+            break
+        if isinstance(value, dict):
+            stack.extend((v, d + 1) for v in value.values())
+        elif isinstance(value, list):
+            stack.extend((v, d + 1) for v in value)
+    return deepest
 
 
 def job_text(raw: bytes, path) -> str:

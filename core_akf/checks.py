@@ -20,6 +20,7 @@ library can still catch bad input in one place.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping, Sequence
 from typing import Annotated, Protocol, Union
 
@@ -29,7 +30,54 @@ from numpy.typing import ArrayLike, NDArray
 
 # ------------------------------------------------------------------------------ exceptions
 class AKFInputError(ValueError):
-    """Invalid user input: wrong shape, NaN data, unknown id, duplicate sensor, ..."""
+    """Invalid user input: wrong shape, NaN data, unknown id, duplicate sensor, ...
+
+    A message that echoes a long value (a list of 10^5 modes) is cut to :data:`MESSAGE_CHARS`
+    around what it says (:func:`shortened`).
+    """
+
+    def __init__(self, message="", *args):
+        super().__init__(shortened(message) if isinstance(message, str) else message, *args)
+
+
+#: the longest message an input error carries
+MESSAGE_CHARS = 2000
+#: a quoted value longer than this is cut in a message
+_VALUE_CHARS = 160
+
+
+def shortened(message: str) -> str:
+    """A message with every bracketed list or quoted text longer than a few lines cut to its
+    start and its length, and the whole cut to :data:`MESSAGE_CHARS`.
+
+    Parameters
+    ----------
+    message : str
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> shortened("modes must be distinct, got " + str([1] * 1000))[:60]
+    'modes must be distinct, got [1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1'
+    >>> len(shortened("x" * 10**6)) <= MESSAGE_CHARS
+    True
+    """
+    if len(message) <= _VALUE_CHARS:
+        return message
+
+    def cut(match):
+        text = match.group(0)
+        if len(text) <= _VALUE_CHARS:
+            return text
+        return f"{text[:_VALUE_CHARS - 40]} ... ({len(text):,} characters)" + text[-1]
+
+    out = re.sub(r"\[[^\[\]\n]*\]|'[^'\n]*'|\"[^\"\n]*\"", cut, message)
+    if len(out) > MESSAGE_CHARS:
+        out = out[:MESSAGE_CHARS - 40] + f" ... ({len(message):,} characters)"
+    return out
 
 
 class ModelError(AKFInputError):
@@ -418,6 +466,45 @@ def check_memory(n_steps, floats_per_step, what, fix, items="time steps"):
     if have is not None and need > 0.8 * have:
         raise AKFInputError(f"{what}: {n_steps:.4g} {items} need about {need / 2 ** 30:.3g} GiB, but this machine "
                             f"has {have / 2 ** 30:.3g} GiB available; {fix}")
+
+
+def distinct_labels(labels, limit, where, what):
+    """A list of labels checked before anything is built from it: at most ``limit`` (all there
+    are), none twice.
+
+    Parameters
+    ----------
+    labels : sequence of str
+    limit : int
+        How many distinct labels there are to choose from.
+    where : str
+        The key that lists them, for the message ("[output] strains").
+    what : str
+        What they are ("strain outputs").
+
+    Returns
+    -------
+    list of str
+
+    Raises
+    ------
+    AKFInputError
+        For a longer list or a label listed twice.
+
+    Examples
+    --------
+    >>> distinct_labels(["strain:5", "strain:13"], 34, "[output] strains", "strain outputs")
+    ['strain:5', 'strain:13']
+    """
+    labels = list(labels)
+    repeat = first_repeat(labels)
+    if repeat:
+        i, j, label = repeat
+        raise AKFInputError(f"{where} lists {label!r} twice (entries {i + 1} and {j + 1})"
+                            + (f" in {len(labels)} entries; the model has {limit} {what}" if len(labels) > limit else ""))
+    if len(labels) > limit:
+        raise AKFInputError(f"{where} lists {len(labels)} labels; the model has {limit} {what}")
+    return labels
 
 
 def first_repeat(values):

@@ -17,7 +17,7 @@ import shutil
 
 import numpy as np
 
-from core_akf.checks import AKFInputError
+from core_akf.checks import AKFInputError, distinct_labels
 from core_akf.filter import CheckpointError
 from core_akf.outputs import atomic_path, confined, write_csv
 
@@ -63,7 +63,8 @@ def strain_outputs(job, structure, n_steps, notes, warnings=None):
     elif wanted == "all":
         index = list(range(structure.n_strain))
     else:
-        index = structure.strain_label_index(wanted)
+        index = structure.strain_label_index(distinct_labels(wanted, structure.n_strain, "[output] strains",
+                                                             "strain outputs"))
     fmt = job.spec.output.format if job.spec.output is not None and job.spec.output.format else "csv"
     size = n_steps * (len(job.forces) + len(index)) * BYTES_PER_ROW[fmt]
     if size > LARGE_OUTPUT_BYTES and warnings is not None:
