@@ -34,6 +34,13 @@ class AKFInputError(ValueError):
 
     A message that echoes a long value (a list of 10^5 modes) is cut to :data:`MESSAGE_CHARS`
     around what it says (:func:`shortened`).
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, naming the argument.
+    *args
+        Further arguments, as ``ValueError`` takes them.
     """
 
     def __init__(self, message="", *args):

@@ -328,7 +328,7 @@ def _kind_of_text(cell):
     """What a non-numeric cell holds, in words: messages name a problem, never a file's content."""
     text = str(cell).strip()
     if _NUMBER_THEN_TEXT.match(text):
-        return "a number followed by text (a unit in the cells? give the unit in [measurements] units and numbers alone)"
+        return "a number followed by text (a unit in the cells? give numbers alone, and the unit as the channel's unit)"
     if re.fullmatch(r"[-+]?\d+,\d+", text):
         return "a number with a decimal comma (the files are read with a decimal point)"
     return "text, not a number"
