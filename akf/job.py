@@ -101,6 +101,32 @@ def resolve_paths(job: dict, base: str | os.PathLike) -> dict:
     return job
 
 
+#: the largest force standard deviation a job may give (N): a giga-newton load is a typing slip
+MAX_FORCE_STD = 1e9
+#: a force time scale may be this many times below the time step (shorter is white noise at this rate)
+TIMESCALE_BELOW_DT = 1e3
+#: ... and at most this long (s): about three years, far beyond any record
+MAX_TIMESCALE = 1e8
+
+
+def check_force_prior(std, timescale, dt):
+    """A Matérn prior's ``force_std`` (N) and ``force_timescale`` (s), checked against what a
+    record can resolve: a time scale between ``dt / 1000`` and ~3 years, a standard deviation up
+    to 1 GN, so that a mistyped value is named by its key instead of failing inside the filter."""
+    for value in np.atleast_1d(np.asarray(std, float)):
+        if not value <= MAX_FORCE_STD:
+            raise AKFInputError(f"[filter] force_std = {value:.4g} N is beyond any load (at most {MAX_FORCE_STD:g} N); "
+                                "give the forces' standard deviation in N, e.g. 500.0")
+    for value in np.atleast_1d(np.asarray(timescale, float)):
+        if not value >= (dt or 0.0) / TIMESCALE_BELOW_DT:
+            raise AKFInputError(f"[filter] force_timescale = {value:.4g} s is far below the time step ({dt:.4g} s): the "
+                                "record cannot resolve it; give the loads' correlation time in s, about the time step "
+                                "or longer (e.g. 0.005)")
+        if not value <= MAX_TIMESCALE:
+            raise AKFInputError(f"[filter] force_timescale = {value:.4g} s is beyond any record (at most "
+                                f"{MAX_TIMESCALE:g} s); give the loads' correlation time in s (e.g. 0.005)")
+
+
 class Job:
     """A job parsed once for one command, with every default applied once.
 
@@ -206,6 +232,7 @@ class Job:
             if isinstance(value, list) and len(value) not in (1, n_p):
                 raise AKFInputError(f"[filter] {name} has {len(value)} values for {n_p} forces: give one, or one per force")
         std, ell = (v[0] if isinstance(v, list) and len(v) == 1 else v for v in (f.force_std, f.force_timescale))
+        check_force_prior(std, ell, self.dt)
         return ForceModel(kind, std=std, timescale=ell)
 
     @classmethod

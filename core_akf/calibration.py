@@ -564,6 +564,12 @@ def _check_modes(structure, dt, modes):
     if not out or len(set(out)) != len(out) or any(k != m for k, m in zip(out, np.atleast_1d(modes))) \
             or not all(1 <= k <= structure.n for k in out):
         raise AKFInputError(f"modes must be distinct mode numbers between 1 and {structure.n}, got {modes!r}")
+    f = structure.frequencies()
+    above = [k for k in out if f[k - 1] >= 0.5 / float(dt)]
+    if above:
+        raise AKFInputError(f"modes {above} lie at or above the record's Nyquist frequency ({0.5 / dt:.4g} Hz; mode "
+                            f"{above[0]} at {f[above[0] - 1]:.4g} Hz): a record sampled every {dt:.4g} s cannot see "
+                            "them, so their frequencies cannot be learnt; leave them out or sample faster")
     return sorted(out)
 
 

@@ -245,6 +245,11 @@ class Pipeline:
         job = setup.job
         self.setup = setup
         self.lag = None
+        record_s = setup.n_total * job.dt
+        if job.smooth_lag not in (None, "auto") and not job.smooth_lag <= record_s:
+            raise AKFInputError(f"[filter] smooth_lag = {job.smooth_lag:.4g} s is longer than the record ({record_s:.4g} "
+                                "s): the smoother would wait for steps that never come; give a lag of a few filter time "
+                                "constants (\"auto\" finds one), or leave it out to smooth the whole record")
         if job.smooth and (job.smooth_lag is not None or setup.chunk < setup.n_total):
             self.lag = "auto" if job.smooth_lag in (None, "auto") else max(1, int(round(job.smooth_lag / job.dt)))
         self.estimator = setup.estimator(steady=job.steady, smooth_lag=self.lag)

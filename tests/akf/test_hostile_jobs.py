@@ -2,6 +2,7 @@
 with short messages."""
 import re
 
+import numpy as np
 import pytest
 from helpers import ROOT
 
@@ -46,3 +47,51 @@ def test_brackets_in_strings_and_comments_are_not_nesting(tmp_path, capsys):
     job = tmp_path / "job.toml"
     job.write_text(text)
     assert nesting_depth(text) == 2 and load_job_file(job)["text"].startswith("[[[[")
+
+
+MISTYPED = {
+    "force_std 1e300": ({"filter.force_model": "matern32", "filter.force_std": 1e300, "filter.force_timescale": 0.005,
+                         "filter.force_increment_cov": None}, r"force_std = 1e\+300 N is beyond any load"),
+    "force_timescale 1e-12": ({"filter.force_model": "matern32", "filter.force_std": 500.0,
+                               "filter.force_timescale": 1e-12, "filter.force_increment_cov": None},
+                              r"force_timescale = 1e-12 s is far below the time step"),
+    "force_timescale 1e300": ({"filter.force_model": "matern32", "filter.force_std": 500.0,
+                               "filter.force_timescale": 1e300, "filter.force_increment_cov": None},
+                              r"force_timescale = 1e\+300 s is beyond any record"),
+    "smooth_lag 1e300": ({"filter.smooth": True, "filter.smooth_lag": 1e300},
+                         r"smooth_lag = 1e\+300 s is longer than the record \(0.100\d* s\)"),
+}
+
+
+@pytest.mark.parametrize("case", list(MISTYPED))
+def test_a_mistyped_value_is_named_by_its_key(case):
+    from akf.estimate import estimate_job
+    from akf.examples import example_job
+    from akf.job import Job
+    from core_akf.checks import AKFInputError
+
+    overrides, message = MISTYPED[case]
+    data = example_job("s17-case4")
+    data["simulation"]["duration"] = 0.1
+    for dotted, value in overrides.items():
+        table, key = dotted.split(".")
+        if value is None:
+            data[table].pop(key, None)
+        else:
+            data[table][key] = value
+    with pytest.raises(AKFInputError, match=message):
+        estimate_job(Job.from_dict(data, "estimate"), None)
+
+
+def test_a_mode_above_nyquist_is_not_calibrated():
+    from core_akf.calibration import calibrate
+    from core_akf.checks import AKFInputError
+    from core_akf.models import s17_truss
+
+    s = s17_truss()
+    dt = 1 / 512                                    # Nyquist 256 Hz
+    above = [int(k) + 1 for k in range(s.n) if s.frequencies()[k] >= 256][:1]
+    Y = np.zeros((256, 2))
+    with pytest.raises(AKFInputError, match=rf"modes \[{above[0]}\] lie at or above the record's Nyquist frequency"):
+        calibrate(s, ["strain:13", "acc:8:y"], ["8:y"], Y, dt, parameters=["frequencies"], modes=[1, above[0]],
+                  model_error_cov=1e-16, force_increment_cov=1e3, noise_cov={"strain": 1e-14, "acc": 1e-4})
