@@ -160,8 +160,11 @@ def _run(args):
         where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
         print(f"akf: error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("akf: interrupted; files already written are complete, the others were not written", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        from .outputs import Interrupted
+
+        text = str(exc) if isinstance(exc, Interrupted) else "interrupted; files already written are complete, the others were not written"
+        print(f"akf: {text}", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 -- a bug of ours: one clear line, the traceback with -v
         if logging.getLogger("akf").isEnabledFor(logging.DEBUG):

@@ -16,6 +16,10 @@ from core_akf.outputs import confine_writes
 LOCK_NAME = ".akf-run.lock"
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a run that keeps partial files for ``--resume``: the message says which."""
+
+
 def _pid_alive(pid):
     try:
         os.kill(pid, 0)

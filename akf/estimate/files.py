@@ -222,6 +222,7 @@ class RunFiles:
         self.reference = []           # the decimated true forces of a simulated record
         self.saved = None
         self.fatigue = None           # the FatigueRun whose figure finish() draws
+        self.checkpointed = 0         # the step the last checkpoint continues from (0: none yet)
 
     def start(self, estimator):
         """The step the run starts from: 0, or a checkpoint's (its state restored into ``estimator``)."""
@@ -250,7 +251,8 @@ class RunFiles:
         self.writer.start(int(saved["position"]))
         self.kept = {k: [saved[f"plot_{k}"]] for k in ("t", "f", "y", "p", "s") if f"plot_{k}" in saved}
         self.saved = saved
-        return int(saved["next_step"])
+        self.checkpointed = int(saved["next_step"])
+        return self.checkpointed
 
     def restore_diagnostics(self, diag, est):
         try:
@@ -274,6 +276,7 @@ class RunFiles:
             self.kept.setdefault("s", []).append(est.force_std[sel])
 
     def checkpoint(self, estimator, diag, next_step, extra):
+        """Save the run's state after step ``next_step`` (its output written up to there)."""
         state = estimator.state() | diag.state() | extra | {
             "next_step": np.array(next_step), "position": np.array(self.writer.position),
             "job": np.array(self.spec), "files": np.array(self.data_files), "chunk": np.array(self.chunk)} | {
@@ -281,6 +284,7 @@ class RunFiles:
         with atomic_path(self.path) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez(fh, **state)
+        self.checkpointed = int(next_step)
 
     def partial_files(self):
         return {"timeseries": self.writer.path, "checkpoint": self.path}

@@ -12,6 +12,7 @@ time-parallel (:mod:`akf.estimate.pieces`).
 from __future__ import annotations
 
 import os
+import sys
 from dataclasses import dataclass, field
 
 from core_akf.checks import AKFInputError, check_memory
@@ -21,6 +22,7 @@ from core_akf.quality import LIVE_SET_MIN_S, LiveSets
 
 from ..calibrating import calibrate_job, calibration_record
 from ..job import Job
+from ..outputs import Interrupted
 from .faults import NO_FAULT_CHECK, FaultCheck
 from .files import RunFiles, default_chunk, strain_outputs
 from .metrics import SMOOTH_CONSISTENCY_LIMIT, EstimateResult, joined, run_metrics
@@ -245,6 +247,7 @@ class Pipeline:
         job = setup.job
         self.setup = setup
         self.lag = None
+        self.filtered = False          # every step filtered and written to the time series
         record_s = setup.n_total * job.dt
         if job.smooth_lag not in (None, "auto") and not job.smooth_lag <= record_s:
             raise AKFInputError(f"[filter] smooth_lag = {job.smooth_lag:.4g} s is longer than the record ({record_s:.4g} "
@@ -292,7 +295,28 @@ class Pipeline:
             self.parts.append(est)
 
     def run(self, stop_after=None, plot=True, on_result=None):
-        """Filter, report and write; the :class:`EstimateResult` (a partial one when stopped)."""
+        """Filter, report and write; the :class:`EstimateResult` (a partial one when stopped).
+        Ctrl-C while the record streams into a folder raises :class:`~akf.outputs.Interrupted`,
+        which names the partial files kept for ``--resume``."""
+        try:
+            return self._run(stop_after, plot, on_result)
+        except KeyboardInterrupt:
+            if self.files is None or isinstance(sys.exc_info()[1], Interrupted):
+                raise
+            kept = self.files.checkpointed
+            where = self.files.writer.path
+            if self.filtered:
+                raise Interrupted(f"interrupted after the whole record was filtered: {os.path.basename(where)} is "
+                                  "complete; the files that follow it (summary.csv, the figures) were not written: run "
+                                  "the command again" + (" with --resume" if kept else "")) from None
+            if kept:
+                raise Interrupted(f"interrupted: {os.path.basename(where)} is partial and kept with the checkpoint "
+                                  f"for --resume, which goes on from step {kept} of {self.setup.n_total} (run the same "
+                                  "command with --resume); the other files of this run were not written") from None
+            raise Interrupted(f"interrupted before the first checkpoint: {os.path.basename(where)} is partial and "
+                              "cannot be resumed; run the command again") from None
+
+    def _run(self, stop_after, plot, on_result):
         s = self.setup
         for step, Y in self.chunks():
             if step != self.estimator.n_steps:            # a gap longer than max_gap: start again from the prior
@@ -319,8 +343,10 @@ class Pipeline:
                                    "--resume")
                     return EstimateResult(s.job, {}, self.files.partial_files(), s.record.describe(), s.notes, self.start,
                                           complete=False)
+        self.filtered = self.lag is None
         if self.lag is not None:                        # the steps the fixed-lag smoother still holds
             self.take(self.estimator.finish())
+            self.filtered = True
             lag = self.estimator.lagged.lag
             s.notes.append(f"smoothed with a fixed lag of {lag} steps ({lag * s.job.dt:.6g} s)")
         if self.parts:

@@ -97,6 +97,32 @@ def test_plain_rerun_into_an_interrupted_runs_folder(tmp_path, capsys):
     assert main(["estimate", str(path), "--no-plot", "--out", str(out)]) == 0       # a finished run: simply runs
 
 
+def test_ctrl_c_while_streaming_names_the_partial_file_and_the_resume(tmp_path, capsys, monkeypatch):
+    """The message said every written file was complete while timeseries.csv was a partial file
+    kept for --resume; the resumed run then equals an uninterrupted one."""
+    import akf.estimate.pipeline as pipeline
+
+    path = measured_job(tmp_path)
+    out, whole = tmp_path / "o", tmp_path / "whole"
+    real, calls = pipeline.Pipeline.take, []
+
+    def take(self, est):
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real(self, est)
+
+    monkeypatch.setattr(pipeline.Pipeline, "take", take)
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert "akf: interrupted: timeseries.csv is partial and kept with the checkpoint for --resume, which goes on " \
+           "from step 246 of" in err, err
+    monkeypatch.setattr(pipeline.Pipeline, "take", real)
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out), "--resume"]) == 0
+    assert main(["estimate", str(path), "--no-plot", "--out", str(whole)]) == 0
+    assert (out / "timeseries.csv").read_bytes() == (whole / "timeseries.csv").read_bytes()
+
+
 @pytest.mark.parametrize("damage", ["truncated", "foreign", "nan"])
 def test_resume_from_a_damaged_checkpoint(tmp_path, capsys, damage):
     from akf.estimate import estimate_job
