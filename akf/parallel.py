@@ -226,7 +226,37 @@ def add_scheduler_option(parser):
 
 
 def workers(args):
-    """``--n-jobs`` with its default: 1 on this machine, every worker (-1) on a dask scheduler."""
-    if args.n_jobs is not None:
-        return args.n_jobs
-    return -1 if getattr(args, "scheduler", None) else 1
+    """``--n-jobs`` with its default: 1 on this machine, every worker (-1) on a dask scheduler.
+
+    On this machine it is capped at the cores this process may use (``--n-jobs 1000`` starts no
+    more processes than there are cores; -1 is every core, -2 all but one, as in joblib); 0 is an
+    error.  On a dask scheduler the cluster decides, and the work is capped by what there is
+    (:func:`at_most`)."""
+    n = args.n_jobs
+    if n is None:
+        return -1 if getattr(args, "scheduler", None) else 1
+    if n == 0:
+        raise AKFInputError("--n-jobs 0 runs nothing: give the number of processes (1 runs in this one), or -1 for "
+                            "every core")
+    if getattr(args, "scheduler", None):
+        return n
+    from core_akf.filter.recursion import solver_threads
+
+    cores = solver_threads()
+    return max(1, min(n, cores) if n > 0 else cores + 1 + n)
+
+
+def at_most(n_jobs, work):
+    """``n_jobs`` (joblib's: -1 every worker) capped at ``work`` tasks: no process waits idle.
+
+    Parameters
+    ----------
+    n_jobs : int
+    work : int
+        Tasks there are.
+
+    Returns
+    -------
+    int
+    """
+    return max(1, min(work, n_jobs) if n_jobs > 0 else work)

@@ -23,7 +23,7 @@ def _calibrate(args):
     if done is not None:
         return done
     data = job_data(args, "estimate")
-    overrides = {"filter.calibrate": args.parameters} if args.parameters else {}
+    overrides = {"filter.calibrate": check_parameters(args.parameters)} if args.parameters else {}
     job = Job.from_dict(data, "estimate", source=args.job, overrides=overrides)
     if not job.calibrate:
         raise AKFInputError("nothing to calibrate: list the [filter] keys to learn in [filter] calibrate = "
@@ -66,6 +66,22 @@ def _calibrate(args):
         print(f"  WARNING: {w}")
     print_written({"calibrated_job": path})
     return 0
+
+
+def check_parameters(names):
+    """``--parameters``, each a name ``[filter] calibrate`` takes; a typo is named as the flag's,
+    with the closest names."""
+    import difflib
+
+    from ..schema import CALIBRATION_KEYS
+
+    for name in names:
+        if name not in CALIBRATION_KEYS:
+            close = difflib.get_close_matches(name, CALIBRATION_KEYS, n=2)
+            raise AKFInputError(f"--parameters {name}: not a parameter akf calibrate learns"
+                                + (f"; did you mean {' or '.join(close)}?" if close else "")
+                                + f" The parameters: {', '.join(CALIBRATION_KEYS)}")
+    return list(names)
 
 
 #: the [filter] keys akf calibrate writes (and the ones it removes: the fit is done)

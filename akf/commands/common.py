@@ -37,12 +37,15 @@ def add_print_job(parser):
                         "comments) and exit: a template to start a job of your own from (> my_job.toml)")
 
 
-def print_job(args):
-    """Print the job file of ``args.example`` as it is written; returns the exit code."""
-    from ..examples import example_path
+def print_job(args, command=None):
+    """Print the job file of ``args.example`` as it is written (an example of ``command``: one of
+    another command is refused, naming it); returns the exit code."""
+    from ..examples import example_path, load_example
 
     if not args.example:
         raise AKFInputError("--print-job prints a built-in example's job file: give --example NAME (see --list-examples)")
+    if command is not None:
+        load_example(args.example, command)          # refuses an example of another command, naming it
     with open(example_path(args.example), encoding="utf-8") as fh:
         print(fh.read(), end="")
     return 0
@@ -68,7 +71,7 @@ def listing_or_template(args, command):
         print_examples(command)
         return 0
     if args.print_job:
-        return print_job(args)
+        return print_job(args, command)
     return None
 
 

@@ -12,6 +12,7 @@ from core_akf.checks import AKFInputError
 from core_akf.diagnostics import RunningDiagnostics
 from core_akf.outputs import confined
 
+from ..parallel import at_most
 from .files import DEFAULT_CHUNK_STEPS, RunFiles, write_rows
 from .metrics import EstimateResult, run_metrics
 
@@ -56,7 +57,8 @@ def estimate_in_pieces(setup, n_jobs, *, overwrite=False, plot=True, on_result=N
                          run.decimate)
 
     def map_pieces(f, items):
-        return joblib.Parallel(n_jobs=n_jobs)(joblib.delayed(f)(x) for x in items)
+        items = list(items)
+        return joblib.Parallel(n_jobs=at_most(n_jobs, len(items)))(joblib.delayed(f)(x) for x in items)
     results = estimate_in_parallel(estimator, [FilePiece(record, i) for i in range(len(record.files))], map_pieces,
                                    piece)
     diag = merged(results, run, fatigue)
