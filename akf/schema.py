@@ -424,10 +424,14 @@ class Locate(Section):
     tuning: Tuning = key("a table", "GA settings of the tuning", used_by=LOCATE)
 
 
+#: a job's name: a plain file name (its output folder akf-out/NAME), no path
+JOB_NAME_PATTERN = r"^[^./\\\x00][^/\\\x00]*$"
+
+
 class Job(Section):
     """A job file: one structure, its sensors and unknown forces, and the sections of the command."""
 
-    name: Annotated[str, Field(pattern=r"^[^./\\\x00][^/\\\x00]*$")] = key(
+    name: Annotated[str, Field(pattern=JOB_NAME_PATTERN)] = key(
         "a plain name (no '/', no '\\', not starting with '.')", "name of the job (its output folder akf-out/NAME)")
     description: str = key("a string", "free text")
     dt: Positive = key("a positive number", "time step; must match measured data", unit="s")
