@@ -31,7 +31,7 @@ from .checks import AKFInputError
 from .outputs import atomic_path
 
 #: identifies a checkpoint of this engine; a file with another tag or version is refused
-CHECKPOINT_FORMAT = ["akf-toolkit GA checkpoint", 2]
+CHECKPOINT_FORMAT = ["akf-toolkit GA checkpoint", 3]
 
 
 class Individual(list):
@@ -206,6 +206,22 @@ class Algorithm:
             Genomes (lists of genes).
         """
         raise NotImplementedError
+
+    def check_genome(self, genome):
+        """Whether a genome read back from a checkpoint is one this algorithm makes (default: any
+        list of finite numbers); a resumed run refuses a checkpoint with one that is not.
+
+        Parameters
+        ----------
+        genome : list
+            Genes as stored in the checkpoint.
+
+        Returns
+        -------
+        bool
+        """
+        return isinstance(genome, list) and all(isinstance(g, (int, float)) and not isinstance(g, bool)
+                                                and math.isfinite(g) for g in genome)
 
     def after_initial(self, population):
         """The first population once evaluated (e.g. NSGA-II ranks it).
@@ -446,8 +462,9 @@ class GeneticAlgorithm:
             self._hof = {}
             return rng, pyrng, [Ind(g) for g in self.algorithm.initial(rng, pyrng)], [], 0, 0.0
         ck = load_checkpoint(self.checkpoint)
-        if ck["settings"] != self.settings:
+        if ck.get("settings") != self.settings:
             raise AKFInputError("the checkpoint was written by a run with other settings or candidates")
+        self._check_entries(ck)
         rng = np.random.default_rng()
         rng.bit_generator.state = ck["rng"]
         pyrng = random.Random()
@@ -459,6 +476,45 @@ class GeneticAlgorithm:
         ev.cache = {_key(k): tuple(v) for k, v in ck["cache"]}
         ev.evaluations, ev.hits, ev.infeasible = ck["evaluations"], ck["hits"], ck["infeasible"]
         return rng, pyrng, pop, rows, ck["generation"] + 1, rows[-1]["seconds"] if rows else 0.0
+
+    def _check_entries(self, ck):
+        """A checkpoint's entries, one by one, before anything is resumed from them: present, of
+        their type, a generation within the run, genomes the algorithm makes, fitness of the
+        objectives' number."""
+        path = self.checkpoint
+
+        def bad(what):
+            return AKFInputError(f"checkpoint {path!r}: {what}; it is not resumed (start anew with --overwrite, or "
+                                 "resume=False)")
+
+        missing = [k for k in ("generation", "rng", "pyrng", "population", "fitness", "rows", "hof", "cache",
+                               "evaluations", "hits", "infeasible") if k not in ck]
+        if missing:
+            raise bad(f"the entries {missing} are missing")
+        gen = ck["generation"]
+        if not isinstance(gen, int) or isinstance(gen, bool) or not 0 <= gen <= self.generations:
+            raise bad(f"generation {gen!r} is not one of this run's 0..{self.generations}")
+        if not isinstance(ck["rows"], list) or len(ck["rows"]) != gen + 1 or not all(
+                isinstance(r, dict) and r.get("generation") == i for i, r in enumerate(ck["rows"])):
+            raise bad(f"its logbook does not hold generations 0..{gen}")
+        n_obj = len(self.algorithm.individual.weights)
+        for name in ("population", "hof", "cache"):
+            if not isinstance(ck[name], list):
+                raise bad(f"{name} is not a list")
+        pairs = list(zip(ck["population"], ck["fitness"])) if isinstance(ck["fitness"], list) else []
+        if not ck["population"] or len(pairs) != len(ck["population"]):
+            raise bad("its population and fitness do not match one to one")
+        for where, entries in (("population", pairs), ("hall of fame", ck["hof"]), ("cache", ck["cache"])):
+            for i, entry in enumerate(entries):
+                genome, fit = entry if isinstance(entry, (list, tuple)) and len(entry) == 2 else (None, None)
+                if genome is None or not self.algorithm.check_genome(genome):
+                    raise bad(f"{where} entry {i + 1} holds a genome this run cannot make: {genome!r}")
+                if not isinstance(fit, list) or len(fit) != n_obj or not all(isinstance(v, (int, float)) for v in fit):
+                    raise bad(f"{where} entry {i + 1} has a fitness of {fit!r}, not {n_obj} number(s)")
+        for name in ("evaluations", "hits", "infeasible"):
+            value = ck[name]
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise bad(f"{name} = {value!r} is not a count")
 
     def _stalled(self, rows, gen):
         """Whether the stall column changed by less than ``stall_tol`` over ``stall_generations``."""
@@ -507,7 +563,8 @@ def save_checkpoint(path, data):
     data : dict
         JSON-serialisable contents.
     """
-    text = json.dumps(data, allow_nan=True, default=_plain)
+    body = json.dumps(data, allow_nan=True, default=_plain)
+    text = body[:-1] + f', "checksum": "{_checksum(body)}"}}'        # over the rest: an edit or a cut shows
     with atomic_path(path) as tmp:          # a kill mid-write leaves the previous checkpoint
         with open(tmp, "w", encoding="utf-8") as fh:
             fh.write(text)
@@ -548,7 +605,37 @@ def load_checkpoint(path):
         found = ck.get("format") if isinstance(ck, dict) else type(ck).__name__
         raise AKFInputError(f"{path!r} is not a GA checkpoint of this version (found {found!r}, "
                             f"expected {CHECKPOINT_FORMAT!r}){backup}")
+    said = ck.pop("checksum", None)
+    if said != _checksum(json.dumps(ck, allow_nan=True)):
+        raise AKFInputError(f"checkpoint {path!r} was changed after it was written (its checksum does not match its "
+                            f"contents): it is not resumed{backup}")
     return ck
+
+
+def is_checkpoint(path):
+    """Whether the file at ``path`` is a GA checkpoint of this toolkit (any version, intact or not).
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    bool
+    """
+    try:
+        with open(path, encoding="utf-8") as fh:
+            head = fh.read(200)
+    except (OSError, UnicodeDecodeError):
+        return False
+    return head.startswith('{"format": ["akf-toolkit GA checkpoint"')
+
+
+def _checksum(text):
+    """SHA-256 of a checkpoint's JSON text."""
+    import hashlib
+
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 # ------------------------------------------------------------------------------- operators

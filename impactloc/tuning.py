@@ -138,6 +138,10 @@ class TuningGA(Algorithm):
     def initial(self, rng, pyrng):
         return [self.x0.tolist()] + [rng.uniform(self.lo, self.hi).tolist() for _ in range(self.size - 1)]
 
+    def check_genome(self, genome):
+        return super().check_genome(genome) and len(genome) == len(self.x0) and bool(
+            np.all((np.asarray(genome) >= self.lo) & (np.asarray(genome) <= self.hi)))
+
     def next_generation(self, population, generation, rng, pyrng, evaluate):
         elite = best(population, 1)[0].copy()
         offspring = [i.copy() for i in tournament(population, len(population) - 1, 3, pyrng)]

@@ -70,6 +70,11 @@ class ParetoGA(Algorithm):
     def initial(self, rng, pyrng):
         return [self.encs[self.lo + j % (self.hi - self.lo + 1)].random_layout(rng) for j in range(self.size)]
 
+    def check_genome(self, genome):
+        from .ga import _is_layout
+
+        return isinstance(genome, list) and self.lo <= len(genome) <= self.hi and _is_layout(self.encs[len(genome)], genome)
+
     def after_initial(self, population):
         from deap import tools
 

@@ -8,6 +8,7 @@ job values and random array shapes at the same entry points: every outcome is a 
 """
 import copy
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -343,6 +344,65 @@ def test_place_refuses_to_overwrite_a_checkpoint_and_checks_it(tmp_path, capsys)
     ck.write_bytes(b"not JSON at all")
     assert main(args + ["--resume"]) == 2
     assert "truncated or not a GA checkpoint" in capsys.readouterr().err
+
+
+def _interrupted_place(tmp_path, capsys):
+    """A place run of 2 generations checkpointed every one, its checkpoint made 'interrupted' at 1."""
+    import json
+
+    from core_akf.evolution import load_checkpoint, save_checkpoint
+
+    args = ["place", "--example", "th-case5", "--generations", "2", "--population", "4", "--no-plot", "--json",
+            "--out", str(tmp_path)]
+    assert main(args) == 0
+    capsys.readouterr()
+    ck = tmp_path / "checkpoint.json"
+    data = load_checkpoint(str(ck))
+    data.update(finished=False, generation=1, rows=data["rows"][:2])
+    save_checkpoint(str(ck), data)
+    os.remove(f"{ck}.bak")
+    return args, ck, json.loads(json.dumps(data))
+
+
+GA_TAMPERING = {
+    "an edited number": (lambda d: None, "was changed after it was written"),
+    "a missing entry": (lambda d: d.pop("cache"), r"the entries \['cache'\] are missing"),
+    "a genome off the candidates": (lambda d: d["population"][0].__setitem__(0, 10**6), "population entry 1 holds a genome"),
+    "an unsorted genome": (lambda d: d["population"][1].reverse(), "population entry 2 holds a genome"),
+    "a generation beyond the run": (lambda d: d.update(generation=7), "generation 7 is not one of this run's 0..2"),
+    "a fitness of two numbers": (lambda d: d["fitness"][0].append(1.0), "population entry 1 has a fitness"),
+    "a negative count": (lambda d: d.update(evaluations=-3), "evaluations = -3 is not a count"),
+}
+
+
+@pytest.mark.parametrize("case", list(GA_TAMPERING))
+def test_a_tampered_ga_checkpoint_is_not_resumed(tmp_path, capsys, case):
+    """Each was resumed silently or ended in an internal error: a checksum catches an edit, and the
+    entries are checked one by one (here under a recomputed checksum)."""
+    from core_akf.evolution import save_checkpoint
+
+    args, ck, data = _interrupted_place(tmp_path, capsys)
+    change, message = GA_TAMPERING[case]
+    if case == "an edited number":
+        ck.write_text(ck.read_text().replace('"evaluations": ', '"evaluations": 1', 1))
+    else:
+        change(data)
+        save_checkpoint(str(ck), data)
+    assert main(args + ["--resume"]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err), err
+
+
+def test_overwrite_leaves_a_checkpoint_path_that_is_a_users_file(tmp_path, capsys):
+    mine = tmp_path / "results.csv"
+    mine.write_text("a,b\n1,2\n")
+    args = ["place", "--example", "th-case5", "--generations", "1", "--population", "4", "--no-plot", "--json",
+            "--out", str(tmp_path / "o"), "--checkpoint", str(mine), "--overwrite"]
+    assert main(args) == 2
+    assert "is not one (a file of yours?); it was left as it is" in capsys.readouterr().err
+    assert mine.read_text() == "a,b\n1,2\n"
+    args, ck, _ = _interrupted_place(tmp_path / "p", capsys)
+    assert main(args + ["--overwrite"]) == 0                  # the run's own checkpoint is replaced
 
 
 # ---------------------------------------------------------------------------- property based

@@ -50,6 +50,7 @@ def _place(args):
 
 def _run_place(args, problem, settings, out):
 
+    from core_akf.evolution import is_checkpoint
     from core_akf.sensors import sensor_positions
     from sensoropt.ga import place
     from sensoropt.plots import plot_convergence, plot_layout
@@ -63,6 +64,9 @@ def _run_place(args, problem, settings, out):
     if args.overwrite:
         for path in (checkpoint, f"{checkpoint}.bak"):
             if os.path.lexists(path):
+                if not is_checkpoint(path):
+                    raise AKFInputError(f"--overwrite replaces the run's own GA checkpoint, but {path} is not one (a "
+                                        "file of yours?); it was left as it is: give --checkpoint a path of its own")
                 os.remove(path)
     notes = window_notes(problem) + list(problem.notes)
     if notes and not args.json:

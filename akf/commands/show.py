@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 
 from core_akf.checks import AKFInputError
 
 from ..job import MODELS, build_structure
 from ..outputs import OutputFolder
+from ..schema import JOB_NAME_PATTERN
 
 
 def _structure_of(target):
@@ -26,8 +28,11 @@ def _structure_of(target):
     job = resolve_paths(load_job_file(target), os.path.dirname(os.path.abspath(target)))   # any command's job
     if not isinstance(job.get("structure"), dict):
         raise AKFInputError(f"{target}: the job file has no [structure] table")
-    name = job.get("name") or os.path.splitext(os.path.basename(target))[0]
-    return build_structure(job["structure"]), str(name), list(job.get("sensors") or []), list(job.get("forces") or [])
+    name = str(job.get("name") or os.path.splitext(os.path.basename(target))[0])
+    if not re.fullmatch(JOB_NAME_PATTERN, name):
+        raise AKFInputError(f"{target}: name must be a plain name (no '/', no '\\', not starting with '.'): the figure "
+                            f"{name}.png is written into the output folder, and this name would leave it")
+    return build_structure(job["structure"]), name, list(job.get("sensors") or []), list(job.get("forces") or [])
 
 
 def strain_outputs(structure):

@@ -57,6 +57,16 @@ def test_job_name_that_would_leave_the_output_folder(tmp_path, capsys, name, mon
     assert not (tmp_path / "escape").exists() and not os.path.exists(tmp_path / "akf-out")
 
 
+@pytest.mark.parametrize("name", ["../../escape", "/tmp/escape-abs", ".hidden"])
+def test_show_confines_its_figure_to_the_output_folder(tmp_path, capsys, name):
+    job = tmp_path / "job.toml"
+    job.write_text(f'name = "{name}"\n[structure]\nmodel = "s17_truss"\n')
+    out = tmp_path / "a" / "b"
+    assert main(["show", str(job), "--out", str(out)]) == 2
+    assert "name must be a plain name" in capsys.readouterr().err
+    assert not list(tmp_path.rglob("*.png")) and not os.path.exists("/tmp/escape-abs.png")
+
+
 def test_outputs_are_created_with_the_users_umask(tmp_path, capsys):
     old = os.umask(0o022)
     try:
