@@ -10,10 +10,13 @@ resumed run cuts the output back to the checkpoint and goes on from there.
 """
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import logging
 import os
 import shutil
+import zlib
 
 import numpy as np
 
@@ -83,19 +86,26 @@ class TimeseriesWriter:
         self.fmt = fmt
         self.path = os.path.join(out, "timeseries.csv" if fmt == "csv" else "timeseries.parquet")
         self.position = 0        # CSV: bytes written; Parquet: parts written
+        self.crc = 0             # CRC-32 of everything written, in order (checked on resume)
 
-    def start(self, position=0):
-        """Begin anew (0) or cut the output back to a checkpoint's ``position``.  Nothing is
-        written or deleted through a symbolic link that leads out of the output folder."""
+    def start(self, position=0, crc=None):
+        """Begin anew (0) or cut the output back to a checkpoint's ``position``, whose contents must
+        have the CRC-32 ``crc`` the checkpoint recorded (an output edited or cut since is refused).
+        Nothing is written or deleted through a symbolic link that leads out of the output folder,
+        and a file with other hard links (a backup made with ``cp -al``) is replaced, never changed."""
         confined(self.path)
         if self.fmt == "csv":
             if position == 0:
-                with open(self.path, "w") as fh:
-                    fh.write("time,quantity,channel,unit,estimated,reference,std\n")
-                position = os.path.getsize(self.path)
+                header = b"time,quantity,channel,unit,estimated,reference,std\n"
+                with atomic_path(self.path) as tmp:          # a new file: a hard-linked old one keeps its content
+                    with open(tmp, "wb") as fh:
+                        fh.write(header)
+                position, self.crc = len(header), zlib.crc32(header)
             else:
                 if not os.path.exists(self.path) or os.path.getsize(self.path) < position:
                     raise CheckpointError(f"{self.path} is shorter than the checkpoint says: start the run anew")
+                self._check(_crc_of_files([self.path], position), crc)
+                _own_copy(self.path)
                 with open(self.path, "r+b") as fh:
                     fh.truncate(position)
         else:
@@ -105,34 +115,82 @@ class TimeseriesWriter:
             for name in os.listdir(self.path):
                 if name.startswith("part-") and (position == 0 or int(name[5:10]) >= position):
                     os.remove(os.path.join(self.path, name))
-            if position and not os.path.exists(os.path.join(self.path, f"part-{position - 1:05d}.parquet")):
+            parts = [self._part(i) for i in range(position)]
+            if position and not all(os.path.exists(p) for p in parts):
                 raise CheckpointError(f"{self.path} lacks parts the checkpoint says were written: start the run anew")
+            self.crc = 0 if not position else self._check(_crc_of_files(parts), crc)
         self.position = position
+
+    def _check(self, found, crc):
+        """``found``, the CRC-32 of the output up to the checkpoint, if it is the recorded ``crc``."""
+        if crc is not None and found != int(crc):
+            raise CheckpointError(f"{self.path} was changed after the checkpoint was written (what it holds up to the "
+                                  "checkpoint is not what the run wrote): resuming would mix it into the result; start "
+                                  "anew with --overwrite")
+        self.crc = found
+        return found
+
+    def _part(self, index):
+        return os.path.join(self.path, f"part-{index:05d}.parquet")
 
     def append_part(self, part, index):
         """Move a part written elsewhere (a task of a time-parallel run) to the end of the output."""
         confined(self.path)
         if self.fmt == "csv":
+            _own_copy(self.path)
             with open(self.path, "ab") as fh, open(part, "rb") as src:
-                shutil.copyfileobj(src, fh)
+                while block := src.read(1 << 20):
+                    fh.write(block)
+                    self.crc = zlib.crc32(block, self.crc)
             os.remove(part)
             self.position = os.path.getsize(self.path)
         else:
-            os.replace(part, os.path.join(self.path, f"part-{self.position:05d}.parquet"))
+            os.replace(part, self._part(self.position))
+            self.crc = _crc_of_files([self._part(self.position)], crc=self.crc)
             self.position += 1
 
     def write(self, frame):
         confined(self.path)
         if self.fmt == "csv":
+            buffer = io.BytesIO()
+            write_rows(frame, buffer)
+            data = buffer.getvalue()
+            _own_copy(self.path)
             with open(self.path, "ab") as fh:
-                write_rows(frame, fh)
+                fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())
+            self.crc = zlib.crc32(data, self.crc)
             self.position = os.path.getsize(self.path)
         else:
-            with atomic_path(os.path.join(self.path, f"part-{self.position:05d}.parquet")) as tmp:
+            with atomic_path(self._part(self.position)) as tmp:
                 frame.to_parquet(tmp, index=False)
+            self.crc = _crc_of_files([self._part(self.position)], crc=self.crc)
             self.position += 1
+
+
+def _own_copy(path):
+    """Make ``path`` a file of its own before it is changed in place: a file with other hard links
+    (an rsnapshot or ``cp -al`` backup) is copied and the copy renamed over it, so the links keep
+    the old content."""
+    if os.path.exists(path) and os.stat(path).st_nlink > 1:
+        with atomic_path(path) as tmp:
+            shutil.copyfile(path, tmp)
+
+
+def _crc_of_files(paths, size=None, crc=0):
+    """CRC-32 of the files' bytes in order (the first ``size`` bytes of a single file)."""
+    for path in paths:
+        left = size
+        with open(path, "rb") as fh:
+            while left is None or left > 0:
+                block = fh.read(1 << 20 if left is None else min(1 << 20, left))
+                if not block:
+                    break
+                crc = zlib.crc32(block, crc)
+                if left is not None:
+                    left -= len(block)
+    return crc
 
 
 def write_rows(frame, fh):
@@ -175,7 +233,18 @@ def _changed_keys(old, new):
 
 
 #: what a checkpoint of :func:`estimate_job` holds besides the filter's and the diagnostics' state
-_CHECKPOINT_KEYS = ("job", "files", "next_step", "position", "chunk", "plot_t", "plot_f", "plot_y", "plot_p")
+_CHECKPOINT_KEYS = ("job", "files", "next_step", "position", "output_crc", "chunk", "plot_t", "plot_f", "plot_y",
+                    "plot_p", "checksum")
+
+
+def _checksum(arrays):
+    """SHA-256 over a checkpoint's arrays (names, types, shapes and bytes, in name order)."""
+    h = hashlib.sha256()
+    for name in sorted(k for k in arrays if k != "checksum"):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 def _load_checkpoint(path):
@@ -193,8 +262,11 @@ def _load_checkpoint(path):
     if missing:
         what = "was written by an earlier version of akf" if "next_step" in saved else "is not a checkpoint of akf estimate"
         raise CheckpointError(f"{path} {what} (it lacks {', '.join(missing)}); start anew with --overwrite")
+    if str(saved["checksum"]) != _checksum(saved):
+        raise CheckpointError(f"the checkpoint {path} was changed after it was written (its checksum does not match "
+                              "its contents): it cannot be continued; start anew with --overwrite")
     for k, v in saved.items():
-        if v.dtype.kind != "f" or k == "z":
+        if v.dtype.kind != "f" or (k == "z" and not bool(saved.get("started", True))):   # z: NaN before the first step
             continue
         # measurements and what is carried with them may hold missing samples (NaN), never inf
         if k.startswith("fault_"):          # the fault tests' bookkeeping (the extremes start at +-inf)
@@ -238,6 +310,11 @@ class RunFiles:
         if not os.path.exists(path):
             raise AKFInputError(f"nothing to resume in {out}: no checkpoint {CHECKPOINT} (run without --resume)")
         saved = _load_checkpoint(path)
+        other = json.loads(str(saved["job"])).get("name")
+        if other != self.job.name:
+            raise CheckpointError(f"the checkpoint in {out} was written by another job ({other!r}, not "
+                                  f"{self.job.name!r}): give this job an output folder of its own, or start anew there "
+                                  "with --overwrite")
         if str(saved["job"]) != self.spec:
             raise CheckpointError(f"the job changed since the checkpoint in {out} was written ("
                                   + ", ".join(_changed_keys(str(saved["job"]), self.spec)) + "); resuming would mix "
@@ -248,7 +325,7 @@ class RunFiles:
         if int(saved["chunk"]) != self.chunk:
             raise CheckpointError("the checkpoint was written with another chunk length; start anew with --overwrite")
         estimator.restore(saved)
-        self.writer.start(int(saved["position"]))
+        self.writer.start(int(saved["position"]), int(saved["output_crc"]))
         self.kept = {k: [saved[f"plot_{k}"]] for k in ("t", "f", "y", "p", "s") if f"plot_{k}" in saved}
         self.saved = saved
         self.checkpointed = int(saved["next_step"])
@@ -279,8 +356,10 @@ class RunFiles:
         """Save the run's state after step ``next_step`` (its output written up to there)."""
         state = estimator.state() | diag.state() | extra | {
             "next_step": np.array(next_step), "position": np.array(self.writer.position),
+            "output_crc": np.array(self.writer.crc, dtype=np.int64),
             "job": np.array(self.spec), "files": np.array(self.data_files), "chunk": np.array(self.chunk)} | {
             f"plot_{k}": np.concatenate(v) if k == "t" else np.vstack(v) for k, v in self.kept.items()}
+        state["checksum"] = np.array(_checksum(state))
         with atomic_path(self.path) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez(fh, **state)

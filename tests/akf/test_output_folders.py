@@ -133,28 +133,69 @@ def test_ctrl_c_while_streaming_names_the_partial_file_and_the_resume(tmp_path, 
     assert (out / "timeseries.csv").read_bytes() == (whole / "timeseries.csv").read_bytes()
 
 
-@pytest.mark.parametrize("damage", ["truncated", "foreign", "nan"])
+DAMAGE = {"truncated": "is truncated or not a checkpoint", "foreign": "is not a checkpoint of akf estimate",
+          "nan": "NaN or infinite values in 'P'", "nan state": "NaN or infinite values in 'z'",
+          "edited": "was changed after it was written (its checksum",
+          "another job": "was written by another job ('someone-else', not 's17-tdms')",
+          "edited output": "timeseries.csv was changed after the checkpoint was written",
+          "cut output": "timeseries.csv is shorter than the checkpoint says"}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGE))
 def test_resume_from_a_damaged_checkpoint(tmp_path, capsys, damage):
+    """A torn or tampered checkpoint or partial output is refused by name (the NaN and the other
+    job's cases under a recomputed checksum: what the entries are checked for)."""
     from akf.estimate import estimate_job
+    from akf.estimate.files import _checksum
     from akf.job import load_job
     path = measured_job(tmp_path)
     out = tmp_path / "o"
     estimate_job(load_job(str(path), "estimate"), str(out), plot=False, stop_after=2)
     ck = out / ".akf-resume.npz"
+    saved = dict(np.load(ck))
     if damage == "truncated":
         ck.write_bytes(ck.read_bytes()[:200])
     elif damage == "foreign":
         np.savez(ck, something=np.ones(3))
         os.replace(str(ck) + ".npz" if os.path.exists(str(ck) + ".npz") else ck, ck)
+    elif damage in ("edited output", "cut output"):
+        text = (out / "timeseries.csv").read_bytes()
+        cut = int(saved["position"]) // 2
+        (out / "timeseries.csv").write_bytes(text[:cut] + (b"9" + text[cut + 1:] if damage == "edited output" else b""))
     else:
-        saved = dict(np.load(ck))
-        saved["P"] = saved["P"] * np.nan
+        if damage == "nan":
+            saved["P"] = saved["P"] * np.nan
+        elif damage == "nan state":
+            saved["z"] = saved["z"] * np.nan
+        elif damage == "another job":
+            saved["job"] = np.array(json.dumps(json.loads(str(saved["job"])) | {"name": "someone-else"}, sort_keys=True))
+        else:
+            saved["next_step"] = saved["next_step"] + 1
+        if damage != "edited":
+            saved["checksum"] = np.array(_checksum(saved))
         with open(ck, "wb") as fh:
             np.savez(fh, **saved)
     assert main(["estimate", str(path), "--no-plot", "--out", str(out), "--resume"]) == 2
     err = capsys.readouterr().err
-    assert {"truncated": "is truncated or not a checkpoint", "foreign": "is not a checkpoint of akf estimate",
-            "nan": "NaN or infinite values in 'P'"}[damage] in err
+    assert DAMAGE[damage] in err, err
+
+
+def test_a_hard_linked_backup_keeps_its_content(tmp_path, capsys):
+    """Outputs hard-linked into a backup (cp -al, rsnapshot) were changed in place with the run's."""
+    from akf.estimate import estimate_job
+    from akf.job import load_job
+    path = measured_job(tmp_path)
+    out, backup = tmp_path / "o", tmp_path / "backup"
+    estimate_job(load_job(str(path), "estimate"), str(out), plot=False, stop_after=2)
+    backup.mkdir()
+    for f in os.listdir(out):
+        if os.path.isfile(out / f):
+            os.link(out / f, backup / f)
+    kept = {f: (backup / f).read_bytes() for f in os.listdir(backup)}
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out), "--resume"]) == 0
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out), "--overwrite"]) == 0
+    assert {f: (backup / f).read_bytes() for f in os.listdir(backup)} == kept
+    assert (out / "timeseries.csv").stat().st_size > len(kept["timeseries.csv"])
 
 
 def test_place_rerun_into_a_finished_runs_folder_runs_and_an_interrupted_one_asks(tmp_path, capsys):
@@ -165,9 +206,11 @@ def test_place_rerun_into_a_finished_runs_folder_runs_and_an_interrupted_one_ask
     args = ["place", str(job), "--no-plot", "--json", "--out", str(tmp_path / "o")]
     assert main(args) == 0 and main(args) == 0
     ck = tmp_path / "o" / "checkpoint.json"
-    data = json.loads(ck.read_text())
+    from core_akf.evolution import load_checkpoint, save_checkpoint
+
+    data = load_checkpoint(str(ck))
     data["finished"] = False
-    ck.write_text(json.dumps(data))
+    save_checkpoint(str(ck), data)
     capsys.readouterr()
     assert main(args) == 2
     err = capsys.readouterr().err
