@@ -36,6 +36,7 @@ CLI_WORDING = (
     ("pass resume=True to continue it, or remove the file to start afresh",
      "run again with --resume to continue it, or with --overwrite to start afresh"),
     ("pass allow_undetectable=True", "pass --allow-undetectable"),
+    ("start anew with resume=False and the file removed", "start anew with --overwrite"),
     ("give its gauge_factor (and bridge:", "give its gauge_factor in [measurements] (and bridge:"),
     ("microstrain: set units={", "microstrain: set in [measurements] units = {"),
 )

@@ -53,6 +53,7 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
     simulated twice; ``tune`` overrides ``[locate] tune`` (``--no-tune``: False, ``--tune``: "ga" or "ml")."""
     from impactloc.locate import locate
     from impactloc.scan import Covariances
+    from impactloc.tuning import check_decades
 
     spec = job.spec
     sensors = job.sensors           # checked against the structure
@@ -74,6 +75,8 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
         start = default_covariances(sensors, Y)
         covariances = Covariances(start.model_error, float(np.mean(np.asarray(force_model.std, float) ** 2)), start.noise)
     tuning = None if loc.tuning is None else loc.tuning.model_dump(exclude_none=True)
+    if tuning and "decades" in tuning:
+        check_decades(tuning["decades"], "[locate.tuning] decades")
     return locate(job.structure, sensors, Y, job.dt, n_ad=loc.n_ad, direction=loc.direction,
                   ad_kinds=tuple(loc.ad_kinds or ["strain"]), candidates=loc.candidates, covariances=covariances,
                   tune=(True if loc.tune is None else loc.tune) if tune is None else tune, max_splits=loc.max_splits,

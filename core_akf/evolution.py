@@ -484,8 +484,8 @@ class GeneticAlgorithm:
         path = self.checkpoint
 
         def bad(what):
-            return AKFInputError(f"checkpoint {path!r}: {what}; it is not resumed (start anew with --overwrite, or "
-                                 "resume=False)")
+            return AKFInputError(f"checkpoint {path!r}: {what}; it is not resumed: start anew with resume=False and "
+                                 "the file removed")
 
         missing = [k for k in ("generation", "rng", "pyrng", "population", "fitness", "rows", "hof", "cache",
                                "evaluations", "hits", "infeasible") if k not in ck]

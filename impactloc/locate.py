@@ -22,7 +22,7 @@ from core_akf.sensors import as_layout
 from .reconstruct import reconstruct
 from .roles import role_splits
 from .scan import ImpactModel, candidate_locations, default_covariances, scan
-from .tuning import tune_covariances, tune_covariances_ml
+from .tuning import check_decades, tune_covariances, tune_covariances_ml
 
 #: units of the numbers in :meth:`LocateResult.to_dict` (and ``akf locate --json``)
 LOCATE_UNITS = {"confidence": "share of role splits (0-1)", "margin": "runner-up distance in pooled spreads",
@@ -158,6 +158,8 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
         raise AKFInputError(f"tune must be True, False, \"ga\" or \"ml\", got {tune!r}")
     layout = as_layout(sensors)
     Y = np.asarray(measurements, dtype=float)
+    if tuning and "decades" in tuning:
+        check_decades(tuning["decades"], "tuning decades")           # before the scan, not after it
     splits = role_splits(layout, n_ad, ad_kinds, max_splits=max_splits, seed=seed)
     cands = candidate_locations(structure, direction, candidates)
     cov = covariances or default_covariances(layout, Y)

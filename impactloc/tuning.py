@@ -112,6 +112,35 @@ class _TuningFitness:
         return [float(v) if np.isfinite(v) else math.inf for v in f]
 
 
+#: the widest search: +-10 decades around the starting levels (a factor 1e10 either way)
+MAX_DECADES = 10.0
+
+
+def check_decades(decades, name="decades"):
+    """The half-width of the tuning's search box (decades of each level), checked before any work.
+
+    Parameters
+    ----------
+    decades : float
+        Between 0 (exclusive) and :data:`MAX_DECADES`.
+    name : str
+        What to call it in the message.
+
+    Raises
+    ------
+    AKFInputError
+        Outside that range (levels 10^400 times the start overflow to inf or 0).
+
+    Examples
+    --------
+    >>> check_decades(3.0)
+    """
+    if not 0 < decades <= MAX_DECADES:
+        raise AKFInputError(f"{name} = {decades!r} is the half-width of the search around the starting levels, in "
+                            f"decades: it must be above 0 and at most {MAX_DECADES:g} (a factor 1e{MAX_DECADES:g} either "
+                            "way; 3 is the default)")
+
+
 class TuningGA(Algorithm):
     """An elitist real-coded GA on the log10 levels.
 
@@ -226,8 +255,7 @@ def tune_covariances(structure: Structure, sensors: Layout, measurements: Measur
     """
     if population < 2 or generations < 0:
         raise AKFInputError("population must be >= 2 and generations >= 0")
-    if not decades > 0:
-        raise AKFInputError(f"decades must be > 0, got {decades}")
+    check_decades(decades)
     model = model or ImpactModel(structure, sensors, dt, n_modes)
     Y = check_measurements(model.layout, measurements)
     skip_n = int(round(skip / dt))
@@ -331,8 +359,7 @@ def tune_covariances_ml(structure: Structure, sensors: Layout, measurements: Mea
 
     from core_akf.calibration import calibrate
 
-    if not decades > 0:
-        raise AKFInputError(f"decades must be > 0, got {decades}")
+    check_decades(decades)
     if not splits:
         raise AKFInputError("no role splits given")
     t0 = time.perf_counter()

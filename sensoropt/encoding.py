@@ -338,6 +338,22 @@ class CandidateSet:
         t = self.type[list(layout)]
         return {k: int(np.sum(t == k)) for k in ("strain", "acc")}
 
+    def is_genome(self, genes: object) -> bool:
+        """Whether genes read back (from a GA checkpoint) are a canonical layout: a sorted list of
+        candidate indices that :meth:`is_valid` accepts.
+
+        Parameters
+        ----------
+        genes : object
+
+        Returns
+        -------
+        bool
+        """
+        if not isinstance(genes, list) or not all(isinstance(g, int) and not isinstance(g, bool) for g in genes):
+            return False
+        return genes == sorted(genes) and all(0 <= g < len(self.candidates) for g in genes) and self.is_valid(tuple(genes))
+
     def is_valid(self, layout: Sequence[int]) -> bool:
         """Whether a layout is admissible: distinct sensors, the right number, the budget kept.
 

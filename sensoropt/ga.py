@@ -109,7 +109,7 @@ class PlacementGA(Algorithm):
         return layouts[:self.size]
 
     def check_genome(self, genome):
-        return _is_layout(self.encoding, genome)
+        return self.encoding.is_genome(genome)
 
     def next_generation(self, population, generation, rng, pyrng, evaluate):
         enc = self.encoding
@@ -129,14 +129,6 @@ class PlacementGA(Algorithm):
         f = np.array([i.fitness.values[0] for i in population])
         return {"best": float(f.min()), "mean": float(f.mean()), "std": float(f.std()),
                 "diversity": self.encoding.diversity([tuple(i) for i in population])}
-
-
-def _is_layout(encoding, genome):
-    """Whether a genome from a checkpoint is a canonical layout of ``encoding`` (sorted candidate indices)."""
-    if not isinstance(genome, list) or not all(isinstance(g, int) and not isinstance(g, bool) for g in genome):
-        return False
-    return genome == sorted(genome) and all(0 <= g < len(encoding.candidates) for g in genome) \
-        and encoding.is_valid(tuple(genome))
 
 
 def place(objective: Objective, encoding: CandidateSet, *, population: int = 50, generations: int = 100, elite: int = 2,

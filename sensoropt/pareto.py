@@ -71,9 +71,7 @@ class ParetoGA(Algorithm):
         return [self.encs[self.lo + j % (self.hi - self.lo + 1)].random_layout(rng) for j in range(self.size)]
 
     def check_genome(self, genome):
-        from .ga import _is_layout
-
-        return isinstance(genome, list) and self.lo <= len(genome) <= self.hi and _is_layout(self.encs[len(genome)], genome)
+        return isinstance(genome, list) and self.lo <= len(genome) <= self.hi and self.encs[len(genome)].is_genome(genome)
 
     def after_initial(self, population):
         from deap import tools

@@ -301,7 +301,7 @@ def from_matrices(K: ArrayLike | scipy.sparse.sparray, M: ArrayLike | scipy.spar
                             "the supports")
     free_dofs = np.array([row_of[dofs[r][0]] * len(dof_names) + dof_names.index(dofs[r][1]) for r in rows])
     blocks, members, ends = _strain_blocks(strain_rows, extensometers, n, large, rows, coords, dofs, seen, dof_names)
-    _check_coordinate_units(coords, name)
+    _check_coordinate_units(coords, name, extensometers is not None and len(extensometers) > 0)
     strain = _stack(blocks)
     common = dict(nodes=np.array([coords[k] for k in ids]), dof_names=dof_names, free_dofs=free_dofs,
                   strain_matrix=strain, strain_kind="member", members=members, name=name, node_ids=ids)
@@ -542,12 +542,15 @@ def _extensometer_rows(members, coords, dofs, seen, rows, dof_names):
 
 #: median distance (m) from a node to its nearest neighbour above which coordinates look like mm
 NODE_SPACING_LIMIT = 25.0
+#: ... and above which they are mm for a model with extensometers (an error: their strains divide by it)
+NODE_SPACING_MM = 100.0
 
 
-def _check_coordinate_units(coords, name):
+def _check_coordinate_units(coords, name, extensometers=False):
     """A :class:`ModelWarning` when the nodes lie so far apart that the coordinates are probably in
     mm against SI matrices: every extensometer strain would be 1000 times too small, and forces
-    estimated from strain gauges that much too large."""
+    estimated from strain gauges that much too large.  With extensometers and nodes more than
+    :data:`NODE_SPACING_MM` apart it is an error: their strains would be wrong, not only the figures."""
     from scipy.spatial import cKDTree
 
     if len(coords) < 2:
@@ -555,6 +558,10 @@ def _check_coordinate_units(coords, name):
     xyz = np.array(list(coords.values()))
     d, _ = cKDTree(xyz).query(xyz, k=2)
     spacing = float(np.median(d[:, 1]))
+    if extensometers and spacing > NODE_SPACING_MM:
+        raise AKFInputError(f"{name}: neighbouring nodes lie {spacing:.4g} m apart (median): the coordinates look like "
+                            "mm, while K and M are SI; an extensometer's strain divides by its length, so every one "
+                            "would be 1000x too small and the forces from them wrong: give the nodes in m")
     if spacing > NODE_SPACING_LIMIT:
         warnings.warn(f"{name}: neighbouring nodes lie {spacing:.4g} m apart (median), the whole model spans "
                       f"{float(np.ptp(xyz, axis=0).max()):.4g} m: are the coordinates in mm? They must be in m (SI) like "

@@ -30,9 +30,13 @@ OPENSEES_LIMIT = DENSE_LIMIT
 def _ops():
     try:
         import openseespy.opensees as ops
-    except ImportError as exc:
-        if ".so" in str(exc) or "DLL" in str(exc):       # installed, but a system library is missing
-            raise AKFInputError(f"openseespy is installed but cannot load ({exc}): it needs the system's BLAS and LAPACK "
+    except (ImportError, OSError, RuntimeError) as exc:
+        # openseespy wraps a native library that fails to load in RuntimeError("Failed to import openseespy ...")
+        cause = exc.__cause__ or exc.__context__
+        native = isinstance(exc, (OSError, RuntimeError)) or any(t in str(exc) for t in (".so", "DLL", ".dylib"))
+        if native:                                       # installed, but a system library is missing
+            why = f"{exc}: {cause}" if cause is not None else str(exc)
+            raise AKFInputError(f"openseespy is installed but cannot load ({why}): it needs the system's BLAS and LAPACK "
                                 "(on Debian/Ubuntu `apt-get install libblas3 liblapack3`, on Fedora/RHEL `dnf install "
                                 "blas lapack`)") from None
         raise AKFInputError(f"reading an OpenSees model needs the package 'openseespy': {install_hint('opensees')} "

@@ -95,3 +95,18 @@ def test_a_mode_above_nyquist_is_not_calibrated():
     with pytest.raises(AKFInputError, match=rf"modes \[{above[0]}\] lie at or above the record's Nyquist frequency"):
         calibrate(s, ["strain:13", "acc:8:y"], ["8:y"], Y, dt, parameters=["frequencies"], modes=[1, above[0]],
                   model_error_cov=1e-16, force_increment_cov=1e3, noise_cov={"strain": 1e-14, "acc": 1e-4})
+
+
+@pytest.mark.parametrize("decades", [400, 1e300, 0])
+def test_tuning_decades_out_of_range_is_named_by_its_key_before_the_scan(tmp_path, capsys, decades):
+    from akf.examples import example_path
+
+    text = open(example_path("imp-truss-case1")).read().replace("[locate]", f"[locate.tuning]\ndecades = {decades}\n"
+                                                                             "[locate]", 1)
+    job = tmp_path / "job.toml"
+    job.write_text(text)
+    assert main(["locate", str(job), "--no-plot", "--json", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(r"\[locate.tuning\] decades = \S+ is the half-width of the search", err) or \
+        "decades in [locate.tuning]" in err, err
+    assert not (tmp_path / "o" / "scan.csv").exists()

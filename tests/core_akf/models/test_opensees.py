@@ -83,3 +83,37 @@ def test_opensees_rayleigh_damping_and_a_missing_model():
     C = np.zeros_like(m.C)
     C[np.ix_(perm, perm)] = 0.1 * M + 2e-5 * K
     np.testing.assert_allclose(m.C, C, rtol=0, atol=1e-9 * np.max(np.abs(C)))
+
+
+@pytest.mark.parametrize("failure", ["native", "absent"])
+def test_openseespy_that_cannot_load_is_named_not_a_traceback(monkeypatch, failure):
+    """openseespy wraps a native library that fails to load in RuntimeError("Failed to import
+    openseespy on Linux."): that was a raw traceback; a package that is absent names its extra."""
+    import builtins
+    import sys
+
+    from core_akf.checks import AKFInputError
+    from core_akf.models import opensees
+
+    real = builtins.__import__
+
+    def fake(name, *args, **kw):
+        if name.startswith("openseespy"):
+            if failure == "absent":
+                raise ImportError("No module named 'openseespy'")
+            try:
+                raise ImportError("libblas.so.3: cannot open shared object file: No such file or directory")
+            except ImportError:
+                raise RuntimeError("Failed to import openseespy on Linux.")  # noqa: B904 -- as openseespy does
+        return real(name, *args, **kw)
+
+    monkeypatch.delitem(sys.modules, "openseespy.opensees", raising=False)
+    monkeypatch.delitem(sys.modules, "openseespy", raising=False)
+    monkeypatch.setattr(builtins, "__import__", fake)
+    with pytest.raises(AKFInputError) as info:
+        opensees._ops()
+    if failure == "native":
+        assert "openseespy is installed but cannot load (Failed to import openseespy on Linux.: libblas.so.3" in str(
+            info.value) and "apt-get install libblas3 liblapack3" in str(info.value)
+    else:
+        assert "needs the package 'openseespy': python -m pip install" in str(info.value)
