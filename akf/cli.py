@@ -17,6 +17,7 @@ import warnings
 from importlib.metadata import entry_points
 
 from core_akf.checks import AKFInputError, UndetectableError
+from core_akf.tasks import WorkerLostError
 
 from . import __version__
 from .parallel import ClusterError
@@ -37,6 +38,7 @@ CLI_WORDING = (
      "run again with --resume to continue it, or with --overwrite to start afresh"),
     ("pass allow_undetectable=True", "pass --allow-undetectable"),
     ("start anew with resume=False and the file removed", "start anew with --overwrite"),
+    ("with fewer workers (n_jobs), or n_jobs=1 to run in this process", "with a smaller --n-jobs, or without it"),
     ("give its gauge_factor (and bridge:", "give its gauge_factor in [measurements] (and bridge:"),
     ("microstrain: set units={", "microstrain: set in [measurements] units = {"),
 )
@@ -151,8 +153,8 @@ def _run(args):
     except AKFInputError as exc:
         print(f"akf: error: {cli_wording(str(exc))}", file=sys.stderr)
         return 2
-    except ClusterError as exc:
-        print(f"akf: error: {exc}", file=sys.stderr)
+    except (ClusterError, WorkerLostError) as exc:
+        print(f"akf: error: {cli_wording(str(exc))}", file=sys.stderr)
         return 4
     except BrokenPipeError:       # `akf ... | head`: the reader has gone; not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -155,17 +155,14 @@ class Evaluator:
 
     def __call__(self, keys):
         """Fitness tuples for genome keys (cached ones are not evaluated again)."""
-        from joblib import Parallel, delayed
+        from .tasks import run_tasks
 
         new = list(dict.fromkeys(k for k in keys if k not in self.cache))
         self.hits += len(keys) - len(new)      # cached, or repeated within this request
         if new:
             items = [self.decode(k) for k in new]
             chunks = [items[i:i + self.batch] for i in range(0, len(items), self.batch)]
-            if self.n_jobs == 1 or len(chunks) == 1:
-                parts = [self.evaluate_batch(c) for c in chunks]
-            else:
-                parts = Parallel(n_jobs=self.n_jobs)(delayed(self.evaluate_batch)(c) for c in chunks)
+            parts = run_tasks(self.evaluate_batch, chunks, self.n_jobs)
             values = [v for p in parts for v in p]
             if len(values) != len(new):
                 raise AKFInputError(f"the objective returned {len(values)} values for {len(new)} candidates")

@@ -385,7 +385,7 @@ def location_errors(model, loc, splits, Y, covs, skip=0):
     return abs_err, rel_err
 
 
-def _scan_task(model, locs, splits, Y, cov, skip):
+def _scan_task(locs, model, splits, Y, cov, skip):
     return [location_errors(model, loc, splits, Y, [cov], skip) for loc in locs]
 
 
@@ -527,7 +527,11 @@ def scan(structure: Structure, sensors: Layout, measurements: Measurements, dt: 
     >>> res.identified, len(res.splits)
     ((14, 'y'), 10)
     """
-    from joblib import Parallel, delayed, effective_n_jobs
+    from functools import partial
+
+    from joblib import effective_n_jobs
+
+    from core_akf.tasks import run_tasks
 
     layout = as_layout(sensors)
     Y = check_measurements(layout, measurements)
@@ -555,7 +559,7 @@ def scan(structure: Structure, sensors: Layout, measurements: Measurements, dt: 
         results = [location_errors(model, loc, splits, Y, [covariances], skip_n) for loc in it]
     else:
         groups = _chunks(locs, effective_n_jobs(n_jobs))
-        out = Parallel(n_jobs=n_jobs)(delayed(_scan_task)(model, g, splits, Y, covariances, skip_n) for g in groups)
+        out = run_tasks(partial(_scan_task, model=model, splits=splits, Y=Y, cov=covariances, skip=skip_n), groups, n_jobs)
         results = [r for group in out for r in group]
     rel = np.stack([r[1][0] for r in results])        # (n_loc, n_splits, n_ad)
     ab = np.stack([r[0][0] for r in results])

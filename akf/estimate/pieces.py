@@ -33,9 +33,8 @@ def estimate_in_pieces(setup, n_jobs, *, overwrite=False, plot=True, on_result=N
     -------
     EstimateResult
     """
-    import joblib
-
     from core_akf.filter import estimate_in_parallel
+    from core_akf.tasks import run_tasks
 
     job, record, n_total = setup.job, setup.record, setup.n_total
     if setup.out is None:
@@ -58,7 +57,7 @@ def estimate_in_pieces(setup, n_jobs, *, overwrite=False, plot=True, on_result=N
 
     def map_pieces(f, items):
         items = list(items)
-        return joblib.Parallel(n_jobs=at_most(n_jobs, len(items)))(joblib.delayed(f)(x) for x in items)
+        return run_tasks(f, items, at_most(n_jobs, len(items)))
     results = estimate_in_parallel(estimator, [FilePiece(record, i) for i in range(len(record.files))], map_pieces,
                                    piece)
     diag = merged(results, run, fatigue)

@@ -458,6 +458,11 @@ class _SlicedReader(Reader):
                 except (TypeError, ValueError):
                     raise AKFInputError(f"{self.path}: channel {c!r} does not hold numbers (it holds "
                                         f"{np.asarray(self._series[c][start:start + 1]).dtype} values)") from None
+                except (OSError, MemoryError, OverflowError) as exc:
+                    raise AKFInputError(f"{self.path}: samples {start}..{stop - 1} of channel {c!r} cannot be read "
+                                        f"({type(exc).__name__}: {getattr(exc, 'strerror', None) or exc}): the file's "
+                                        f"index claims {self.timing().n_steps} samples; is it damaged or cut "
+                                        "short?") from None
                 _refuse_infinite(values, self.path, c, start)
                 columns.append(values)
             yield np.column_stack(columns)
@@ -630,7 +635,25 @@ class Hdf5Reader(_SlicedReader):
         if not self.channels() and self._skipped:
             raise AKFInputError(f"{self.path}: no data channels: a channel is a 1-D dataset, and the datasets here are "
                                 f"not 1-D ({', '.join(self._skipped[:5])}); store one 1-D dataset per channel")
-        return super()._length()
+        n = super()._length()
+        for name in self.channels():
+            written = self._written(self._series[name])
+            if written is not None and written < n:
+                raise AKFInputError(f"{self.path}: dataset {name!r} declares {n} samples but holds data for only about "
+                                    f"{written} of them; the rest would read as its fill value, not as measurements "
+                                    "(a recording cut short?): write the dataset with the length of its data")
+        return n
+
+    @staticmethod
+    def _written(ds):
+        """About how many samples of a dataset were ever written (None: all, or not known): a
+        chunked dataset's allocated chunks, a contiguous one's allocated storage."""
+        try:
+            if ds.chunks:
+                return int(ds.id.get_num_chunks()) * int(ds.chunks[0])
+            return None if ds.id.get_storage_size() or not len(ds) else 0
+        except (AttributeError, RuntimeError, ValueError):     # an older h5py, a compact or virtual dataset
+            return None
 
     def units(self):
         out = {}

@@ -390,3 +390,46 @@ def test_a_file_that_is_no_table_is_not_quoted(tmp_path, first_line):
     with pytest.raises(AKFInputError, match="no time column 'time'; found 1 column") as info:
         Record(path, ["strain:13"], format="csv")
     assert first_line.split(":")[0].split("=")[0] not in str(info.value).replace(str(path), "")
+
+
+def test_an_hdf5_dataset_declared_longer_than_its_data_is_refused(tmp_path):
+    """A recording cut short leaves a dataset of the declared length whose unwritten part reads as
+    the fill value: it was calibrated on those zeros."""
+    h5py = pytest.importorskip("h5py")
+    path = tmp_path / "cut.h5"
+    with h5py.File(path, "w") as f:
+        f.attrs["dt"] = 1 / 4096
+        ds = f.create_dataset("SG13", shape=(100_000,), chunks=(4096,), dtype="f8")
+        ds[:8192] = 1e-6 * np.sin(np.arange(8192))
+        f.create_dataset("SG5", data=1e-6 * np.ones(100_000), chunks=(4096,), compression="gzip")
+    with pytest.raises(AKFInputError, match="dataset 'SG13' declares 100000 samples but holds data for only about "
+                                            "8192 of them"):
+        Record(path, ["strain:13", "strain:5"], channels={"SG13": "strain:13", "SG5": "strain:5"}).read()
+    with h5py.File(path, "w") as f:                      # contiguous, never written
+        f.attrs["dt"] = 1 / 4096
+        f.create_dataset("SG13", shape=(1000,), dtype="f8")
+    with pytest.raises(AKFInputError, match="holds data for only about 0 of them"):
+        Record(path, ["strain:13"], channels={"SG13": "strain:13"}).read()
+
+
+def test_a_read_that_fails_in_the_file_names_the_file_and_the_samples(tmp_path, monkeypatch):
+    """A TDMS segment index claiming 1e12 values ended in "Invalid argument" without the file's name."""
+    from core_akf.io import readers
+
+    real = readers.TdmsReader.chunks
+
+    def failing(self, channels, size):
+        class Broken:
+            def __len__(self):
+                return 10 ** 12
+
+            def __getitem__(self, key):
+                raise OSError(22, "Invalid argument")
+        self._series = dict(self._series) | {channels[0]: Broken()}
+        self._timing = readers.Timing(0.0, 1 / 4096, 10 ** 12)
+        return real(self, channels, size)
+
+    monkeypatch.setattr(readers.TdmsReader, "chunks", failing)
+    with pytest.raises(AKFInputError, match=r"record\.tdms: samples 0\.\.\d+ of channel .* cannot be read \(OSError: "
+                                            r"Invalid argument\): the file's index claims 1000000000000 samples"):
+        Record(DAQ / "record.tdms", SENSORS, **_channel_map("record.tdms")).read()
