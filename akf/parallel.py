@@ -240,10 +240,16 @@ def workers(args):
                             "every core")
     if getattr(args, "scheduler", None):
         return n
-    from core_akf.filter.recursion import solver_threads
-
-    cores = solver_threads()
+    cores = usable_cores()
     return max(1, min(n, cores) if n > 0 else cores + 1 + n)
+
+
+def usable_cores():
+    """The cores this process may run on (its CPU affinity; a BLAS thread limit does not count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:      # not on Linux
+        return os.cpu_count() or 1
 
 
 def at_most(n_jobs, work):

@@ -10,6 +10,7 @@ resumed run cuts the output back to the checkpoint and goes on from there.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
@@ -364,6 +365,27 @@ class RunFiles:
             with open(tmp, "wb") as fh:
                 np.savez(fh, **state)
         self.checkpointed = int(next_step)
+
+    def after_disk_full(self, exc, n_total):
+        """What a run that filled the disk leaves: its partial time series and checkpoint when a
+        checkpoint lets ``--resume`` go on from them, else nothing (both removed).  Returns the
+        message that says which."""
+        where = os.path.basename(self.writer.path)
+        if self.checkpointed:
+            return (f"the disk is full ({exc.strerror or exc}; writing into {self.out}): {where} (partial) and the "
+                    f"checkpoint {CHECKPOINT} are kept, so that --resume goes on from step {self.checkpointed} of "
+                    f"{n_total} once there is space; the other files of this run were not written")
+        removed = []
+        for path in (self.writer.path, self.path):
+            if os.path.isdir(path):
+                shutil.rmtree(path, ignore_errors=True)
+                removed.append(os.path.basename(path))
+            elif os.path.lexists(path):
+                with contextlib.suppress(OSError):
+                    os.remove(path)
+                    removed.append(os.path.basename(path))
+        return (f"the disk is full ({exc.strerror or exc}; writing into {self.out}) before the run's first checkpoint: "
+                f"the partial files it started were removed ({', '.join(removed) or 'none'}); free space and run again")
 
     def partial_files(self):
         return {"timeseries": self.writer.path, "checkpoint": self.path}

@@ -11,6 +11,7 @@ time-parallel (:mod:`akf.estimate.pieces`).
 """
 from __future__ import annotations
 
+import errno
 import os
 import sys
 from dataclasses import dataclass, field
@@ -226,6 +227,10 @@ def _check_request(job, resume, overwrite):
         raise AKFInputError("--resume continues an interrupted run of measured data; this job simulates its data")
 
 
+#: the errors of a full disk or an exhausted quota
+DISK_FULL = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+
+
 class Pipeline:
     """One sequential run of a set-up: the record chunk by chunk through one estimator, each
     chunk's estimate into the diagnostics, the fatigue counts and the files, then the metrics.
@@ -300,6 +305,10 @@ class Pipeline:
         which names the partial files kept for ``--resume``."""
         try:
             return self._run(stop_after, plot, on_result)
+        except OSError as exc:
+            if self.files is None or exc.errno not in DISK_FULL:
+                raise
+            raise AKFInputError(self.files.after_disk_full(exc, self.setup.n_total)) from None
         except KeyboardInterrupt:
             if self.files is None or isinstance(sys.exc_info()[1], Interrupted):
                 raise

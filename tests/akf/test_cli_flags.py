@@ -7,9 +7,8 @@ import tomlkit
 from helpers import measured_s17_files
 
 from akf.cli import main
-from akf.parallel import at_most, workers
+from akf.parallel import at_most, usable_cores, workers
 from core_akf.checks import AKFInputError
-from core_akf.filter.recursion import solver_threads
 
 
 def test_a_typo_in_parameters_is_named_as_the_flag_with_the_closest_names(capsys):
@@ -27,7 +26,7 @@ def test_print_job_of_another_commands_example_is_refused(capsys):
 
 
 def test_n_jobs_is_capped_at_the_cores_and_the_work():
-    cores = solver_threads()
+    cores = usable_cores()
     on = lambda n, scheduler=None: workers(argparse.Namespace(n_jobs=n, scheduler=scheduler))  # noqa: E731
     assert on(1000) == cores and on(-1) == cores and on(1) == 1 and on(None) == 1
     assert on(-2) == max(1, cores - 1)
@@ -53,4 +52,4 @@ def test_a_time_parallel_run_starts_no_more_processes_than_files(tmp_path, capsy
     job.write_text(tomlkit.dumps(measured_s17_files(tmp_path, 4, {"strains": ["strain:13"]})))
     assert main(["estimate", str(job), "--no-plot", "--json", "--n-jobs", "1000", "--out", str(tmp_path / "o")]) == 0
     assert json.loads(capsys.readouterr().out)["complete"]
-    assert started and max(started) <= min(4, solver_threads())
+    assert started and max(started) <= min(4, usable_cores())
