@@ -133,6 +133,43 @@ def test_ctrl_c_while_streaming_names_the_partial_file_and_the_resume(tmp_path, 
     assert (out / "timeseries.csv").read_bytes() == (whole / "timeseries.csv").read_bytes()
 
 
+@pytest.mark.parametrize("at_chunk", [1, 4])
+def test_a_full_disk_removes_what_cannot_be_resumed_and_keeps_what_can(tmp_path, capsys, monkeypatch, at_chunk):
+    """A run that failed on a full disk left 3 MB of partial files behind, which filled it."""
+    import errno
+
+    import akf.estimate.files as files
+
+    path = measured_job(tmp_path)
+    out = tmp_path / "o"
+    real, calls = files.TimeseriesWriter.write, []
+
+    def full(self, frame):
+        calls.append(1)
+        if len(calls) == at_chunk:
+            with open(self.path, "ab") as fh:                  # a torn row, as a full disk leaves it
+                fh.write(b"0.1,force,4:y,N,12")
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self, frame)
+
+    monkeypatch.setattr(files.TimeseriesWriter, "write", full)
+    assert main(["estimate", str(path), "--no-plot", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    left = sorted(f for f in os.listdir(out) if not f.startswith(".akf-run"))
+    if at_chunk == 1:
+        assert "before the run's first checkpoint: the partial files it started were removed (timeseries.csv)" in err
+        assert left == []
+    else:
+        assert "timeseries.csv (partial) and the checkpoint .akf-resume.npz are kept, so that --resume goes on from " \
+               "step 246" in err, err
+        assert left == [".akf-resume.npz", "timeseries.csv"]
+        monkeypatch.setattr(files.TimeseriesWriter, "write", real)
+        whole = tmp_path / "whole"
+        assert main(["estimate", str(path), "--no-plot", "--out", str(out), "--resume"]) == 0
+        assert main(["estimate", str(path), "--no-plot", "--out", str(whole)]) == 0
+        assert (out / "timeseries.csv").read_bytes() == (whole / "timeseries.csv").read_bytes()
+
+
 DAMAGE = {"truncated": "is truncated or not a checkpoint", "foreign": "is not a checkpoint of akf estimate",
           "nan": "NaN or infinite values in 'P'", "nan state": "NaN or infinite values in 'z'",
           "edited": "was changed after it was written (its checksum",
