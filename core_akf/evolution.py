@@ -32,6 +32,8 @@ from .outputs import atomic_path
 
 #: identifies a checkpoint of this engine; a file with another tag or version is refused
 CHECKPOINT_FORMAT = ["akf-toolkit GA checkpoint", 3]
+#: a generation with more individuals to evaluate than this shows its own progress (in slices)
+PROGRESS_FROM = 2000
 
 
 class Individual(list):
@@ -373,7 +375,19 @@ class GeneticAlgorithm:
     # -- evaluation of individuals
     def _evaluate(self, individuals):
         todo = [i for i in individuals if not i.fitness.valid]
-        for ind, f in zip(todo, self.evaluator([i.key() for i in todo])):
+        keys = [i.key() for i in todo]
+        if self.progress and len(keys) > PROGRESS_FROM:     # a large population: progress within the generation
+            from tqdm.auto import tqdm
+
+            step = max(PROGRESS_FROM // 4, -(-len(keys) // 100))
+            values = []
+            with tqdm(total=len(keys), desc=f"{self.progress}: evaluating", unit="individual", leave=False) as bar:
+                for a in range(0, len(keys), step):
+                    values += self.evaluator(keys[a:a + step])
+                    bar.update(min(step, len(keys) - a))
+        else:
+            values = self.evaluator(keys)
+        for ind, f in zip(todo, values):
             ind.fitness.values = f
             self._hof.setdefault(ind.key(), f)
         for ind in individuals:

@@ -402,3 +402,23 @@ def test_a_result_layout_goes_back_into_the_objective_and_the_encoding():
     truss = CandidateSet(s17_truss(), kinds=("strain",), n_sensors=2)
     assert truss.from_sensors(truss.records(truss.from_sensors(["strain:13", "strain:5"]))) == truss.from_sensors(
         ["strain:5", "strain:13"])
+
+
+def test_a_large_population_shows_progress_within_a_generation_and_the_same_result(capsys):
+    """A population of 10^6 stayed silent past 150 s: generation 0 had no bar of its own."""
+    from sensoropt import FunctionObjective, place
+    from sensoropt.encoding import CandidateSet
+
+    enc = CandidateSet(s17_truss(), kinds=("strain",), n_sensors=3)
+    objective = FunctionObjective(_member_sum)
+    quiet = place(objective, enc, population=2400, generations=1, seed=3)
+    capsys.readouterr()
+    shown = place(objective, enc, population=2400, generations=1, seed=3, progress=True)
+    assert "placement GA: evaluating" in capsys.readouterr().err
+    assert shown.sensors == quiet.sensors and shown.best_error == quiet.best_error
+    assert (shown.evaluations, shown.cache_hits) == (quiet.evaluations, quiet.cache_hits)
+    assert shown.logbook.drop(columns="seconds").equals(quiet.logbook.drop(columns="seconds"))
+
+
+def _member_sum(sensors):
+    return float(sum(int(s.split(":")[1]) for s in sensors))
