@@ -109,6 +109,7 @@ def atomic_path(path):
         The temporary path to write to.
     """
     confined(path)
+    ours(path)
     folder = os.path.dirname(os.path.abspath(path)) or "."
     base, ext = os.path.splitext(os.path.basename(path))
     fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
@@ -121,6 +122,78 @@ def atomic_path(path):
         with contextlib.suppress(FileNotFoundError):
             os.remove(tmp)
         raise
+    _record(path)
+
+
+#: the list of the files akf wrote into an output folder (one relative path per line)
+MANIFEST = ".akf-files"
+
+
+def _folder_of(path):
+    """The output folder in use that holds ``path``, or None."""
+    absolute = os.path.abspath(path)
+    for root, _ in _ACTIVE:
+        if absolute.startswith(root + os.sep):
+            return root
+    return None
+
+
+def _written(root):
+    """The relative paths listed in a folder's :data:`MANIFEST`."""
+    try:
+        with open(os.path.join(root, MANIFEST), encoding="utf-8") as fh:
+            return set(fh.read().splitlines())
+    except OSError:
+        return set()
+
+
+def ours(path):
+    """Refuse to replace or delete a file in an output folder in use that akf did not write there.
+
+    A file of the user's own that happens to have an output's name (``summary.csv``, a
+    ``--checkpoint`` path) is left as it is, also with ``--overwrite``.  Outside an output folder
+    in use, and for a path that does not exist, nothing is checked.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    str
+        ``path``.
+
+    Raises
+    ------
+    AKFInputError
+        For an existing file that is not in the folder's list of what akf wrote (:data:`MANIFEST`).
+    """
+    root = _folder_of(path)
+    if root is None or not os.path.lexists(path):
+        return path
+    written = _written(root)
+    inside = [os.path.join(d, f) for d, _, files in os.walk(path) for f in files] if os.path.isdir(path) else [path]
+    for p in inside:          # a folder (Parquet parts) is ours when every file in it is
+        if os.path.relpath(os.path.abspath(p), root) not in written:
+            raise AKFInputError(f"{p} exists and was not written there by akf (it is not in {MANIFEST}): it is left "
+                                "as it is; move it away, or write to another folder")
+    return path
+
+
+def _record(path):
+    """Add ``path`` to its output folder's :data:`MANIFEST` (written whole and renamed)."""
+    root = _folder_of(path)
+    if root is None:
+        return
+    names = _written(root)
+    name = os.path.relpath(os.path.abspath(path), root)
+    if name in names:
+        return
+    fd, tmp = tempfile.mkstemp(prefix=f"{MANIFEST}.", suffix=".tmp", dir=root)
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write("".join(f"{n}\n" for n in sorted(names | {name})))
+    os.chmod(tmp, 0o666 & ~_umask())
+    os.replace(tmp, os.path.join(root, MANIFEST))
 
 
 def write_csv(frame, path, **kwargs):

@@ -328,7 +328,7 @@ def test_ctrl_c_exits_130_and_leaves_no_partial_file(tmp_path, capsys, monkeypat
     assert "interrupted after the whole record was filtered: timeseries.csv is complete" in capsys.readouterr().err
     assert (tmp_path / "timeseries.csv").exists()          # complete
     assert not (tmp_path / "summary.csv").exists()         # absent, not partial
-    assert sorted(os.listdir(tmp_path)) == ["timeseries.csv"]
+    assert sorted(os.listdir(tmp_path)) == [".akf-files", "timeseries.csv"]        # and the list of what akf wrote
 
 
 def test_place_refuses_to_overwrite_a_checkpoint_and_checks_it(tmp_path, capsys):

@@ -23,7 +23,7 @@ import numpy as np
 
 from core_akf.checks import AKFInputError, distinct_labels
 from core_akf.filter import CheckpointError
-from core_akf.outputs import atomic_path, confined, write_csv
+from core_akf.outputs import atomic_path, confined, ours, write_csv
 
 from ..figures import draw, plot_estimate, plot_sensors
 from .metrics import summary_frame
@@ -290,6 +290,8 @@ class RunFiles:
         fmt = (job.spec.output.format if job.spec.output is not None else None) or "csv"
         self.writer = TimeseriesWriter(self.out, fmt)
         self.path = os.path.join(self.out, CHECKPOINT)
+        for name in (self.writer.path, self.path, "summary.csv", "fatigue.csv", "data_quality.csv"):
+            ours(confined(os.path.join(self.out, name)))   # before the work, not after it: a file of the user's is kept
         self.decimate = max(1, -(-n_total // PLOT_POINTS))
         self.kept = {"t": [], "f": [], "y": [], "p": []}
         self.reference = []           # the decimated true forces of a simulated record

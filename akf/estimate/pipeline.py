@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from core_akf.checks import AKFInputError, check_memory
 from core_akf.diagnostics import RunningDiagnostics
 from core_akf.filter import Estimator
+from core_akf.outputs import confine_writes
 from core_akf.quality import LIVE_SET_MIN_S, LiveSets
 
 from ..calibrating import calibrate_job, calibration_record
@@ -197,7 +198,15 @@ def estimate_job(job: Job, out: str | os.PathLike | None = None, *, resume: bool
     EstimateResult
     """
     _check_request(job, resume, overwrite)
-    setup = Setup.of(job, None if out is None else os.fspath(out))
+    if out is None:
+        return _estimate(job, None, resume, overwrite, progress, stop_after, plot, on_result, n_jobs)
+    with confine_writes(os.fspath(out)):       # what it writes is listed in the folder's .akf-files (ours, later)
+        return _estimate(job, os.fspath(out), resume, overwrite, progress, stop_after, plot, on_result, n_jobs)
+
+
+def _estimate(job, out, resume, overwrite, progress, stop_after, plot, on_result, n_jobs):
+    """:func:`estimate_job` after its checks, inside its output folder."""
+    setup = Setup.of(job, out)
     if n_jobs is not None and setup.record is not None and len(setup.record.files) > 1:
         if resume or stop_after is not None:
             raise AKFInputError("a time-parallel run is not resumed: its files run at once; run it again")

@@ -155,7 +155,7 @@ def test_a_full_disk_removes_what_cannot_be_resumed_and_keeps_what_can(tmp_path,
     monkeypatch.setattr(files.TimeseriesWriter, "write", full)
     assert main(["estimate", str(path), "--no-plot", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    left = sorted(f for f in os.listdir(out) if not f.startswith(".akf-run"))
+    left = sorted(f for f in os.listdir(out) if not f.startswith((".akf-run", ".akf-files")))
     if at_chunk == 1:
         assert "before the run's first checkpoint: the partial files it started were removed (timeseries.csv)" in err
         assert left == []
@@ -168,6 +168,25 @@ def test_a_full_disk_removes_what_cannot_be_resumed_and_keeps_what_can(tmp_path,
         assert main(["estimate", str(path), "--no-plot", "--out", str(out), "--resume"]) == 0
         assert main(["estimate", str(path), "--no-plot", "--out", str(whole)]) == 0
         assert (out / "timeseries.csv").read_bytes() == (whole / "timeseries.csv").read_bytes()
+
+
+@pytest.mark.parametrize("command", ["estimate", "place"])
+def test_a_file_akf_did_not_write_is_never_overwritten(tmp_path, capsys, command):
+    """--overwrite replaced a user's own summary.csv (or layout.csv) in the output folder; a rerun
+    into a folder akf wrote still runs."""
+    out = tmp_path / "o"
+    out.mkdir()
+    name = {"estimate": "summary.csv", "place": "layout.csv"}[command]
+    (out / name).write_text("mine\n")
+    args = {"estimate": ["estimate", "--example", "s17-case4", "--duration", "0.05"],
+            "place": ["place", "--example", "th-case5", "--generations", "1", "--population", "4"]}[command]
+    args = args + ["--no-plot", "--json", "--out", str(out)]
+    assert main(args + ["--overwrite"]) == 2
+    assert f"{name} exists and was not written there by akf" in capsys.readouterr().err
+    assert (out / name).read_text() == "mine\n"
+    os.remove(out / name)
+    assert main(args) == 0 and main(args) == 0 and main(args + ["--overwrite"]) == 0
+    assert name in (out / ".akf-files").read_text().split()
 
 
 DAMAGE = {"truncated": "is truncated or not a checkpoint", "foreign": "is not a checkpoint of akf estimate",
