@@ -32,19 +32,12 @@ from numpy.typing import ArrayLike, NDArray
 class AKFInputError(ValueError):
     """Invalid user input: wrong shape, NaN data, unknown id, duplicate sensor, ...
 
-    A message that echoes a long value (a list of 10^5 modes) is cut to :data:`MESSAGE_CHARS`
-    around what it says (:func:`shortened`).
-
-    Parameters
-    ----------
-    message : str
-        What is wrong, naming the argument.
-    *args
-        Further arguments, as ``ValueError`` takes them.
+    A message that echoes a long value (a list of 10^5 modes) is shown cut to
+    :data:`MESSAGE_CHARS` around what it says (:func:`shortened`).
     """
 
-    def __init__(self, message="", *args):
-        super().__init__(shortened(message) if isinstance(message, str) else message, *args)
+    def __str__(self):
+        return shortened(super().__str__())
 
 
 #: the longest message an input error carries
