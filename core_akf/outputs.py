@@ -81,6 +81,7 @@ def confine_writes(path):
         The folder's absolute path.
     """
     entry = (os.path.abspath(path), os.path.realpath(path))
+    _adopt(entry[0])
     _ACTIVE.append(entry)
     try:
         yield entry[0]
@@ -147,6 +148,35 @@ def _written(root):
         return set()
 
 
+def _adopt(root):
+    """A folder written by an earlier akf (no :data:`MANIFEST` yet, :func:`_earlier_run`) gets one
+    that lists every file in it, when a run starts there: its outputs are akf's."""
+    if not os.path.isdir(root) or os.path.exists(os.path.join(root, MANIFEST)) or not _earlier_run(root):
+        return
+    names = {os.path.relpath(os.path.join(d, f), root) for d, _, files in os.walk(root) for f in files}
+    _write_manifest(root, names)
+
+
+#: what marks a folder that an akf without :data:`MANIFEST` wrote: its checkpoints, its time series header
+_EARLIER_MARKS = {".akf-resume.npz": None, "checkpoint.json": b'{"format": ["akf-toolkit GA checkpoint"',
+                  "timeseries.csv": b"time,quantity,channel,unit,estimated"}
+
+
+def _earlier_run(root):
+    """Whether a folder without a :data:`MANIFEST` holds the output of an earlier akf: it lies under
+    an ``akf-out`` folder (the default of every command) or holds one of :data:`_EARLIER_MARKS`."""
+    if "akf-out" in os.path.abspath(root).split(os.sep):
+        return True
+    for name, head in _EARLIER_MARKS.items():
+        try:
+            with open(os.path.join(root, name), "rb") as fh:
+                if head is None or fh.read(len(head)) == head:
+                    return True
+        except OSError:
+            continue
+    return False
+
+
 def ours(path):
     """Refuse to replace or delete a file in an output folder in use that akf did not write there.
 
@@ -187,11 +217,14 @@ def _record(path):
         return
     names = _written(root)
     name = os.path.relpath(os.path.abspath(path), root)
-    if name in names:
-        return
+    if name not in names:
+        _write_manifest(root, names | {name})
+
+
+def _write_manifest(root, names):
     fd, tmp = tempfile.mkstemp(prefix=f"{MANIFEST}.", suffix=".tmp", dir=root)
     with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write("".join(f"{n}\n" for n in sorted(names | {name})))
+        fh.write("".join(f"{n}\n" for n in sorted(names)))
     os.chmod(tmp, 0o666 & ~_umask())
     os.replace(tmp, os.path.join(root, MANIFEST))
 

@@ -189,6 +189,21 @@ def test_a_file_akf_did_not_write_is_never_overwritten(tmp_path, capsys, command
     assert name in (out / ".akf-files").read_text().split()
 
 
+@pytest.mark.parametrize("where", ["akf-out/s17-case4", "mine"])
+def test_a_folder_of_an_earlier_akf_is_rerun_into(tmp_path, capsys, monkeypatch, where):
+    """A folder written before akf listed its files (no .akf-files) is adopted when it lies under
+    akf-out/ (every command's default) or holds akf's own marks (its time series here); the rerun
+    that the README's command makes simply runs."""
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / where
+    args = ["estimate", "--example", "s17-case4", "--duration", "0.05", "--no-plot", "--json", "--out", str(out)]
+    assert main(args) == 0
+    capsys.readouterr()
+    os.remove(out / ".akf-files")                        # as an earlier akf left it
+    assert main(args) == 0
+    assert "summary.csv" in (out / ".akf-files").read_text().split()
+
+
 DAMAGE = {"truncated": "is truncated or not a checkpoint", "foreign": "is not a checkpoint of akf estimate",
           "nan": "NaN or infinite values in 'P'", "nan state": "NaN or infinite values in 'z'",
           "edited": "was changed after it was written (its checksum",
