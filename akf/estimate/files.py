@@ -290,7 +290,7 @@ class RunFiles:
         fmt = (job.spec.output.format if job.spec.output is not None else None) or "csv"
         self.writer = TimeseriesWriter(self.out, fmt)
         self.path = os.path.join(self.out, CHECKPOINT)
-        for name in (self.writer.path, self.path, "summary.csv", "fatigue.csv", "data_quality.csv"):
+        for name in (os.path.basename(self.writer.path), CHECKPOINT, "summary.csv", "fatigue.csv", "data_quality.csv"):
             ours(confined(os.path.join(self.out, name)))   # before the work, not after it: a file of the user's is kept
         self.decimate = max(1, -(-n_total // PLOT_POINTS))
         self.kept = {"t": [], "f": [], "y": [], "p": []}
