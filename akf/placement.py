@@ -63,7 +63,9 @@ def problem_from_job(job: Job):
                                model_error_cov=job.model_error_cov, force_increment_cov=job.force_increment_cov,
                                n_modes=job.n_modes, seed=sim.seed or 0, objective_kind=p.objective or "strain",
                                del_slope=3.0 if p.del_slope is None else float(p.del_slope),
-                               force_model=job.force_model)
+                               force_model=job.force_model, uncertainty=uncertainty_of(job),
+                               survive_failures=p.survive_failures or 0, failure_measure=p.failure_measure or "worst",
+                               constraints=constraints_of(job))
     if f.force_increment_cov is None and not job.force_model.stationary:
         problem.notes = force_increment_notes(loads)
     return problem, ga_settings(job)
@@ -83,3 +85,31 @@ def force_increment_notes(loads, band=10.0):
                 f"loads change by {own:.3g} N^2 per step (variance of their increments); set force_increment_cov = "
                 f"{own:.3g} (or your own estimate of how fast the forces change) for errors that mean something"]
     return []
+
+
+def uncertainty_of(job: Job):
+    """The :class:`~sensoropt.robust.Uncertainty` of a place job's ``[place.uncertainty]`` (None
+    without one), drawn with the job's ``[simulation] seed``."""
+    from sensoropt.robust import Uncertainty
+
+    u = job.spec.place.uncertainty
+    if u is None:
+        return None
+    factor = job.stiffness_factor if u.stiffness_factor is None else u.stiffness_factor
+    try:
+        return Uncertainty.sample(factor, samples=u.samples or 8, seeds=u.seeds or 3, measure=u.measure or "p90",
+                                  seed=job.spec.simulation.seed or 0)
+    except AKFInputError as exc:
+        raise AKFInputError(f"[place.uncertainty] {exc}") from None
+
+
+def constraints_of(job: Job):
+    """The :class:`~sensoropt.constraints.Constraints` of a place job's ``[place.constraints]``
+    (None without one)."""
+    from sensoropt.constraints import Constraints
+
+    c = job.spec.place.constraints
+    if c is None:
+        return None
+    return Constraints(cost=c.cost, budget=c.budget, forbidden=c.forbidden, forbidden_nodes=c.forbidden_nodes,
+                       min_spacing=c.min_spacing)

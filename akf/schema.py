@@ -341,6 +341,42 @@ class Output(Section):
                            "estimated strains ([output.fatigue])", used_by=ESTIMATE)
 
 
+Measure = Literal["mean", "p90", "worst", "cvar90"]
+
+
+class PlaceUncertainty(Section):
+    """``[place.uncertainty]``: the true structures a layout is scored on (the filter stays the
+    job's model)."""
+
+    stiffness_factor: Positive | Annotated[list[Positive], Field(min_length=2)] = key(
+        "a positive number, [low, high] or a list of three or more positive numbers",
+        "the filter's stiffness against the truth: a range [low, high] drawn by a Latin hypercube, or the "
+        "factors themselves (default the [filter] stiffness_factor)", used_by=PLACE)
+    samples: Count = key("an integer >= 1", "models drawn from the range (default 8)", used_by=PLACE)
+    seeds: Count = key("an integer >= 1", "noise draws per model (default 3)", used_by=PLACE)
+    measure: Measure = key("\"mean\", \"p90\", \"worst\" or \"cvar90\"",
+                           "what the fitness makes of a layout's errors over the models and seeds (default p90: "
+                           "the 90 % quantile; cvar90: the mean of the worst 10 %)", used_by=PLACE)
+
+
+class PlaceConstraints(Section):
+    """``[place.constraints]``: what a layout may cost and where sensors may go."""
+
+    cost: dict[Text, NonNegative] = key(
+        "a table of numbers >= 0 per sensor type or kind, e.g. {strain = 1.0, acc = 4.0}",
+        "the cost of one sensor of each type (strain, acc) or kind (ex, acc:z); default 1 each", used_by=PLACE)
+    budget: Positive = key("a positive number", "the most a layout may cost (in the units of cost)", used_by=PLACE)
+    forbidden: Annotated[list[Annotated[list[Finite], Field(min_length=4, max_length=6)]], Field(min_length=1)] = key(
+        "a list of boxes [x0, y0, x1, y1] (2-D) or [x0, y0, z0, x1, y1, z1] (3-D)",
+        "regions where no sensor may go: a candidate whose position lies in a box is never placed", used_by=PLACE,
+        unit="m")
+    forbidden_nodes: Annotated[list[Count], Field(min_length=1)] = key(
+        "a list of node numbers (1-based)", "nodes where no sensor may go: an accelerometer or a gauge at the node, "
+        "or a member that ends there", used_by=PLACE)
+    min_spacing: Positive = key("a positive number", "the least distance between any two sensors of a layout",
+                                used_by=PLACE, unit="m")
+
+
 class Place(Section):
     """``[place]``: what to place and the GA settings (TH defaults)."""
 
@@ -376,6 +412,16 @@ class Place(Section):
         used_by=PLACE)
     del_slope: Positive = key("a positive number", "objective = \"fatigue\": the slope m of the damage-equivalent "
                               "range (default 3)", used_by=PLACE)
+    uncertainty: PlaceUncertainty = key("a table", "score each layout over true structures unlike the filter's "
+                                        "model ([place.uncertainty])", used_by=PLACE)
+    survive_failures: Count0 = key("an integer >= 0", "score each layout also with each this many of its sensors "
+                                   "lost; a layout left undetectable by a loss is infeasible (default 0)",
+                                   used_by=PLACE)
+    failure_measure: Measure = key("\"mean\", \"p90\", \"worst\" or \"cvar90\"",
+                                   "how the error without a loss and the errors after each loss combine (default "
+                                   "worst)", used_by=PLACE)
+    constraints: PlaceConstraints = key("a table", "costs, a budget, forbidden regions and a minimum spacing "
+                                        "([place.constraints])", used_by=PLACE)
 
 
 class CovariancesSection(Section):

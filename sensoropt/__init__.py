@@ -7,7 +7,9 @@ the augmented Kalman filter's whole-response error, or an objective of one's own
 - :class:`StrainErrorObjective` (the average strain error of the steady AKF, batched over the
   layouts of a generation), :class:`FatigueErrorObjective`, :class:`FunctionObjective` (yours);
 - :func:`place` -- the GA (core_akf's one engine: seeded, cached, parallel, checkpointed);
-  :func:`pareto` -- NSGA-II fronts; :class:`PlacementProblem` -- a placement study of a job.
+  :func:`pareto` -- NSGA-II fronts; :class:`PlacementProblem` -- a placement study of a job;
+- :class:`Uncertainty` -- layouts scored over true structures unlike the filter's model;
+  :class:`Constraints` -- costs, a budget, forbidden regions, a minimum spacing.
 
 >>> import numpy as np
 >>> from core_akf.models import s17_truss
@@ -19,14 +21,17 @@ the augmented Kalman filter's whole-response error, or an objective of one's own
 >>> len(res.sensors)
 2
 """
+from .constraints import Constrained, Constraints
 from .encoding import KINDS, STRAIN_KINDS, CandidateSet, PlateGrid, make_encoding
 from .ga import THESIS, PlacementResult, independent_runs, place
 from .objective import FatigueErrorObjective, FunctionObjective, Objective, StrainErrorObjective
 from .pareto import ParetoResult, pareto
 from .plots import plot_convergence, plot_layout, plot_pareto
 from .problem import PlacementProblem
+from .robust import MEASURES, Uncertainty, combine
 
 __all__ = ["KINDS", "STRAIN_KINDS", "CandidateSet", "PlateGrid", "make_encoding", "THESIS",
            "PlacementResult", "independent_runs", "place", "Objective", "FunctionObjective", "StrainErrorObjective",
            "FatigueErrorObjective",
-           "ParetoResult", "pareto", "plot_convergence", "plot_layout", "plot_pareto", "PlacementProblem"]
+           "ParetoResult", "pareto", "plot_convergence", "plot_layout", "plot_pareto", "PlacementProblem",
+           "Constrained", "Constraints", "MEASURES", "Uncertainty", "combine"]

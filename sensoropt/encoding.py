@@ -368,13 +368,39 @@ class CandidateSet:
         """
         if len(set(layout)) != len(layout) or len(layout) != self.n_sensors:
             return False
+        if not all(self._ok(g) for g in layout):
+            return False
         if self.budget:
             c = self.counts(layout)
             return all(c.get(t, 0) == n for t, n in self.budget.items()) and sum(c.values()) == self.n_sensors
         return True
 
+    #: which candidates may be placed (None: all); set by :meth:`restrict`
+    allowed = None
+
+    def restrict(self, allowed: np.ndarray) -> None:
+        """Allow only some candidates (forbidden regions, :class:`~sensoropt.constraints.Constraints`):
+        the others are never drawn, moved or flipped to, and a gene on one is redrawn among the
+        allowed candidates of its type by :meth:`repair`.
+
+        Parameters
+        ----------
+        allowed : ndarray of bool (n_candidates,)
+        """
+        allowed = np.asarray(allowed, bool)
+        if allowed.shape != (len(self.candidates),):
+            raise AKFInputError(f"allowed must hold one flag per candidate ({len(self.candidates)})")
+        if not allowed.any():
+            raise AKFInputError("no candidate is allowed")
+        self.allowed = None if allowed.all() else allowed
+
+    def _ok(self, g):
+        """Whether candidate ``g`` may be placed."""
+        return self.allowed is None or bool(self.allowed[g])
+
     def _pool(self, t=None):
-        return np.arange(len(self.candidates)) if t is None else np.flatnonzero(self.type == t)
+        pool = np.arange(len(self.candidates)) if t is None else np.flatnonzero(self.type == t)
+        return pool if self.allowed is None else pool[self.allowed[pool]]
 
     def random_layout(self, rng: np.random.Generator) -> CandidateLayout:
         """A random admissible layout.
@@ -391,6 +417,8 @@ class CandidateSet:
         if self.budget:
             parts = [rng.choice(self._pool(t), size=n, replace=False) for t, n in self.budget.items()]
             return tuple(sorted(int(i) for p in parts for i in p))
+        if self.allowed is not None:
+            return tuple(sorted(int(i) for i in rng.choice(self._pool(), size=self.n_sensors, replace=False)))
         return tuple(sorted(int(i) for i in rng.choice(len(self.candidates), size=self.n_sensors, replace=False)))
 
     def repair(self, genes: Sequence[int], rng: np.random.Generator) -> CandidateLayout:
@@ -412,7 +440,7 @@ class CandidateSet:
         seen, keep = set(), []
         for g in genes:
             g = int(g)
-            if 0 <= g < len(self.candidates) and g not in seen:
+            if 0 <= g < len(self.candidates) and g not in seen and self._ok(g):
                 seen.add(g)
                 keep.append(g)
         if self.budget:
@@ -464,6 +492,7 @@ class CandidateSet:
         """The candidate of ``kind`` nearest to ``point`` (m), not in ``exclude``."""
         pool = np.flatnonzero(self.kind == kind)
         pool = pool[~np.isin(pool, list(exclude))]
+        pool = pool if self.allowed is None else pool[self.allowed[pool]]
         if pool.size == 0:
             return None
         d = np.sum((self.position[pool] - point) ** 2, axis=1)
@@ -506,13 +535,13 @@ class CandidateSet:
     def _flip(self, g, others, rng):
         """Another allowed kind at the place of candidate ``g`` (same type under a budget)."""
         here = np.flatnonzero(np.all(np.abs(self.position - self.position[g]) <= 1e-9 * self.spacing, axis=1))
-        here = [int(h) for h in here if self.kind[h] != self.kind[g] and h not in others
+        here = [int(h) for h in here if self.kind[h] != self.kind[g] and h not in others and self._ok(h)
                 and (not self.budget or self.type[h] == self.type[g])]
         return int(rng.choice(here)) if here else None
 
     def _move(self, g, others, rng):
         """One of the nearest candidates of the kind of ``g`` (its KD-tree neighbours), unused."""
-        near = [h for h in self.neighbours[g] if h not in others]
+        near = [h for h in self.neighbours[g] if h not in others and self._ok(h)]
         return int(rng.choice(near)) if near else None
 
     def mutate(self, layout: Sequence[int], rng: np.random.Generator, indpb: float | None = None, p_move: float = 0.5,
@@ -794,6 +823,7 @@ class PlateGrid(CandidateSet):
         """The admissible candidate of ``kind`` nearest to grid point (ix, iy), not in ``exclude``."""
         pool = np.flatnonzero(self.kind == kind)
         pool = pool[~np.isin(pool, list(exclude))]
+        pool = pool if self.allowed is None else pool[self.allowed[pool]]
         if pool.size == 0:
             return None
         d = (self.ix[pool] - ix) ** 2 + (self.iy[pool] - iy) ** 2
@@ -847,7 +877,7 @@ class PlateGrid(CandidateSet):
         if not kinds:
             return None
         ng = self.index.get((int(self.ix[g]), int(self.iy[g]), str(rng.choice(kinds))))
-        return None if ng in others else ng
+        return None if ng in others or (ng is not None and not self._ok(ng)) else ng
 
     def mutate_adaptive(self, layout: Sequence[int], rng: np.random.Generator, scale: float) -> CandidateLayout:
         """The thesis' baseline: Gaussian steps on the (ix, iy) genes.

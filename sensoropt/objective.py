@@ -16,16 +16,45 @@ import numpy as np
 from core_akf.checks import AKFInputError, ForceHistories, Forces
 from core_akf.defaults import default, resolve_modes
 from core_akf.filter import FilterModel
-from core_akf.filter.kernels import steady_outputs
-from core_akf.filter.riccati import RiccatiError
+from core_akf.filter.kernels import fixed_gain_records, steady_outputs
+from core_akf.filter.riccati import RiccatiError, steady_gain
 from core_akf.forcemodels import ForceModel
 from core_akf.simulate import simulate
 from core_akf.statespace import SubsetDetectability
+
+from .robust import MEASURES, Uncertainty, combine
 
 if TYPE_CHECKING:
     from core_akf.structure import Structure
 
     from .encoding import CandidateSet
+
+
+def check_failures(survive_failures: int, failure_measure: str, n_sensors: int) -> int:
+    """``survive_failures`` checked: a whole number of sensors that leaves at least one.
+
+    Parameters
+    ----------
+    survive_failures : int
+        Sensors a layout must survive losing.
+    failure_measure : str
+        How the errors with and without the losses combine (:data:`~sensoropt.robust.MEASURES`).
+    n_sensors : int
+        Sensors of a layout.
+
+    Returns
+    -------
+    int
+    """
+    if isinstance(survive_failures, bool) or int(survive_failures) != survive_failures or survive_failures < 0:
+        raise AKFInputError(f"survive_failures must be a whole number >= 0 (sensors a layout must survive losing), "
+                            f"got {survive_failures!r}")
+    if survive_failures and survive_failures >= n_sensors:
+        raise AKFInputError(f"survive_failures = {survive_failures} would lose every one of the {n_sensors} sensors: "
+                            f"it must be below the number of sensors")
+    if failure_measure not in MEASURES:
+        raise AKFInputError(f"the failure measure must be one of {', '.join(MEASURES)}, got {failure_measure!r}")
+    return int(survive_failures)
 
 
 class Objective(Protocol):
@@ -150,6 +179,17 @@ class StrainErrorObjective:
     force_model : ForceModel, optional
         The filter's force model (:mod:`core_akf.forcemodels`; ``force_increment_cov`` is then
         unused): under a Matérn model accelerometer-only layouts are admissible.
+    uncertainty : Uncertainty, optional
+        The true structures (and noise draws) a layout is scored on, and the measure of its
+        errors over them (:class:`~sensoropt.robust.Uncertainty`).  The filter stays the model
+        scaled by ``stiffness_factor``; model i's truth is ``structure`` scaled by
+        ``stiffness_factor / uncertainty.stiffness_factors[i]``.  A layout costs one Riccati
+        solve, then every record runs through its gain (:func:`~core_akf.filter.kernels.fixed_gain_records`).
+    survive_failures : int
+        Score a layout also with each ``survive_failures`` of its sensors lost; a layout whose
+        remaining sensors are undetectable after a loss is infeasible.
+    failure_measure : {"worst", "mean", "p90", "cvar90"}
+        How the error without losses and the errors after each loss combine (the worst by default).
     """
 
     n_objectives = 1
@@ -158,7 +198,8 @@ class StrainErrorObjective:
                  window: float = default("window"), stiffness_factor: float = default("placement_stiffness_factor"),
                  relative_noise: float = default("relative_noise"), model_error_cov: float = default("model_error_cov"),
                  force_increment_cov: float = default("force_increment_cov"), n_modes: int | str | None = "auto",
-                 seed: int = 0, targets: Sequence[str] | None = None, force_model: ForceModel | None = None):
+                 seed: int = 0, targets: Sequence[str] | None = None, force_model: ForceModel | None = None,
+                 uncertainty: Uncertainty | None = None, survive_failures: int = 0, failure_measure: str = "worst"):
         loads = np.asarray(loads, float)
         if loads.ndim != 2:
             raise AKFInputError("loads must be (N, n_forces)")
@@ -169,14 +210,26 @@ class StrainErrorObjective:
         n_modes = resolve_modes(n_modes, structure, dt, "acc" in set(encoding.type), rule="band")
         self.encoding = encoding
         self.labels = encoding.sensors(range(len(encoding.candidates)))
-        sim = simulate(structure, self.labels, forces, loads[:n], dt, relative_noise=relative_noise, seed=seed)
-        self.Y = sim.measurements                      # (n, n_candidates)
-        self.var = np.maximum(sim.noise_std, default("noise_floor")) ** 2
+        self.uncertainty = uncertainty
+        self.failure_measure = failure_measure
+        self.survive_failures = check_failures(survive_failures, failure_measure, encoding.n_sensors)
+        truths = [structure] if uncertainty is None else uncertainty.truths(structure, stiffness_factor)
+        sims = [simulate(t, self.labels, forces, loads[:n], dt, relative_noise=relative_noise, seed=seed) for t in truths]
+        # the records: per model its own noise draw ``seed`` (as simulate's), then draws seed + 1, ...
+        seeds = 1 if uncertainty is None else uncertainty.seeds
+        self.Ys = np.stack([sim.measurements if j == 0 else
+                            sim.clean + np.random.default_rng(seed + j).normal(size=sim.clean.shape) * sim.noise_std
+                            for sim in sims for j in range(seeds)])      # (S, n, n_candidates)
+        self.scenario_model = np.repeat(np.arange(len(sims)), seeds)       # (S,) the model of each record
+        self.Y = self.Ys[0]                            # (n, n_candidates)
+        self.var = np.mean([np.maximum(sim.noise_std, default("noise_floor")) ** 2 for sim in sims], axis=0)
         rows = None if targets is None else structure.strain_label_index(targets)
         if rows is not None and not rows:
             raise AKFInputError("targets is empty: name the strain outputs whose error to average")
-        self.true_strains = sim.strains                # (n, n_strain)
-        self.reference = sim.strains if rows is None else sim.strains[:, rows]    # (n, n_targets)
+        self.true_strains_of = [sim.strains for sim in sims]        # per model (n, n_strain)
+        self.true_strains = sims[0].strains            # (n, n_strain)
+        self.references = [t if rows is None else t[:, rows] for t in self.true_strains_of]   # per model (n, n_targets)
+        self.reference = self.references[0]
         if force_model is None:
             force_model = ForceModel("random_walk", increment_cov=force_increment_cov)
         self.model = FilterModel(structure.scaled(stiffness_factor), forces, dt, n_modes, force_model=force_model)
@@ -203,8 +256,15 @@ class StrainErrorObjective:
         """
         return self._detectability.detectable(idx)
 
+    @property
+    def n_scenarios(self) -> int:
+        """The records a layout is scored on: models times noise draws (1 without uncertainty)."""
+        return self.Ys.shape[0]
+
     def evaluate(self, layouts: Sequence[Sequence[str]]) -> list[float]:
-        """Average strain error per layout.
+        """Average strain error per layout (with an :class:`~sensoropt.robust.Uncertainty`, its
+        measure over the models and seeds; with ``survive_failures``, combined with the error
+        after each loss of that many sensors).
 
         Parameters
         ----------
@@ -214,10 +274,68 @@ class StrainErrorObjective:
         Returns
         -------
         list of float
-            µε; ``inf`` for an undetectable or failing layout.
+            µε; ``inf`` for an undetectable or failing layout (or one that becomes undetectable
+            when ``survive_failures`` sensors are lost).
         """
         idx = [self.encoding.from_sensors(l) for l in layouts]
-        out = [math.inf] * len(idx)
+        fit = self._measure(self.errors(idx))
+        if self.survive_failures:
+            fit = self._with_failures(idx, fit)
+        return [float(f) if np.isfinite(f) else math.inf for f in fit]
+
+    def scenario_errors(self, sensors: Sequence[str]) -> np.ndarray:
+        """The error of one layout on each record (model and noise draw) of the fitness.
+
+        Parameters
+        ----------
+        sensors : sequence of str
+
+        Returns
+        -------
+        ndarray (n_scenarios,)
+            µε (or the objective's unit); ``inf`` where the layout fails.
+        """
+        return self.errors([self.encoding.from_sensors(sensors)])[0]
+
+    def failure_errors(self, sensors: Sequence[str], lost: int = 1) -> list[tuple[list[str], float]]:
+        """The fitness of a layout after each loss of ``lost`` of its sensors.
+
+        Parameters
+        ----------
+        sensors : sequence of str
+        lost : int
+            Sensors lost at once.
+
+        Returns
+        -------
+        list of (list of str, float)
+            The sensors lost and the fitness of what remains (its measure over the records;
+            ``inf`` where what remains is undetectable).
+        """
+        from itertools import combinations
+
+        layout = self.encoding.from_sensors(sensors)
+        if not 1 <= int(lost) < len(layout):
+            raise AKFInputError(f"lost must be between 1 and {len(layout) - 1} for a layout of {len(layout)} sensors")
+        gone = list(combinations(range(len(layout)), int(lost)))
+        subs = [tuple(g for j, g in enumerate(layout) if j not in out) for out in gone]
+        fit = self._measure(self.errors(subs))
+        return [([self.labels[layout[j]] for j in out], float(f)) for out, f in zip(gone, fit)]
+
+    def errors(self, idx: Sequence[Sequence[int]]) -> np.ndarray:
+        """The error of each layout (candidate indices) on each record of the fitness.
+
+        Parameters
+        ----------
+        idx : sequence of sequence of int
+            Layouts as candidate indices.
+
+        Returns
+        -------
+        ndarray (len(idx), n_scenarios)
+            ``inf`` for an undetectable or failing layout.
+        """
+        out = np.full((len(idx), self.n_scenarios), np.inf)
         by_size = {}
         for k, i in enumerate(idx):
             if self.detectable(i):
@@ -226,25 +344,59 @@ class StrainErrorObjective:
             self._batch([idx[k] for k in ks], ks, out)
         return out
 
+    def _measure(self, errors):
+        """One fitness per layout from its errors over the records (L, S)."""
+        return errors[:, 0].copy() if self.uncertainty is None else combine(errors, self.uncertainty.measure)
+
+    def _with_failures(self, idx, fit):
+        """The fitness combined with the fitness after every loss of ``survive_failures`` sensors;
+        ``inf`` when a loss leaves an undetectable set."""
+        from itertools import combinations
+
+        subs, owner = [], []
+        for k, layout in enumerate(idx):
+            if np.isfinite(fit[k]):
+                for gone in combinations(range(len(layout)), self.survive_failures):
+                    subs.append(tuple(g for j, g in enumerate(layout) if j not in gone))
+                    owner.append(k)
+        if not subs:
+            return fit
+        lost = self._measure(self.errors(subs))
+        owner = np.array(owner)
+        out = fit.copy()
+        for k in np.unique(owner):
+            out[k] = combine(np.concatenate([[fit[k]], lost[owner == k]]), self.failure_measure)
+        return out
+
     def _batch(self, idx, ks, out):
         sel = np.array([list(i) for i in idx])
         G = self.G[sel]
         R = np.stack([np.diag(self.var[s]) + self.residual_noise[np.ix_(s, s)] for s in sel])
-        Y = np.ascontiguousarray(np.swapaxes(self.Y[:, sel], 0, 1))
         try:
-            est = steady_outputs(self.model.A_a, G, self.Q, R, Y, self.H)
+            if self.n_scenarios == 1:          # the thesis' fitness, as it always ran
+                Y = np.ascontiguousarray(np.swapaxes(self.Y[:, sel], 0, 1))
+                errors = self._score(steady_outputs(self.model.A_a, G, self.Q, R, Y, self.H), 0)[:, None]
+            else:                              # one gain per layout, then every record through it
+                B, n = len(sel), self.model.n_a
+                A = np.broadcast_to(self.model.A_a, (B, n, n))
+                _, L = steady_gain(A, G, np.broadcast_to(self.Q, (B, n, n)), R)
+                X = fixed_gain_records(A, G, L, np.moveaxis(self.Ys[:, :, sel], 2, 0))    # (B, S, N, n)
+                errors = np.stack([self._score(X[:, s] @ self.H.T, m) for s, m in enumerate(self.scenario_model)],
+                                  axis=1)
         except RiccatiError:
             if len(idx) == 1:
                 return
             for j, k in enumerate(ks):   # isolate the failing layout(s)
                 self._batch([idx[j]], [k], out)
             return
-        for k, e in zip(ks, self._score(est)):
-            out[k] = float(e) if np.isfinite(e) else math.inf
+        out[ks] = np.where(np.isfinite(errors), errors, np.inf)
 
-    def _score(self, est):
-        """The average RMS error (µε) of each layout's estimated outputs ``est`` (B, n, targets)."""
-        return np.sqrt(np.mean((est - self.reference[None]) ** 2, axis=1)).mean(axis=1) * 1e6
+    def _score(self, est, model=0):
+        """The average RMS error (µε) of each layout's estimated outputs ``est`` (B, n, targets)
+        against the truth of model ``model``."""
+        err = est - self.references[model][None]
+        err *= err
+        return np.sqrt(err.mean(axis=1)).mean(axis=1) * 1e6
 
 
 class FatigueErrorObjective(StrainErrorObjective):
@@ -297,18 +449,22 @@ class FatigueErrorObjective(StrainErrorObjective):
         W = relative_stress_operator(structure, rows, youngs_modulus)          # (k, n_strain)
         self.m = float(m)
         self.H = W @ self.model.strain_rows()                         # the targets' stresses on the filter state
-        self.reference = self.true_strains @ W.T                      # (n, k) Pa
-        self.reference_del = equivalent_range(rainflow(self.reference), self.m, 1.0)
+        self.references = [t @ W.T for t in self.true_strains_of]      # per model (n, k) Pa
+        self.reference = self.references[0]
+        self.reference_dels = [equivalent_range(rainflow(r), self.m, 1.0) for r in self.references]
+        self.reference_del = self.reference_dels[0]
         self.counted = self.reference_del > 0
         if not self.counted.any():
             raise AKFInputError("no target output has a stress cycle in the window: lengthen the window or choose "
                                 "targets the loads reach")
 
-    def _score(self, est):
-        """The mean relative DEL error (%) of each layout's estimated stresses ``est`` (B, n, k)."""
+    def _score(self, est, model=0):
+        """The mean relative DEL error (%) of each layout's estimated stresses ``est`` (B, n, k)
+        against the truth of model ``model`` (over the targets with a cycle in its window)."""
         from core_akf.fatigue import equivalent_range, rainflow
 
         B, n, k = est.shape
         dels = equivalent_range(rainflow(np.swapaxes(est, 0, 1).reshape(n, B * k)), self.m, 1.0).reshape(B, k)
-        rel = np.abs(dels[:, self.counted] / self.reference_del[self.counted] - 1.0)
+        counted = self.reference_dels[model] > 0
+        rel = np.abs(dels[:, counted] / self.reference_dels[model][counted] - 1.0)
         return 100.0 * rel.mean(axis=1)

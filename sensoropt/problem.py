@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,8 +17,12 @@ from core_akf.metrics import average_strain_error
 from core_akf.sensors import sees_accelerations
 from core_akf.simulate import simulate
 
+from .constraints import Constrained
 from .encoding import CandidateSet, make_encoding
 from .objective import FatigueErrorObjective, StrainErrorObjective
+
+if TYPE_CHECKING:
+    from core_akf.structure import Structure
 
 
 @dataclass
@@ -74,6 +79,16 @@ class PlacementProblem:
     force_model : ForceModel, optional
         The filter's force model (default the random walk of ``force_increment_cov``); under a
         Matérn model accelerometer-only layouts are admissible.
+    uncertainty : Uncertainty, optional
+        True structures unlike the filter's model that the fitness scores a layout on
+        (:class:`~sensoropt.robust.Uncertainty`).
+    survive_failures : int
+        Sensors a layout must survive losing (its fitness includes the error after each loss).
+    failure_measure : str
+        How the errors with and without a loss combine ("worst" by default).
+    constraints : Constraints, optional
+        Costs, a budget, forbidden regions, a minimum spacing
+        (:class:`~sensoropt.constraints.Constraints`).
     notes : list of str
         Notes for the user (a default S far from the loads' increments).
 
@@ -112,6 +127,10 @@ class PlacementProblem:
     objective_kind: str = "strain"
     del_slope: float = 3.0
     force_model: object = None
+    uncertainty: object = None
+    survive_failures: int = 0
+    failure_measure: str = "worst"
+    constraints: object = None
     #: what a user should know about the settings (shown with the result)
     notes: list = field(default_factory=list)
 
@@ -122,8 +141,12 @@ class PlacementProblem:
         -------
         CandidateSet or PlateGrid
         """
-        return make_encoding(self.structure, kinds=self.kinds, n_sensors=self.n_sensors, budget=self.budget,
-                             candidates=self.candidates)
+        enc = make_encoding(self.structure, kinds=self.kinds, n_sensors=self.n_sensors, budget=self.budget,
+                            candidates=self.candidates)
+        if self.constraints is not None:
+            self.constraints.check(enc)
+            enc.restrict(self.constraints.allowed(enc))
+        return enc
 
     def target_rows(self) -> list[int] | None:
         """Rows of the target strain outputs.
@@ -150,16 +173,22 @@ class PlacementProblem:
         """
         settings = dict(window=self.window, stiffness_factor=self.stiffness_factor, relative_noise=self.relative_noise,
                         model_error_cov=self.model_error_cov, force_increment_cov=self.force_increment_cov,
-                        n_modes=self.n_modes, seed=self.seed, targets=self.targets, force_model=self.force_model)
+                        n_modes=self.n_modes, seed=self.seed, targets=self.targets, force_model=self.force_model,
+                        uncertainty=self.uncertainty, survive_failures=self.survive_failures,
+                        failure_measure=self.failure_measure)
+        encoding = encoding or self.encoding()
         if self.objective_kind == "fatigue":
-            return FatigueErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding or self.encoding(),
-                                         m=self.del_slope, **settings)
-        if self.objective_kind != "strain":
+            objective = FatigueErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding,
+                                              m=self.del_slope, **settings)
+        elif self.objective_kind == "strain":
+            objective = StrainErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding, **settings)
+        else:
             raise AKFInputError(f"objective_kind must be \"strain\" or \"fatigue\", got {self.objective_kind!r}")
-        return StrainErrorObjective(self.structure, self.forces, self.loads, self.dt, encoding or self.encoding(),
-                                    **settings)
+        if self.constraints is not None and self.constraints.active:
+            return Constrained(objective, encoding, self.constraints)
+        return objective
 
-    def full_record_error(self, sensors: Sequence[str], seed: int | None = None) -> float:
+    def full_record_error(self, sensors: Sequence[str], seed: int | None = None, truth: Structure | None = None) -> float:
         """Average strain error over the whole record of a layout.
 
         Simulation of the true structure with this layout and ``relative_noise``, steady-state AKF
@@ -170,6 +199,9 @@ class PlacementProblem:
         sensors : sequence of str
         seed : int, optional
             The noise draw (default the problem's).
+        truth : Structure, optional
+            The true structure (default :attr:`structure`); the filter's model is always
+            :attr:`structure` scaled by :attr:`stiffness_factor`.
 
         Returns
         -------
@@ -177,7 +209,8 @@ class PlacementProblem:
             µε.
         """
         rows = self.target_rows()
-        est, sim = self._full_record(sensors, seed, lambda fm: fm.strain_rows() if rows is None else fm.strain_rows()[rows])
+        est, sim = self._full_record(sensors, seed, lambda fm: fm.strain_rows() if rows is None else fm.strain_rows()[rows],
+                                     truth)
         return float(average_strain_error(est, sim.strains if rows is None else sim.strains[:, rows])) * 1e6
 
     def full_record_fatigue_error(self, sensors: Sequence[str], seed: int | None = None) -> float:
@@ -205,9 +238,28 @@ class PlacementProblem:
         counted = true > 0
         return float(100.0 * np.mean(np.abs(got[counted] / true[counted] - 1.0)))
 
-    def _full_record(self, sensors, seed, rows_of):
+    def model_errors(self, sensors: Sequence[str]) -> list[dict]:
+        """The whole-record strain error of a layout on the true structure of each model of
+        :attr:`uncertainty` (the problem's noise draw).
+
+        Parameters
+        ----------
+        sensors : sequence of str
+
+        Returns
+        -------
+        list of dict
+            Per model: its :meth:`~sensoropt.robust.Uncertainty.table` record and ``error`` (µε).
+        """
+        if self.uncertainty is None:
+            return []
+        truths = self.uncertainty.truths(self.structure, self.stiffness_factor)
+        return [row | {"error": self.full_record_error(sensors, truth=t)}
+                for row, t in zip(self.uncertainty.table(), truths)]
+
+    def _full_record(self, sensors, seed, rows_of, truth=None):
         """The steady AKF's outputs ``rows_of(filter model)`` over the whole record, and the simulation."""
-        sim = simulate(self.structure, sensors, self.forces, self.loads, self.dt, relative_noise=self.relative_noise,
+        sim = simulate(self.structure if truth is None else truth, sensors, self.forces, self.loads, self.dt, relative_noise=self.relative_noise,
                        seed=self.seed if seed is None else seed)
         n_modes = self.n_modes if self.n_modes in (None, "auto") else min(int(self.n_modes), self.structure.n)
         n_modes = resolve_modes(n_modes, self.structure, self.dt, sees_accelerations(sensors))

@@ -84,7 +84,8 @@ def _run_place(args, problem, settings, out):
         hint = ("accelerometer-only layouts cannot see the static response under the random-walk force model: set "
                 "[filter] force_model = \"matern32\" (with force_std and force_timescale), or allow strain gauges in "
                 "[place] kinds") if kinds <= {"acc", "vel"} and not (problem.force_model and problem.force_model.stationary) \
-            else "check the candidates, the covariances and the budget"
+            else ("check the candidates, the covariances and the budget, and whether the [place.constraints] can be met"
+                  if problem.constraints is not None else "check the candidates, the covariances and the budget")
         raise AKFInputError(f"no layout the GA tried is admissible (each is undetectable or its filter fails): {hint}")
     error = problem.full_record_error(res.sensors)
     refs = {name: problem.full_record_error(s) for name, s in problem.reference_layouts.items()
@@ -107,6 +108,7 @@ def _run_place(args, problem, settings, out):
     if fatigue:
         summary["fatigue_error"] = problem.full_record_fatigue_error(res.sensors)
         summary["units"]["fatigue_error"] = "% (mean relative DEL error of the targets, full record)"
+    summary |= robustness(problem, obj, enc, res.sensors, out, files)
     if not args.json:
         _print_placement(problem, enc, res, positions, summary, args.seed)
     figure_notes = []
@@ -124,6 +126,47 @@ def _run_place(args, problem, settings, out):
         return 0
     print_written(files, notes)
     return 0
+
+
+def robustness(problem, objective, enc, sensors, out, files):
+    """How the layout holds: its error on each model of ``[place.uncertainty]`` (``uncertainty.csv``),
+    after each loss of ``survive_failures`` sensors (``failures.csv``), its cost and the
+    constraints it honours; written before anything is printed or drawn."""
+    import numpy as np
+    import pandas as pd
+
+    from sensoropt.robust import combine
+
+    found = {}
+    u = problem.uncertainty
+    if u is not None:
+        window = objective.scenario_errors(sensors).reshape(u.n_models, u.seeds)
+        rows = problem.model_errors(sensors)
+        for row, w in zip(rows, window):
+            row["window_error"] = float(combine(w, "mean"))
+        table = pd.DataFrame(rows)
+        files["uncertainty"] = write_csv(table, os.path.join(out, "uncertainty.csv"))
+        found["uncertainty"] = {"measure": u.measure, "models": u.n_models, "seeds": u.seeds,
+                                "window_measure": float(combine(window.ravel(), u.measure)),
+                                "error_measure": float(combine(table["error"].to_numpy(), u.measure)),
+                                "models_table": json.loads(table.to_json(orient="records"))}
+    if problem.survive_failures:
+        rows = []
+        for lost, fit in objective.failure_errors(sensors, problem.survive_failures):
+            rest = [s for s in sensors if s not in lost]
+            full = problem.full_record_error(rest) if np.isfinite(fit) else math.inf
+            rows.append({"lost": " ".join(lost), "window_error": fit, "error": full})
+        table = pd.DataFrame(rows)
+        files["failures"] = write_csv(table, os.path.join(out, "failures.csv"))
+        found["failures"] = {"lost_at_once": problem.survive_failures, "measure": problem.failure_measure,
+                             "worst_error": float(table["error"].max()),
+                             "table": json.loads(table.to_json(orient="records"))}
+    c = problem.constraints
+    if c is not None:
+        layout = enc.from_sensors(sensors)
+        found["constraints"] = {"cost": c.cost_of(enc, layout), "budget": c.budget, "min_spacing": c.min_spacing,
+                                "honoured": c.violation(enc, layout) is None}
+    return found
 
 
 def _print_placement(problem, enc, res, positions, summary, seed):
@@ -148,6 +191,23 @@ def _print_placement(problem, enc, res, positions, summary, seed):
               f"({res.best_error:.4f} µε on the {problem.window:g} s fitness window)")
     for name, e in refs.items():
         print(f"  {name}: {e:.4f} µε")
+    if "uncertainty" in summary:
+        u = summary["uncertainty"]
+        print(f"  over {u['models']} true structures (filter stiffness factor "
+              f"{min(r['stiffness_factor'] for r in u['models_table']):.4g}-"
+              f"{max(r['stiffness_factor'] for r in u['models_table']):.4g}) x {u['seeds']} noise draws: "
+              f"{u['measure']} {u['window_measure']:.4f} on the window; whole record per model {u['measure']} "
+              f"{u['error_measure']:.4f} µε (uncertainty.csv)")
+    if "failures" in summary:
+        f = summary["failures"]
+        worst = max(f["table"], key=lambda r: r["error"])
+        print(f"  with {f['lost_at_once']} sensor(s) lost: worst whole-record error {f['worst_error']:.4f} µε "
+              f"(losing {worst['lost']}; failures.csv)")
+    if "constraints" in summary:
+        c = summary["constraints"]
+        print(f"  cost {c['cost']:g}" + (f" of budget {c['budget']:g}" if c["budget"] is not None else "")
+              + (f"; sensors at least {c['min_spacing']:g} m apart" if c["min_spacing"] is not None else "")
+              + ("; every constraint honoured" if c["honoured"] else "; CONSTRAINTS BROKEN"))
     print(f"  {int(lb['generation'].iloc[-1])} generations ({res.stopped}), {res.evaluations} evaluations, "
           f"{res.cache_hits} cache hits, {res.infeasible} infeasible, {lb['seconds'].iloc[-1]:.1f} s")
     sys.stdout.flush()

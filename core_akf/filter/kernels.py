@@ -125,6 +125,37 @@ def fixed_gain(A, G, L, Y, x=None, outputs=None):
     return lti_response(F, L, Y, first, outputs)
 
 
+def fixed_gain_records(A, G, L, Y):
+    """:func:`fixed_gain` of each filter of a stack over several records of its own.
+
+    The records of one filter share its closed loop, so they run as one matrix of states per
+    step (the robust placement fitness: one gain per layout, a record per model and noise draw).
+
+    Parameters
+    ----------
+    A : ndarray (B, n, n)
+    G : ndarray (B, m, n)
+    L : ndarray (B, n, m)
+    Y : ndarray (B, S, N, m)
+        S records per filter.
+
+    Returns
+    -------
+    ndarray (B, S, N, n)
+        The filtered states (prior mean zero).
+    """
+    _, F = closed_loop(A, G, L)
+    U = Y @ np.swapaxes(L, -1, -2)[:, None]                 # (B, S, N, n): L y_k
+    X = np.empty_like(U)
+    x = U[:, :, 0]
+    X[:, :, 0] = x
+    Ft = np.swapaxes(F, -1, -2)
+    for k in range(1, U.shape[2]):
+        x = x @ Ft + U[:, :, k]
+        X[:, :, k] = x
+    return X
+
+
 def innovations(A, G, X, Y, x=None):
     """The one-step prediction errors ``e_k = y_k - G A X_k-1`` of filtered states.
 
