@@ -1,0 +1,281 @@
+"""Design under uncertainty (issue 35): layouts scored over true structures unlike the filter's
+model and over noise draws, after sensor losses, and under costs, budgets, forbidden regions and
+a minimum spacing.  Each fitness is checked against an independent computation (a simulation of
+the drawn truth and the steady filter run on it), not against itself."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from akf.cli import main
+from core_akf import AKFInputError
+from core_akf.filter import FilterModel
+from core_akf.filter.kernels import fixed_gain, fixed_gain_records, steady_outputs
+from core_akf.filter.riccati import steady_gain
+from core_akf.forcemodels import ForceModel
+from core_akf.loads import band_limited_white_noise
+from core_akf.models import s17_truss
+from core_akf.simulate import simulate
+from sensoropt import (CandidateSet, Constraints, PlacementProblem, StrainErrorObjective, Uncertainty, combine,
+                       place)
+from sensoropt.robust import latin_hypercube
+
+DT = 1e-3
+FORCES = ["8:y", "12:y"]
+
+
+def truss_loads(n=1500):
+    ramp = np.linspace(0.0, 1.0, n)[:, None] * np.array([[400.0, -250.0]])
+    return ramp + band_limited_white_noise(n, DT, 40.0, 0.0, 80.0, seed=3)[:, None] * np.array([[1.0, 0.6]])
+
+
+SETTINGS = dict(window=0.3, stiffness_factor=1.05, relative_noise=0.02, model_error_cov=1e-12,
+                force_increment_cov=1e2, n_modes=None, seed=4)
+
+
+def encoding(n=3, **kw):
+    return CandidateSet(s17_truss(), kinds=("strain", "acc"), n_sensors=n, **kw)
+
+
+def test_fixed_gain_records_is_fixed_gain_per_record():
+    rng = np.random.default_rng(0)
+    B, S, N, n, m = 3, 4, 60, 6, 2
+    A = 0.3 * rng.normal(size=(B, n, n))
+    G = rng.normal(size=(B, m, n))
+    L = 0.2 * rng.normal(size=(B, n, m))
+    Y = rng.normal(size=(B, S, N, m))
+    got = fixed_gain_records(A, G, L, Y)
+    for s in range(S):
+        want = fixed_gain(A, G, L, np.ascontiguousarray(Y[:, s]))
+        assert np.allclose(got[:, s], want, rtol=1e-11, atol=1e-12)
+
+
+def test_measures_and_latin_hypercube():
+    e = np.array([3.0, 1.0, 4.0, 1.0, 5.0, 9.0, 2.0, 6.0, 5.0, 3.0])
+    assert combine(e, "mean") == pytest.approx(3.9)
+    assert combine(e, "p90") == pytest.approx(np.percentile(e, 90))
+    assert combine(e, "worst") == 9.0
+    assert combine(e, "cvar90") == 9.0                               # the worst 10 % of ten: one value
+    assert combine(np.arange(20.0), "cvar90") == pytest.approx(18.5)  # the worst two of twenty
+    assert np.isinf(combine(np.array([1.0, np.inf]), "mean"))
+    with pytest.raises(AKFInputError, match="measure must be one of"):
+        combine(e, "median")
+    u = latin_hypercube(8, 2, np.random.default_rng(5))
+    for d in range(2):                                               # one point per stratum
+        assert sorted(np.floor(u[:, d] * 8).astype(int).tolist()) == list(range(8))
+    a = Uncertainty.sample((0.95, 1.10), samples=8, seeds=3, seed=2)
+    b = Uncertainty.sample((0.95, 1.10), samples=8, seeds=3, seed=2)
+    assert a == b and a.n_scenarios == 24
+    assert sorted(np.floor((np.array(a.stiffness_factors) - 0.95) / 0.15 * 8).astype(int).tolist()) == list(range(8))
+    assert Uncertainty.sample([0.9, 1.0, 1.1], samples=8).stiffness_factors == (0.9, 1.0, 1.1)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(stiffness_factor=(1.10, 0.95)), "low < high"),
+    (dict(stiffness_factor=(-1.0, 1.1)), "must be positive"),
+    (dict(stiffness_factor=(0.9, 1.1), samples=0), "samples"),
+    (dict(stiffness_factor=(0.9, 1.1), seeds=0), "seeds"),
+    (dict(stiffness_factor=(0.9, 1.1), measure="p95"), "measure"),
+])
+def test_uncertainty_bad_input(kwargs, message):
+    with pytest.raises(AKFInputError, match=message):
+        Uncertainty.sample(**kwargs)
+
+
+@pytest.fixture(scope="module")
+def robust():
+    s, loads = s17_truss(), truss_loads()
+    u = Uncertainty.sample((0.95, 1.10), samples=3, seeds=2, measure="p90", seed=1)
+    enc = encoding()
+    return s, loads, u, enc, StrainErrorObjective(s, FORCES, loads, DT, enc, uncertainty=u, **SETTINGS)
+
+
+def test_each_record_is_the_drawn_truth_read_by_the_one_filter(robust):
+    """Independent of the objective's batching: simulate the truth of each model (stiffness
+    divided by the factor), add the noise draw, run the steady filter of the nominal model."""
+    s, loads, u, enc, obj = robust
+    sensors = ["strain:6", "strain:21", "acc:2:y"]
+    got = obj.scenario_errors(sensors)
+    n = int(round(SETTINGS["window"] / DT))
+    fm = FilterModel(s.scaled(1.05), FORCES, DT, None, force_model=ForceModel("random_walk", increment_cov=1e2))
+    # every candidate channel is simulated with its own noise draw (a column of one draw per seed)
+    sims = [simulate(s.scaled(1.05 / f), enc.labels, FORCES, loads[:n], DT, relative_noise=0.02, seed=4)
+            for f in u.stiffness_factors]
+    cols = [enc.labels.index(x) for x in sensors]
+    R = np.diag(np.mean([sim.noise_std[cols] ** 2 for sim in sims], axis=0))   # the filter's R: over the truths
+    want = []
+    for sim in sims:
+        for j in range(2):
+            Y = sim.measurements if j == 0 else \
+                sim.clean + np.random.default_rng(4 + j).normal(size=sim.clean.shape) * sim.noise_std
+            Y = Y[:, cols]
+            est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(1e-12), R[None], Y[None], fm.strain_rows())[0]
+            want.append(np.sqrt(np.mean((est - sim.strains) ** 2, axis=0)).mean() * 1e6)
+    assert np.allclose(got, want, rtol=1e-9)
+    assert obj.evaluate([sensors])[0] == pytest.approx(np.quantile(want, 0.9), rel=1e-12)
+    assert len(set(np.round(want, 6))) == 6                      # the models and draws differ
+
+
+def test_one_model_at_the_filter_factor_is_the_nominal_fitness(robust):
+    s, loads, _, enc, _ = robust
+    nominal = StrainErrorObjective(s, FORCES, loads, DT, enc, **SETTINGS)
+    same = StrainErrorObjective(s, FORCES, loads, DT, enc, uncertainty=Uncertainty((1.05, 1.05), seeds=1,
+                                                                                     measure="mean"), **SETTINGS)
+    layouts = [enc.sensors(enc.random_layout(np.random.default_rng(k))) for k in range(40)]
+    a, b = np.array(nominal.evaluate(layouts)), np.array(same.evaluate(layouts))
+    finite = np.isfinite(a)
+    assert finite.sum() >= 4 and np.array_equal(finite, np.isfinite(b))
+    assert np.allclose(a[finite], b[finite], rtol=1e-10)        # the records path equals the thesis' path
+
+
+def test_survive_failures_scores_the_losses_and_refuses_fragile_layouts():
+    s, loads = s17_truss(), truss_loads()
+    enc = encoding()
+    nominal = StrainErrorObjective(s, FORCES, loads, DT, enc, **SETTINGS)
+    tolerant = StrainErrorObjective(s, FORCES, loads, DT, enc, survive_failures=1, **SETTINGS)
+    layout = ["strain:1", "strain:15", "strain:21"]
+    losses = [nominal.evaluate([[x for x in layout if x != lost]])[0] for lost in layout]
+    assert tolerant.evaluate([layout])[0] == pytest.approx(max([nominal.evaluate([layout])[0]] + losses), rel=1e-12)
+    assert [e for _, e in tolerant.failure_errors(layout)] == pytest.approx(losses, rel=1e-12)
+    fragile = ["strain:6", "strain:21", "acc:2:y"]            # two forces: losing a gauge leaves one static sensor
+    assert math.isfinite(nominal.evaluate([fragile])[0]) and math.isinf(tolerant.evaluate([fragile])[0])
+    mean = StrainErrorObjective(s, FORCES, loads, DT, enc, survive_failures=1, failure_measure="mean", **SETTINGS)
+    assert mean.evaluate([layout])[0] == pytest.approx(np.mean([nominal.evaluate([layout])[0]] + losses), rel=1e-12)
+    res = place(tolerant, enc, seed=0, population=12, generations=4)
+    assert all(math.isfinite(e) for _, e in tolerant.failure_errors(res.sensors))
+    for bad, message in ((3, "below the number of sensors"), (-1, "whole number"), (1.5, "whole number")):
+        with pytest.raises(AKFInputError, match=message):
+            StrainErrorObjective(s, FORCES, loads, DT, enc, survive_failures=bad, **SETTINGS)
+
+
+def problem(**kw):
+    return PlacementProblem("truss", s17_truss(), FORCES, truss_loads(), DT, kinds=("strain", "acc"), n_sensors=3,
+                            window=0.3, force_increment_cov=1e2, model_error_cov=1e-12, n_modes=None, **kw)
+
+
+def test_forbidden_region_is_never_placed_or_evaluated():
+    box = [0.0, -1.0, 2.5, 5.0]                                   # the truss' left part (x <= 2.5 m)
+    p = problem(constraints=Constraints(forbidden=[box]))
+    enc = p.encoding()
+    seen = []
+    obj = p.objective(enc)
+    inner = obj.evaluate
+    res = place(type("Spy", (), {"n_objectives": 1,
+                                 "evaluate": lambda self, ls: (seen.extend(ls), inner(ls))[1]})(),
+                enc, seed=0, population=12, generations=5)
+    x = {lab: pos[0] for lab, pos in zip(enc.labels, enc.position)}
+    assert seen and all(x[sens] > 2.5 for layout in seen for sens in layout)
+    assert all(x[sens] > 2.5 for sens in res.sensors)
+    nodes = problem(constraints=Constraints(forbidden_nodes=[8])).encoding()
+    banned = [lab for lab, ok in zip(nodes.labels, nodes.allowed) if not ok]
+    members = s17_truss().members
+    assert "acc:8:x" in banned and "acc:8:y" in banned
+    assert {f"strain:{m + 1}" for m in range(len(members)) if 8 in members[m]} <= set(banned)
+    assert all(nodes.is_valid(nodes.random_layout(np.random.default_rng(k))) for k in range(50))
+
+
+def test_min_spacing_and_budget_are_honoured_by_the_result():
+    rules = Constraints(cost={"strain": 1.0, "acc": 4.0}, budget=6.0, min_spacing=1.5)
+    p = problem(constraints=rules)
+    enc = p.encoding()
+    obj = p.objective(enc)
+    res = place(obj, enc, seed=1, population=16, generations=6)
+    layout = enc.from_sensors(res.sensors)
+    assert rules.violation(enc, layout) is None and rules.cost_of(enc, layout) <= 6.0
+    pos = enc.position[list(layout)]
+    assert min(np.linalg.norm(pos[i] - pos[j]) for i in range(3) for j in range(i + 1, 3)) >= 1.5
+    close = ["strain:1", "strain:2", "strain:13"]                 # members 1 and 2 share node 1
+    assert math.isinf(obj.evaluate([close])[0])
+    assert math.isinf(obj.evaluate([["strain:6", "acc:4:y", "acc:8:y"]])[0])     # costs 9
+    assert "budget 6" in rules.violation(enc, enc.from_sensors(["strain:6", "acc:4:y", "acc:8:y"]))
+
+
+@pytest.mark.parametrize("rules, message", [
+    (Constraints(forbidden=[[-100.0, -100.0, 100.0, 100.0]]), "cover every candidate"),
+    (Constraints(cost={"strain": 5.0, "acc": 5.0}, budget=4.0), "below the cheapest layout"),
+    (Constraints(forbidden=[[0.0, 0.0, 1.0]]), "forbidden box"),
+    (Constraints(forbidden_nodes=[99]), "not nodes of the model"),
+    (Constraints(cost={"gauge": 1.0}, budget=5.0), "no sensor type or kind"),
+])
+def test_constraints_no_layout_can_meet_are_refused(rules, message):
+    with pytest.raises(AKFInputError, match=message):
+        problem(constraints=rules).encoding()
+
+
+JOB = """
+name = "truss-robust"
+dt = 0.001
+forces = ["8:y", "12:y"]
+[structure]
+model = "s17_truss"
+[place]
+kinds = ["strain", "acc"]
+sensors = 3
+window = 0.3
+population = 10
+generations = 2
+n_modes = "full"
+{extra}
+[filter]
+stiffness_factor = 1.05
+model_error_cov = 1e-12
+force_increment_cov = 100.0
+[simulation]
+duration = 1.0
+relative_noise = 0.02
+[[simulation.loads]]
+components = [{{type = "ramp", start = 0.0, end = 1.0, peak = 400.0}}, {{type = "band_noise", rms = 40.0, f_high = 80.0, seed = 3}}]
+[[simulation.loads]]
+components = [{{type = "ramp", start = 0.0, end = 1.0, peak = -250.0}}]
+"""
+
+
+def test_akf_place_writes_the_layout_at_each_model_and_each_loss(tmp_path, capsys):
+    extra = ("survive_failures = 1\n[place.uncertainty]\nstiffness_factor = [0.95, 1.10]\nsamples = 3\nseeds = 2\n"
+             "[place.constraints]\ncost = {strain = 1.0, acc = 4.0}\nbudget = 7.0\n")
+    job = tmp_path / "job.toml"
+    job.write_text(JOB.format(extra=extra))
+    assert main(["place", str(job), "--out", str(tmp_path / "out"), "--json", "--no-plot"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    import pandas as pd
+
+    models = pd.read_csv(tmp_path / "out" / "uncertainty.csv")
+    failures = pd.read_csv(tmp_path / "out" / "failures.csv")
+    assert len(models) == 3 and models["stiffness_factor"].between(0.95, 1.10).all()
+    assert summary["uncertainty"]["error_measure"] == pytest.approx(np.quantile(models["error"], 0.9))
+    assert sorted(failures["lost"]) == sorted(summary["sensors"])
+    assert np.isfinite(failures["error"]).all() and summary["constraints"]["honoured"]
+    assert summary["constraints"]["cost"] <= 7.0
+
+
+@pytest.mark.parametrize("extra, message", [
+    ("[place.uncertainty]\nstiffness_factor = [1.10, 0.95]", "low < high"),
+    ("[place.uncertainty]\nstiffness_factor = [0.0, 1.1]", "stiffness_factor"),
+    ("[place.uncertainty]\nsamples = 0", "samples"),
+    ("survive_failures = 3", "survive_failures"),
+    ("[place.constraints]\nbudget = 0.5", "budget"),
+    ("[place.constraints]\nforbidden = [[-100.0, -100.0, 100.0, 100.0]]", "every candidate"),
+])
+def test_akf_place_bad_robustness_keys(tmp_path, capsys, extra, message):
+    job = tmp_path / "job.toml"
+    job.write_text(JOB.format(extra=extra))
+    assert main(["place", str(job), "--out", str(tmp_path / "out"), "--no-plot"]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_steady_gain_is_solved_once_per_layout(robust, monkeypatch):
+    """The records of every model share one Riccati solve per layout (no loop over the models)."""
+    import sensoropt.objective as objective
+
+    _, _, u, enc, obj = robust
+    calls = []
+
+    def counting(A, G, Q, R):
+        calls.append(G.shape[0])
+        return steady_gain(A, G, Q, R)
+
+    monkeypatch.setattr(objective, "steady_gain", counting)
+    layouts = [enc.sensors(enc.random_layout(np.random.default_rng(k))) for k in range(6)]
+    obj.evaluate(layouts)
+    assert len(calls) == 1 and calls[0] <= 6 and u.n_scenarios == 6
