@@ -259,7 +259,8 @@ class PlacementProblem:
 
     def _full_record(self, sensors, seed, rows_of, truth=None):
         """The steady AKF's outputs ``rows_of(filter model)`` over the whole record, and the simulation."""
-        sim = simulate(self.structure if truth is None else truth, sensors, self.forces, self.loads, self.dt, relative_noise=self.relative_noise,
+        sim = simulate(self.structure if truth is None else truth, sensors, self.forces, self.loads, self.dt,
+                       relative_noise=self.relative_noise,
                        seed=self.seed if seed is None else seed)
         n_modes = self.n_modes if self.n_modes in (None, "auto") else min(int(self.n_modes), self.structure.n)
         n_modes = resolve_modes(n_modes, self.structure, self.dt, sees_accelerations(sensors))

@@ -17,8 +17,7 @@ from core_akf.forcemodels import ForceModel
 from core_akf.loads import band_limited_white_noise
 from core_akf.models import s17_truss
 from core_akf.simulate import simulate
-from sensoropt import (CandidateSet, Constraints, PlacementProblem, StrainErrorObjective, Uncertainty, combine,
-                       place)
+from sensoropt import CandidateSet, Constraints, PlacementProblem, StrainErrorObjective, Uncertainty, combine, place
 from sensoropt.robust import latin_hypercube
 
 DT = 1e-3
