@@ -412,6 +412,10 @@ class Place(Section):
         used_by=PLACE)
     del_slope: Positive = key("a positive number", "objective = \"fatigue\": the slope m of the damage-equivalent "
                               "range (default 3)", used_by=PLACE)
+    objectives: Annotated[list[Literal["error", "cost"]], Field(min_length=1, max_length=2)] = key(
+        "[\"error\"] or [\"error\", \"cost\"]", "what the GA minimises: the error of one layout of `sensors` "
+        "(default), or the front of error against cost (NSGA-II over layouts of 1 to `sensors` sensors of any "
+        "kind, costed by [place.constraints] cost)", used_by=PLACE)
     uncertainty: PlaceUncertainty = key("a table", "score each layout over true structures unlike the filter's "
                                         "model ([place.uncertainty])", used_by=PLACE)
     survive_failures: Count0 = key("an integer >= 0", "score each layout also with each this many of its sensors "

@@ -394,9 +394,41 @@ class CandidateSet:
             raise AKFInputError("no candidate is allowed")
         self.allowed = None if allowed.all() else allowed
 
+    def with_size(self, n_sensors: int) -> CandidateSet:
+        """The same candidates (and restriction) for layouts of ``n_sensors`` sensors of any type.
+
+        Parameters
+        ----------
+        n_sensors : int
+
+        Returns
+        -------
+        CandidateSet
+        """
+        import copy
+
+        if not 1 <= int(n_sensors) <= len(self.candidates):
+            raise AKFInputError(f"a layout must have 1..{len(self.candidates)} sensors, got {n_sensors}")
+        out = copy.copy(self)
+        out.budget, out.n_sensors = None, int(n_sensors)
+        return out
+
     def _ok(self, g):
         """Whether candidate ``g`` may be placed."""
         return self.allowed is None or bool(self.allowed[g])
+
+    def allowed_indices(self, sensor_type: str | None = None) -> np.ndarray:
+        """The candidates that may be placed (of one type: ``strain`` or ``acc``).
+
+        Parameters
+        ----------
+        sensor_type : str, optional
+
+        Returns
+        -------
+        ndarray of int
+        """
+        return self._pool(sensor_type)
 
     def _pool(self, t=None):
         pool = np.arange(len(self.candidates)) if t is None else np.flatnonzero(self.type == t)

@@ -5,6 +5,7 @@ strain error and the number of sensors (or their cost), configured on the GA eng
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -19,6 +20,7 @@ from .ga import BATCH, PENALTY
 if TYPE_CHECKING:
     from core_akf.structure import Structure
 
+    from .encoding import CandidateSet
     from .objective import Objective
 
 
@@ -82,7 +84,7 @@ class ParetoGA(Algorithm):
         """Add or remove one sensor (keeps the size within the bounds)."""
         layout = list(layout)
         if (rng.random() < 0.5 and len(layout) < self.hi) or len(layout) == self.lo:
-            free = np.setdiff1d(np.arange(len(self.base.candidates)), layout)
+            free = np.setdiff1d(self.base.allowed_indices(), layout)
             layout.append(int(rng.choice(free)))
         else:
             layout.pop(int(rng.integers(len(layout))))
@@ -135,10 +137,11 @@ class _ErrorAndCost:
         return out
 
 
-def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...] = STRAIN_KINDS,
+def pareto(objective: Objective, structure: Structure | None = None, *, kinds: tuple[str, ...] = STRAIN_KINDS,
            sizes: tuple[int, int] = (1, 8), cost: dict[str, float] | None = None, population: int = 60,
            generations: int = 40, crossover: float = 0.8, mutation: float = 0.3, seed: int = 0, n_jobs: int = 1,
-           progress: bool = False, penalty: float = PENALTY) -> ParetoResult:
+           progress: bool = False, penalty: float = PENALTY, candidates: CandidateSet | None = None,
+           on_generation: Callable[[dict], None] | None = None) -> ParetoResult:
     """Pareto front of average strain error vs number of sensors (or cost).
 
     Parameters
@@ -146,10 +149,10 @@ def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...]
     objective : object
         A single-objective layout objective (e.g. :class:`StrainErrorObjective` built with an
         encoding of the same kinds); it is evaluated on layouts of every size in ``sizes``.
-    structure : Structure
-        The plate (for the candidates).
+    structure : Structure, optional
+        The plate (its grid of ``kinds`` are the candidates), or None with ``candidates``.
     kinds : tuple of str
-        Kinds that may be placed.
+        Kinds that may be placed on the plate.
     sizes : (int, int)
         The smallest and largest number of sensors.
     cost : dict, optional
@@ -168,6 +171,11 @@ def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...]
         A progress bar.
     penalty : float
         The error of an infeasible layout.
+    candidates : CandidateSet, optional
+        Any candidate set (of any structure) instead of the plate grid; its restriction
+        (forbidden regions) holds for every size, its sensor count and budget do not.
+    on_generation : callable, optional
+        Called with each generation's logbook row.
 
     Returns
     -------
@@ -190,7 +198,15 @@ def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...]
     lo, hi = int(sizes[0]), int(sizes[1])
     if not 1 <= lo <= hi:
         raise AKFInputError(f"sizes must satisfy 1 <= min <= max, got {sizes}")
-    encs = {k: PlateGrid(structure, kinds=kinds, n_sensors=k) for k in range(lo, hi + 1)}
+    if candidates is None:
+        if structure is None:
+            raise AKFInputError("give the plate (structure) or the candidates")
+        encs = {k: PlateGrid(structure, kinds=kinds, n_sensors=k) for k in range(lo, hi + 1)}
+    else:
+        if hi > len(candidates.allowed_indices()):
+            raise AKFInputError(f"layouts of up to {hi} sensors asked, but only {len(candidates.allowed_indices())} candidates "
+                                "may be placed")
+        encs = {k: candidates.with_size(k) for k in range(lo, hi + 1)}
     base = encs[lo]
     cost = {k: 1.0 for k in base.kinds} if cost is None else {str(k): float(v) for k, v in cost.items()}
     missing = [k for k in base.kinds if k not in cost]
@@ -201,7 +217,7 @@ def pareto(objective: Objective, structure: Structure, *, kinds: tuple[str, ...]
                           n_objectives=2, infeasible_if=lambda v: v[0] >= penalty)
     algorithm = ParetoGA(encs, lo, hi, population, crossover, mutation)
     res = GeneticAlgorithm(algorithm, evaluator, generations=generations, seed=seed,
-                           progress="NSGA-II" if progress else None, hall_of_fame=0).run()
+                           progress="NSGA-II" if progress else None, hall_of_fame=0, on_generation=on_generation).run()
     # the non-dominated set over everything evaluated (the cache), not only the last population
     best = {}
     for layout, (e, c) in evaluator.cache.items():

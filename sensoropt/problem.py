@@ -257,17 +257,63 @@ class PlacementProblem:
         return [row | {"error": self.full_record_error(sensors, truth=t)}
                 for row, t in zip(self.uncertainty.table(), truths)]
 
-    def _full_record(self, sensors, seed, rows_of, truth=None):
-        """The steady AKF's outputs ``rows_of(filter model)`` over the whole record, and the simulation."""
-        sim = simulate(self.structure if truth is None else truth, sensors, self.forces, self.loads, self.dt,
-                       relative_noise=self.relative_noise,
-                       seed=self.seed if seed is None else seed)
+    def full_record_errors(self, layouts: Sequence[Sequence[str]], seed: int | None = None,
+                           truth: Structure | None = None) -> list[float]:
+        """:meth:`full_record_error` of several layouts on one simulation of every sensor they
+        use: a channel has the same noise in every layout (common random numbers), so the
+        layouts are compared on the same record.
+
+        Parameters
+        ----------
+        layouts : sequence of sequence of str
+        seed : int, optional
+            The noise draw (default the problem's).
+        truth : Structure, optional
+            The true structure (default :attr:`structure`).
+
+        Returns
+        -------
+        list of float
+            µε per layout.
+        """
+        union = list(dict.fromkeys(str(s) for layout in layouts for s in layout))
+        sim = self._simulation(union, seed, truth)
+        rows = self.target_rows()
+        out = []
+        for layout in layouts:
+            est, _ = self._full_record(list(layout), seed, lambda fm: fm.strain_rows() if rows is None else
+                                       fm.strain_rows()[rows], truth, sim=(sim, [union.index(str(s)) for s in layout]))
+            out.append(float(average_strain_error(est, sim.strains if rows is None else sim.strains[:, rows])) * 1e6)
+        return out
+
+    def _simulation(self, sensors, seed, truth):
+        return simulate(self.structure if truth is None else truth, sensors, self.forces, self.loads, self.dt,
+                        relative_noise=self.relative_noise, seed=self.seed if seed is None else seed)
+
+    def _full_record(self, sensors, seed, rows_of, truth=None, sim=None):
+        """The steady AKF's outputs ``rows_of(filter model)`` over the whole record, and the
+        simulation (or ``sim = (simulation, columns)``: the layout's columns of a simulation of
+        more sensors)."""
+        if sim is None:
+            sim, cols = self._simulation(sensors, seed, truth), slice(None)
+        else:
+            sim, cols = sim
         n_modes = self.n_modes if self.n_modes in (None, "auto") else min(int(self.n_modes), self.structure.n)
         n_modes = resolve_modes(n_modes, self.structure, self.dt, sees_accelerations(sensors))
-        force_model = self.force_model or ForceModel("random_walk", increment_cov=self.force_increment_cov)
-        fm = FilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt, n_modes,
-                         force_model=force_model)
-        R = np.diag(np.maximum(sim.noise_std, default("noise_floor")) ** 2) + fm.residual_noise(sensors, self.model_error_cov)
+        fm = self._filter_model(n_modes)
+        R = np.diag(np.maximum(sim.noise_std[cols], default("noise_floor")) ** 2) \
+            + fm.residual_noise(sensors, self.model_error_cov)
         est = steady_outputs(fm.A_a, fm.observation(sensors)[None], fm.Q_a(self.model_error_cov),
-                             R[None], sim.measurements[None], rows_of(fm))[0]
+                             R[None], np.ascontiguousarray(sim.measurements[:, cols])[None], rows_of(fm))[0]
         return est, sim
+
+    def _filter_model(self, n_modes):
+        """The filter's model with ``n_modes`` modes (kept: the whole-record checks reuse it)."""
+        cache = self.__dict__.setdefault("_filter_models", {})
+        key = (n_modes, id(self.structure), tuple(self.forces), self.dt, self.stiffness_factor, self.force_model,
+               self.force_increment_cov)
+        if key not in cache:
+            force_model = self.force_model or ForceModel("random_walk", increment_cov=self.force_increment_cov)
+            cache[key] = FilterModel(self.structure.scaled(self.stiffness_factor), self.forces, self.dt, n_modes,
+                                     force_model=force_model)
+        return cache[key]

@@ -278,3 +278,53 @@ def test_steady_gain_is_solved_once_per_layout(robust, monkeypatch):
     layouts = [enc.sensors(enc.random_layout(np.random.default_rng(k))) for k in range(6)]
     obj.evaluate(layouts)
     assert len(calls) == 1 and calls[0] <= 6 and u.n_scenarios == 6
+
+
+@pytest.mark.parametrize("operators", ["set", "thesis"])
+def test_plate_grid_forbidden_box_and_spacing_hold_under_both_operator_sets(operators):
+    """TH case 5 (the thesis plate's grid encoding and its own operators): a box over the free
+    corner is never used, and the returned layout keeps 0.1 m between its gauges."""
+    from akf.placement import example_problem
+
+    p = example_problem("th-case5")
+    p.constraints = Constraints(forbidden=[[0.25, 0.15, 0.41, 0.31]], min_spacing=0.1)
+    enc = p.encoding()
+    obj = p.objective(enc)
+    seen = []
+    spy = type("Spy", (), {"n_objectives": 1, "evaluate": lambda self, ls: (seen.extend(ls), obj.evaluate(ls))[1]})()
+    res = place(spy, enc, seed=2, population=12, generations=5, operators=operators)
+    pos = {lab: xy for lab, xy in zip(enc.labels, enc.position)}
+    inside = lambda s: 0.25 <= pos[s][0] <= 0.41 and 0.15 <= pos[s][1] <= 0.31     # noqa: E731
+    assert not any(inside(s) for layout in seen for s in layout)
+    assert sum(1 for layout in seen for s in layout) > 60
+    assert p.constraints.violation(enc, enc.from_sensors(res.sensors)) is None
+    xy = np.array([pos[s] for s in res.sensors])
+    assert min(np.linalg.norm(xy[i] - xy[j]) for i in range(3) for j in range(i + 1, 3)) >= 0.1
+
+
+def test_front_of_error_against_cost_on_the_footbridge(tmp_path, capsys):
+    """``objectives = ["error", "cost"]``: NSGA-II over 1..8 sensors of any kind on the 3-D
+    footbridge, with accelerometers four times a gauge's cost and a budget of 10."""
+    from akf.examples import load_example
+
+    text = (__import__("importlib.resources", fromlist=["files"]).files("akf.examples") / "jobs" /
+            "footbridge-place.toml").read_text()
+    assert load_example("footbridge-place", "place")["place"]["budget"] == {"strain": 4, "acc": 2}
+    text = text.replace("budget = {strain = 4, acc = 2}", 'sensors = 8\nobjectives = ["error", "cost"]')
+    text = text.replace("window = 4.0", "window = 2.0").replace("population = 30", "population = 16") \
+        .replace("generations = 30", "generations = 6")
+    text += "\n[place.constraints]\ncost = {strain = 1.0, acc = 4.0}\nbudget = 10.0\n"
+    job = tmp_path / "front.toml"
+    job.write_text(text)
+    assert main(["place", str(job), "--out", str(tmp_path / "out"), "--json", "--no-plot"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    import pandas as pd
+
+    front = pd.read_csv(tmp_path / "out" / "front.csv")
+    assert len(front) >= 4 and len(summary["front"]) == len(front)
+    assert front["cost"].is_monotonic_increasing and front["window_error"].is_monotonic_decreasing
+    assert (front["cost"] <= 10.0).all() and np.isfinite(front["error"]).all()
+    for r in front.itertuples():
+        kinds = [s.split(":")[0] for s in r.sensors.split()]
+        assert r.cost == pytest.approx(kinds.count("strain") + 4.0 * kinds.count("acc"))
+        assert r.n_sensors == len(kinds)
