@@ -95,12 +95,53 @@ def uncertainty_of(job: Job):
     u = job.spec.place.uncertainty
     if u is None:
         return None
-    factor = job.stiffness_factor if u.stiffness_factor is None else u.stiffness_factor
+    frequency = None if u.frequency_factors is None else calibrated_frequencies(job, u.frequency_factors)
+    if u.stiffness_factor is not None:
+        factor = u.stiffness_factor
+    else:      # a calibration says how the truth differs from the filter's model: no stiffness factor on top
+        factor = 1.0 if frequency is not None else job.stiffness_factor
     try:
-        return Uncertainty.sample(factor, samples=u.samples or 8, seeds=u.seeds or 3, measure=u.measure or "p90",
-                                  seed=job.spec.simulation.seed or 0)
+        return Uncertainty.sample(factor, frequency=frequency, samples=u.samples or 8, seeds=u.seeds or 3,
+                                  measure=u.measure or "p90", seed=job.spec.simulation.seed or 0)
     except AKFInputError as exc:
         raise AKFInputError(f"[place.uncertainty] {exc}") from None
+
+
+def calibrated_frequencies(job: Job, path: str):
+    """The per-mode frequency factors of a calibration and the standard errors of their
+    logarithms: ``[filter] frequency_factors`` of the ``calibrated.toml`` at ``path`` (relative to
+    the job file) and ``std_errors`` of the ``calibration.json`` that akf calibrate wrote beside it.
+    A mode the calibration did not fit keeps factor 1 with no spread."""
+    import json
+    import os
+
+    import numpy as np
+    import tomllib
+
+    where = "[place.uncertainty] frequency_factors"
+    if not os.path.isabs(path) and job.source is not None:
+        path = os.path.join(os.path.dirname(os.path.abspath(job.source)), path)
+    try:
+        with open(path, "rb") as fh:
+            fitted = (tomllib.load(fh).get("filter") or {}).get("frequency_factors")
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise AKFInputError(f"{where}: cannot read {path} as a calibrated job ({type(exc).__name__}: "
+                            f"{getattr(exc, 'strerror', None) or exc})") from None
+    if not isinstance(fitted, list) or not fitted or not all(isinstance(v, (int, float)) and v > 0 for v in fitted):
+        raise AKFInputError(f"{where}: {path} has no [filter] frequency_factors (a list of positive factors): give "
+                            "the calibrated.toml of akf calibrate with calibrate = [\"frequencies\"]")
+    report = os.path.join(os.path.dirname(path), "calibration.json")
+    try:
+        with open(report, encoding="utf-8") as fh:
+            errors = json.load(fh)["std_errors"]
+    except (OSError, ValueError, KeyError, TypeError):
+        raise AKFInputError(f"{where}: no calibration.json with the standard errors beside {path} (akf calibrate "
+                            "writes it since this version: run it again)") from None
+    std = np.array([float(errors.get(f"frequencies:{k + 1}", 0.0) or 0.0) for k in range(len(fitted))])
+    if not np.all(np.isfinite(std)):
+        raise AKFInputError(f"{where}: the calibration left a frequency's standard error undetermined "
+                            f"({report}); the record does not identify it")
+    return np.array(fitted, float), std
 
 
 def constraints_of(job: Job):

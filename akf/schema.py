@@ -352,6 +352,10 @@ class PlaceUncertainty(Section):
         "a positive number, [low, high] or a list of three or more positive numbers",
         "the filter's stiffness against the truth: a range [low, high] drawn by a Latin hypercube, or the "
         "factors themselves (default the [filter] stiffness_factor)", used_by=PLACE)
+    frequency_factors: PathText = key(
+        "a path to a calibrated.toml", "draw per-mode frequency factors of the truth from a calibration (akf calibrate "
+        "with calibrate = [\"frequencies\"]): its fitted factors and the standard errors in the calibration.json "
+        "beside it; relative to the job file", used_by=PLACE)
     samples: Count = key("an integer >= 1", "models drawn from the range (default 8)", used_by=PLACE)
     seeds: Count = key("an integer >= 1", "noise draws per model (default 3)", used_by=PLACE)
     measure: Measure = key("\"mean\", \"p90\", \"worst\" or \"cvar90\"",

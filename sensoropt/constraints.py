@@ -215,6 +215,16 @@ class Constrained:
         self.objective, self.encoding, self.constraints = objective, encoding, constraints
         self.n_objectives = getattr(objective, "n_objectives", 1)
 
+    @property
+    def robustness(self) -> dict:
+        """The inner objective's :attr:`~sensoropt.objective.StrainErrorObjective.robustness` and the
+        constraints (kept with a GA checkpoint)."""
+        c = self.constraints
+        rules = {"cost": dict(c.cost) if c.cost else None, "budget": c.budget, "min_spacing": c.min_spacing,
+                 "forbidden": [list(map(float, b)) for b in c.forbidden] if c.forbidden else None,
+                 "forbidden_nodes": [int(n) for n in c.forbidden_nodes] if c.forbidden_nodes else None}
+        return dict(getattr(self.objective, "robustness", None) or {}, constraints=rules)
+
     def __getattr__(self, name):
         if name in ("objective", "encoding", "constraints"):
             raise AttributeError(name)

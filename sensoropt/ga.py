@@ -212,12 +212,22 @@ def place(objective: Objective, encoding: CandidateSet, *, population: int = 50,
                            stall_generations=stall_generations, stall_tol=stall_tol, checkpoint=checkpoint,
                            checkpoint_every=checkpoint_every, resume=resume,
                            progress="placement GA" if progress else None,
-                           settings=dict(settings, candidates=encoding.candidates), hall_of_fame=hall_of_fame,
+                           settings=_checkpoint_settings(settings, encoding, objective), hall_of_fame=hall_of_fame,
                            on_generation=on_generation).run()
     best_layout, (best_f,) = res.hall_of_fame[0]
     return PlacementResult(best_layout, best_f, encoding.sensors(best_layout), encoding.records(best_layout),
                            res.logbook, [(encoding.sensors(l), f[0]) for l, f in res.hall_of_fame], res.evaluations,
                            res.cache_hits, res.infeasible, res.stopped, seed, settings)
+
+
+def _checkpoint_settings(settings, encoding, objective):
+    """What a GA checkpoint must match to be resumed: the GA settings, the candidates and, for a
+    robust or constrained fitness, its settings (absent otherwise, so earlier checkpoints resume)."""
+    out = dict(settings, candidates=encoding.candidates)
+    robustness = getattr(objective, "robustness", None)
+    if robustness:
+        out["robustness"] = robustness
+    return out
 
 
 def independent_runs(objective: Objective, encoding: CandidateSet, runs: int = 4, seed: int = 0,

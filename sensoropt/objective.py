@@ -256,6 +256,19 @@ class StrainErrorObjective:
         return self._detectability.detectable(idx)
 
     @property
+    def robustness(self) -> dict | None:
+        """The uncertainty and failure settings of the fitness (None without them): kept with a GA
+        checkpoint, so that a resume under other settings is refused."""
+        out = {}
+        if self.uncertainty is not None:
+            u = self.uncertainty
+            out |= {"stiffness_factors": list(u.stiffness_factors), "seeds": int(u.seeds), "measure": u.measure,
+                    "frequency_factors": None if u.frequency_factors is None else np.asarray(u.frequency_factors).tolist()}
+        if self.survive_failures:
+            out |= {"survive_failures": self.survive_failures, "failure_measure": self.failure_measure}
+        return out or None
+
+    @property
     def n_scenarios(self) -> int:
         """The records a layout is scored on: models times noise draws (1 without uncertainty)."""
         return self.Ys.shape[0]

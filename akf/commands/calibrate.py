@@ -8,6 +8,7 @@ import os
 import sys
 
 from core_akf.checks import AKFInputError
+from core_akf.outputs import atomic_path
 
 from ..outputs import OutputFolder
 from .common import add_print_job, print_written
@@ -43,8 +44,13 @@ def _calibrate(args):
         path = os.path.join(out, "calibrated.toml")
         source = args.job or example_path(args.example)
         write_calibrated(source, report, path)
+        fit = os.path.join(out, "calibration.json")       # the fit with its standard errors (read by place)
+        with atomic_path(fit) as tmp:
+            with open(tmp, "w", encoding="utf-8") as fh:
+                json.dump(report, fh, indent=1)
     if args.json:
-        print(json.dumps({"name": job.name, "calibration": report, "files": {"calibrated_job": path}}))
+        print(json.dumps({"name": job.name, "calibration": report,
+                          "files": {"calibrated_job": path, "calibration": fit}}))
         for w in report["warnings"]:
             print(f"akf: warning: {w}", file=sys.stderr)
         return 0
@@ -64,7 +70,7 @@ def _calibrate(args):
         print(f"    {channel:>14s}                                  {before:8.3g}  {report['consistency_after'][channel]:8.3g}")
     for w in report["warnings"]:
         print(f"  WARNING: {w}")
-    print_written({"calibrated_job": path})
+    print_written({"calibrated_job": path, "calibration": fit})
     return 0
 
 
@@ -101,8 +107,6 @@ def write_calibrated(source, report, path):
     """
     import tomlkit
     import tomllib
-
-    from core_akf.outputs import atomic_path
 
     from ..job import data_path_keys
 

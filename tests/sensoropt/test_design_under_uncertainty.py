@@ -355,3 +355,62 @@ def test_band_rule_with_accelerometers_ranks_layouts_as_the_full_model_on_a_3d_t
     assert np.isfinite(a).all() and np.isfinite(b).all()
     assert spearmanr(a, b).correlation >= 0.95
     assert np.median(np.abs(b / a - 1)) < 0.06
+
+
+def test_truths_carry_the_drawn_frequency_factors():
+    s = s17_truss()
+    u = Uncertainty.sample((0.95, 1.10), frequency=([1.02, 0.97], [0.01, 0.0]), samples=5, seeds=1, seed=3)
+    assert u.frequency_factors.shape == (5, 2) and np.allclose(u.frequency_factors[:, 1], 0.97)
+    z = np.log(u.frequency_factors[:, 0] / 1.02) / 0.01                       # stratified standard normal
+    assert sorted(np.floor(__import__("scipy.stats", fromlist=["norm"]).norm.cdf(z) * 5).astype(int)) == list(range(5))
+    for f, c, truth in zip(u.stiffness_factors, u.frequency_factors, u.truths(s, 1.05)):
+        filt = s.scaled(1.05)
+        ratio = truth.frequencies(3) / filt.frequencies(3)
+        assert np.allclose(ratio, np.r_[c, 1.0] / np.sqrt(f), rtol=1e-9)   # the filter is f times as stiff
+
+
+def test_akf_place_draws_frequencies_from_a_calibration(tmp_path, capsys):
+    """akf calibrate (calibrate = ["frequencies"]) writes calibration.json with the standard
+    errors beside calibrated.toml; [place.uncertainty] frequency_factors reads both."""
+    from helpers import DAQ
+
+    (tmp_path / "rec.csv").write_bytes((DAQ / "record-si.csv").read_bytes())
+    head = (DAQ / "s17-tdms.toml").read_text().split("[measurements]")[0]
+    head = head.replace("force_increment_cov = 1e5", 'force_increment_cov = 1e5\ncalibrate = ["frequencies"]\n'
+                        'calibrate_modes = [1, 2]')
+    (tmp_path / "cal.toml").write_text(head + '\n[measurements]\nfile = "rec.csv"\n')
+    assert main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(tmp_path / "cal"), "--json"]) == 0
+    fit = json.loads(capsys.readouterr().out)["calibration"]
+    saved = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    assert saved["std_errors"] == fit["std_errors"] and len(fit["frequency_factors"]) >= 2
+    job = tmp_path / "place.toml"
+    job.write_text(JOB.format(extra='[place.uncertainty]\nfrequency_factors = "cal/calibrated.toml"\nsamples = 4\n'
+                              'seeds = 1'))
+    assert main(["place", str(job), "--out", str(tmp_path / "out"), "--json", "--no-plot"]) == 0
+    import pandas as pd
+
+    models = pd.read_csv(tmp_path / "out" / "uncertainty.csv")
+    assert len(models) == 4 and (models["stiffness_factor"] == 1.0).all()
+    for k in (1, 2):
+        c, se = fit["frequency_factors"][k - 1], fit["std_errors"][f"frequencies:{k}"]
+        z = np.log(models[f"frequency_factor_{k}"] / c) / se
+        assert np.all(np.abs(z) < 3) and z.std() > 0.3                     # drawn around the fit, spread by its error
+    job.write_text(JOB.format(extra='[place.uncertainty]\nfrequency_factors = "nowhere/calibrated.toml"'))
+    assert main(["place", str(job), "--out", str(tmp_path / "out2"), "--no-plot"]) == 2
+    assert "cannot read" in capsys.readouterr().err
+
+
+def test_a_checkpoint_resumes_only_under_the_same_robustness(tmp_path):
+    s, loads = s17_truss(), truss_loads()
+    enc = encoding()
+    ck = str(tmp_path / "ga.json")
+    tolerant = StrainErrorObjective(s, FORCES, loads, DT, enc, survive_failures=1, **SETTINGS)
+    first = place(tolerant, enc, seed=0, population=8, generations=3, checkpoint=ck, checkpoint_every=1)
+    again = place(tolerant, enc, seed=0, population=8, generations=3, checkpoint=ck, resume=True)
+    assert again.sensors == first.sensors
+    with pytest.raises(AKFInputError, match="other settings"):
+        place(StrainErrorObjective(s, FORCES, loads, DT, enc, survive_failures=1, failure_measure="mean", **SETTINGS),
+              enc, seed=0, population=8, generations=3, checkpoint=ck, resume=True)
+    with pytest.raises(AKFInputError, match="other settings"):
+        place(StrainErrorObjective(s, FORCES, loads, DT, enc, **SETTINGS), enc, seed=0, population=8, generations=3,
+              checkpoint=ck, resume=True)
