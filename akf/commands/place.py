@@ -99,14 +99,7 @@ def _run_front(args, problem, settings, out):
     if not args.no_plot:
         draw(files, "front", figure_notes, plot_pareto, front, os.path.join(out, "front.png"),
              f"{problem.name}: whole-record error against cost")
-    for note in figure_notes:
-        print(f"akf: warning: {note}", file=sys.stderr)
-    if args.json:
-        summary["warnings"] = figure_notes
-        print(json.dumps(summary))
-        return 0
-    print_written(files, [])
-    return 0
+    return _finish(args, summary, files, figure_notes, [])
 
 
 def _run_place(args, problem, settings, out):
@@ -179,6 +172,11 @@ def _run_place(args, problem, settings, out):
         draw(files, "layout", figure_notes, plot_layout, enc, res.best, os.path.join(out, "layout.png"),
              f"best layout: window error {res.best_error:.3f} {'%' if fatigue else 'µε'}, full record {error:.3f} µε",
              forces=obj.model.forces)
+    return _finish(args, summary, files, figure_notes, notes)
+
+
+def _finish(args, summary, files, figure_notes, notes):
+    """The figures' warnings, then the JSON summary or the written files with the notes."""
     for note in figure_notes:
         print(f"akf: warning: {note}", file=sys.stderr)
     if args.json:
