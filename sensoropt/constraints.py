@@ -98,7 +98,18 @@ class Constraints:
         return np.array([table.get(str(k), table.get(str(t), 1.0)) for k, t in zip(encoding.kind, encoding.type)])
 
     def cost_of(self, encoding: CandidateSet, layout: Sequence[int]) -> float:
-        """The cost of a layout (candidate indices)."""
+        """The cost of a layout.
+
+        Parameters
+        ----------
+        encoding : CandidateSet
+        layout : sequence of int
+            Candidate indices.
+
+        Returns
+        -------
+        float
+        """
         return float(self.costs(encoding)[list(layout)].sum())
 
     def allowed(self, encoding: CandidateSet) -> np.ndarray:

@@ -220,7 +220,12 @@ class Uncertainty:
         return out
 
     def table(self) -> list[dict]:
-        """One record per model: its index (1-based), stiffness factor and frequency factors."""
+        """One record per model: its index (1-based), stiffness factor and frequency factors.
+
+        Returns
+        -------
+        list of dict
+        """
         rows = []
         for i, f in enumerate(self.stiffness_factors):
             row = {"model": i + 1, "stiffness_factor": f}
