@@ -1,0 +1,121 @@
+"""``akf oma``: operational modal analysis of a job's accelerometer channels (SSI-cov,
+:mod:`core_akf.oma`): the identified modes paired with the filter's model, the stabilisation
+table, then the stabilisation diagram -- a cross-check of the model before calibrating it."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+from core_akf.checks import AKFInputError
+from core_akf.outputs import write_csv
+
+from ..outputs import OutputFolder
+from .common import add_print_job, print_written
+
+
+def _oma(args):
+    import numpy as np
+
+    from core_akf.oma import pair_modes, ssi_cov
+    from core_akf.sensors import selection_matrices
+
+    from ..figures import draw
+    from ..job import Job
+    from .common import job_data, listing_or_template
+
+    done = listing_or_template(args, "estimate")
+    if done is not None:
+        return done
+    job = Job.from_dict(job_data(args, "estimate"), "estimate", source=args.job)
+    picked = [i for i, s in enumerate(job.sensors) if s.kind == "acc"]
+    if len(picked) < 2:
+        raise AKFInputError(f"operational modal analysis needs at least 2 accelerometers; the job has {len(picked)} "
+                            f"({', '.join(s.label for s in job.sensors)})")
+    out = args.out or os.path.join("akf-out", job.name, "oma")
+    with OutputFolder(out, "--out"):
+        if job.spec.measurements is not None:
+            record = job.open_record()
+            Y = np.vstack([chunk for _, chunk in record.chunks(record.n_steps)])
+            source = "the record"
+        else:
+            Y = job.simulate().measurements
+            source = "the simulated record"
+        labels = [job.sensors[i].label for i in picked]
+        Y = Y[:, picked]
+        seen = np.all(np.isfinite(Y), axis=1)
+        if not seen.all():                  # the longest stretch without a hole
+            edges = np.flatnonzero(np.diff(np.r_[0, seen.astype(int), 0]))
+            starts, ends = edges[::2], edges[1::2]
+            k = int(np.argmax(ends - starts))
+            Y = Y[starts[k]:ends[k]]
+            source += f" (its longest stretch without missing samples: steps {starts[k]}-{ends[k] - 1})"
+        res = ssi_cov(Y, job.dt, channels=labels, block_rows=args.block_rows, max_order=args.max_order)
+        model = job.filter_model()
+        k = min(model.n, max(12, 2 * len(res.modes)))
+        shapes = (selection_matrices(model, [job.sensors[i] for i in picked])["acc"] @ model.modes(k)).T
+        paired = pair_modes(res, model.frequencies(k), shapes)
+        files = {"modes": write_csv(paired, os.path.join(out, "oma_modes.csv")),
+                 "stabilisation_table": write_csv(res.poles, os.path.join(out, "stabilisation.csv"))}
+        summary = {"name": job.name, "channels": labels, "steps": int(Y.shape[0]), "source": source,
+                   "modes": json.loads(paired.to_json(orient="records")), "notes": res.notes, "files": files,
+                   "units": {"frequency_hz": "Hz", "damping": "ratio of critical"}}
+        if not args.json:
+            print(f"{job.name}: operational modal analysis (SSI-cov) of {len(labels)} accelerometers, "
+                  f"{Y.shape[0] * job.dt:.4g} s of {source}")
+            print(f"  {'f (Hz)':>10s} {'damping':>8s} {'orders':>6s}  {'model mode':>10s} {'model f (Hz)':>12s} "
+                  f"{'ratio':>8s} {'MAC':>6s}")
+            for r in paired.itertuples():
+                mode = "-" if r.model_mode is None or r.model_mode != r.model_mode else f"{int(r.model_mode)}"
+                print(f"  {r.frequency_hz:10.4f} {r.damping:8.4f} {r.orders:6d}  {mode:>10s} "
+                      f"{r.model_frequency_hz:12.4f} {r.frequency_ratio:8.5f} {r.mac:6.3f}")
+            for note in res.notes:
+                print(f"akf: note: {note}", file=sys.stderr)
+            sys.stdout.flush()
+        figure_notes = []
+        if not args.no_plot:
+            draw(files, "stabilisation", figure_notes, plot_stabilisation, res, os.path.join(out, "stabilisation.png"),
+                 f"{job.name}: stabilisation diagram")
+    for note in figure_notes:
+        print(f"akf: warning: {note}", file=sys.stderr)
+    if args.json:
+        summary["warnings"] = figure_notes
+        print(json.dumps(summary))
+        return 0
+    print_written(files, [])
+    return 0
+
+
+def plot_stabilisation(res, path, title):
+    """The stabilisation diagram: every physical pole by frequency and model order, the stable
+    ones filled, the identified modes as vertical lines."""
+    from core_akf.figures import subplots
+
+    fig, ax = subplots(figsize=(7, 4))
+    p = res.poles
+    ax.plot(p["frequency_hz"][~p["stable"]], p["order"][~p["stable"]], "x", ms=3, color="0.6", label="pole")
+    ax.plot(p["frequency_hz"][p["stable"]], p["order"][p["stable"]], "o", ms=3, color="C0", label="stable pole")
+    for f in res.modes["frequency_hz"]:
+        ax.axvline(f, color="C3", lw=0.8)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("model order")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    return fig
+
+
+def register(sub):
+    """Add ``oma`` to the ``akf`` sub-command parser."""
+    p = sub.add_parser("oma", help="operational modal analysis of a job's accelerometers (SSI-cov), paired with "
+                       "the filter's model")
+    p.add_argument("job", nargs="?", help="job file (TOML) of akf estimate")
+    p.add_argument("--example", help="built-in estimate example, e.g. s17-case4 (see --list-examples)")
+    p.add_argument("--list-examples", action="store_true", help="list the built-in examples")
+    p.add_argument("--block-rows", type=int, help="lags of each half of the Hankel matrix (default 20)")
+    p.add_argument("--max-order", type=int, help="the highest model order of the diagram (default 60)")
+    p.add_argument("--out", help="output folder (default akf-out/NAME/oma)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    p.add_argument("--no-plot", action="store_true", help="do not write the stabilisation diagram")
+    add_print_job(p)
+    p.set_defaults(func=_oma)
