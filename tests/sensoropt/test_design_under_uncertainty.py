@@ -414,3 +414,22 @@ def test_a_checkpoint_resumes_only_under_the_same_robustness(tmp_path):
     with pytest.raises(AKFInputError, match="other settings"):
         place(StrainErrorObjective(s, FORCES, loads, DT, enc, **SETTINGS), enc, seed=0, population=8, generations=3,
               checkpoint=ck, resume=True)
+
+
+def test_fatigue_objective_under_uncertainty_and_failures():
+    """The DEL objective scores each record against its own truth's stresses."""
+    from sensoropt import FatigueErrorObjective
+
+    s, loads = s17_truss(), truss_loads()
+    enc = encoding()
+    layouts = [["strain:1", "strain:15", "strain:21"], ["strain:6", "strain:21", "acc:2:y"]]
+    nominal = FatigueErrorObjective(s, FORCES, loads, DT, enc, **SETTINGS)
+    same = FatigueErrorObjective(s, FORCES, loads, DT, enc, uncertainty=Uncertainty((1.05, 1.05), measure="mean"),
+                                 **SETTINGS)
+    assert same.evaluate(layouts) == pytest.approx(nominal.evaluate(layouts), rel=1e-10)
+    robust = FatigueErrorObjective(s, FORCES, loads, DT, enc, survive_failures=1,
+                                   uncertainty=Uncertainty.sample((0.95, 1.10), samples=3, seeds=2, seed=1), **SETTINGS)
+    per_record = robust.scenario_errors(layouts[0])
+    assert per_record.shape == (6,) and np.ptp(per_record) > 0
+    fit = robust.evaluate(layouts)
+    assert fit[0] >= combine(per_record, "p90") - 1e-12 and math.isinf(fit[1])     # a lost gauge leaves one static sensor
