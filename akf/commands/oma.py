@@ -50,8 +50,14 @@ def _oma(args):
             k = int(np.argmax(ends - starts))
             Y = Y[starts[k]:ends[k]]
             source += f" (its longest stretch without missing samples: steps {starts[k]}-{ends[k] - 1})"
-        res = ssi_cov(Y, job.dt, channels=labels, block_rows=args.block_rows, max_order=args.max_order)
         model = job.filter_model()
+        first = float(model.frequencies(1)[0])
+        if Y.shape[0] * job.dt * first < MIN_PERIODS:
+            raise AKFInputError(f"{source} holds {Y.shape[0] * job.dt:.4g} s, {Y.shape[0] * job.dt * first:.3g} periods "
+                                f"of the model's first mode ({first:.4g} Hz): modal analysis needs at least "
+                                f"{MIN_PERIODS:g} ({MIN_PERIODS / first:.4g} s)")
+        res = ssi_cov(Y, job.dt, channels=labels, block_rows=args.block_rows, max_order=args.max_order,
+                      min_periods=MIN_PERIODS)
         k = min(model.n, max(12, 2 * len(res.modes)))
         shapes = (selection_matrices(model, [job.sensors[i] for i in picked])["acc"] @ model.modes(k)).T
         paired = pair_modes(res, model.frequencies(k), shapes)
@@ -84,6 +90,10 @@ def _oma(args):
         return 0
     print_written(files, [])
     return 0
+
+
+#: the periods of the model's first mode a record must hold for its modal analysis
+MIN_PERIODS = 20.0
 
 
 def plot_stabilisation(res, path, title):

@@ -34,3 +34,13 @@ def test_oma_lists_and_prints_estimate_examples(flag, capsys):
     args = ["oma", flag] + (["--example", "s17-case4"] if flag == "--print-job" else [])
     assert main(args) == 0
     assert "s17-case4" in capsys.readouterr().out
+
+
+def test_oma_refuses_a_record_shorter_than_twenty_periods_of_the_models_first_mode(tmp_path, capsys):
+    job = tmp_path / "job.toml"
+    job.write_text('dt = 0.001\nsensors = ["acc:4:y", "acc:8:y"]\nforces = ["8:y"]\n[structure]\nmodel = "s17_truss"\n'
+                   '[simulation]\nduration = 0.5\n[[simulation.loads]]\ncomponents = [{type = "band_noise", '
+                   'rms = 100.0, f_high = 200.0, seed = 1}]\n')
+    assert main(["oma", str(job), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "periods of the model's first mode" in err and "at least 20" in err
