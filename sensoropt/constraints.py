@@ -191,23 +191,59 @@ class Constraints:
         -------
         str or None
         """
-        layout = list(layout)
-        if self.budget is not None:
-            c = self.cost_of(encoding, layout)
-            if c > self.budget * (1 + 1e-12):
-                return f"costs {c:g} (budget {self.budget:g})"
-        if self.forbidden or self.forbidden_nodes:
-            bad = [encoding.labels[g] for g in layout if not self.allowed(encoding)[g]]
+        return self.checker(encoding)(layout)
+
+    def checker(self, encoding: CandidateSet) -> Checker:
+        """:meth:`violation` for many layouts of one candidate set: the costs and the allowed
+        candidates are computed once.
+
+        Parameters
+        ----------
+        encoding : CandidateSet
+
+        Returns
+        -------
+        Checker
+            ``checker(layout) -> str or None``.
+        """
+        return Checker(self, encoding)
+
+
+class Checker:
+    """:meth:`Constraints.violation` of one candidate set, its costs and allowed candidates
+    computed once (a plain object: it travels to parallel workers).
+
+    Parameters
+    ----------
+    constraints : Constraints
+    encoding : CandidateSet
+    """
+
+    def __init__(self, constraints: Constraints, encoding: CandidateSet):
+        self.rules, self.labels = constraints, list(encoding.labels)
+        self.costs = constraints.costs(encoding) if constraints.budget is not None else None
+        self.allowed = constraints.allowed(encoding) if (constraints.forbidden or constraints.forbidden_nodes) else None
+        self.position = np.asarray(encoding.position, float)
+
+    def __call__(self, layout: Sequence[int]) -> str | None:
+        """What ``layout`` (candidate indices) breaks, or None."""
+        layout, rules = list(layout), self.rules
+        if self.costs is not None:
+            c = float(self.costs[layout].sum())
+            if c > rules.budget * (1 + 1e-12):
+                return f"costs {c:g} (budget {rules.budget:g})"
+        if self.allowed is not None:
+            bad = [self.labels[g] for g in layout if not self.allowed[g]]
             if bad:
                 return f"{', '.join(bad)} in a forbidden region"
-        if self.min_spacing is not None and len(layout) > 1:
-            pos = np.asarray(encoding.position, float)[layout]
+        if rules.min_spacing is not None and len(layout) > 1:
+            pos = self.position[layout]
             d = np.sqrt(((pos[:, None] - pos[None]) ** 2).sum(-1))
             i, j = np.triu_indices(len(layout), 1)
             k = int(np.argmin(d[i, j]))
-            if d[i[k], j[k]] < self.min_spacing * (1 - 1e-12):
-                return (f"{encoding.labels[layout[i[k]]]} and {encoding.labels[layout[j[k]]]} are {d[i[k], j[k]]:.4g} m "
-                        f"apart (min_spacing {self.min_spacing:g} m)")
+            if d[i[k], j[k]] < rules.min_spacing * (1 - 1e-12):
+                return (f"{self.labels[layout[i[k]]]} and {self.labels[layout[j[k]]]} are {d[i[k], j[k]]:.4g} m "
+                        f"apart (min_spacing {rules.min_spacing:g} m)")
         return None
 
 
@@ -225,6 +261,7 @@ class Constrained:
     def __init__(self, objective: Objective, encoding: CandidateSet, constraints: Constraints):
         self.objective, self.encoding, self.constraints = objective, encoding, constraints
         self.n_objectives = getattr(objective, "n_objectives", 1)
+        self._violation = constraints.checker(encoding)
 
     @property
     def robustness(self) -> dict:
@@ -237,7 +274,7 @@ class Constrained:
         return dict(getattr(self.objective, "robustness", None) or {}, constraints=rules)
 
     def __getattr__(self, name):
-        if name in ("objective", "encoding", "constraints"):
+        if name in ("objective", "encoding", "constraints", "_violation"):
             raise AttributeError(name)
         return getattr(self.objective, name)
 
@@ -253,7 +290,7 @@ class Constrained:
         list
         """
         layouts = list(layouts)
-        ok = [self.constraints.violation(self.encoding, self.encoding.from_sensors(l)) is None for l in layouts]
+        ok = [self._violation(self.encoding.from_sensors(l)) is None for l in layouts]
         inner = iter(self.objective.evaluate([l for l, k in zip(layouts, ok) if k]) if any(ok) else [])
         bad = math.inf if self.n_objectives == 1 else tuple([math.inf] * self.n_objectives)
         return [next(inner) if k else bad for k in ok]

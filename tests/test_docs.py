@@ -63,8 +63,8 @@ def test_command_lines_parse(line):
     if argv in (["--version"], ["--help"]):
         return
     args = build_parser().parse_args(argv)
-    if getattr(args, "example", None):       # akf calibrate takes the examples of akf estimate
-        assert COMMAND_OF[args.example] == {"calibrate": "estimate"}.get(args.command, args.command)
+    if getattr(args, "example", None):       # akf calibrate and akf oma take the examples of akf estimate
+        assert COMMAND_OF[args.example] == {"calibrate": "estimate", "oma": "estimate"}.get(args.command, args.command)
 
 
 def test_json_schema_file_is_current():

@@ -23,6 +23,22 @@ def print_written(files, notes=()):
         print(f"  note: {note}")
 
 
+def finish(args, summary, files, figure_notes, notes=()):
+    """A command's ending once its results are written: the figures' warnings, then the JSON
+    ``summary`` (``--json``) or the files written with the notes; the exit code 0."""
+    import json
+    import sys
+
+    for note in figure_notes:
+        print(f"akf: warning: {note}", file=sys.stderr)
+    if args.json:
+        summary["warnings"] = figure_notes
+        print(json.dumps(summary))
+        return 0
+    print_written(files, notes)
+    return 0
+
+
 def check_job_or_example(args, kind="job file"):
     """Exactly one of ``args.job`` and ``args.example``; ``--n-jobs`` (if any) not 0."""
     if (args.job is None) == (args.example is None):

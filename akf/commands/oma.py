@@ -11,7 +11,7 @@ from core_akf.checks import AKFInputError
 from core_akf.outputs import write_csv
 
 from ..outputs import OutputFolder
-from .common import add_print_job, print_written
+from .common import add_print_job, finish
 
 
 def _oma(args):
@@ -81,32 +81,33 @@ def _oma(args):
         figure_notes = []
         if not args.no_plot:
             draw(files, "stabilisation", figure_notes, plot_stabilisation, res, os.path.join(out, "stabilisation.png"),
-                 f"{job.name}: stabilisation diagram")
-    for note in figure_notes:
-        print(f"akf: warning: {note}", file=sys.stderr)
-    if args.json:
-        summary["warnings"] = figure_notes
-        print(json.dumps(summary))
-        return 0
-    print_written(files, [])
-    return 0
+                 f"{job.name}: stabilisation diagram", model_hz=model.frequencies(k))
+    return finish(args, summary, files, figure_notes)
 
 
 #: the periods of the model's first mode a record must hold for its modal analysis
 MIN_PERIODS = 20.0
 
 
-def plot_stabilisation(res, path, title):
+def plot_stabilisation(res, path, title, model_hz=()):
     """The stabilisation diagram: every physical pole by frequency and model order, the stable
-    ones filled, the identified modes as vertical lines."""
+    ones filled, the identified modes (solid) and the model's modes (dashed) as vertical lines,
+    over the band of the stable poles."""
     from core_akf.figures import subplots
 
     fig, ax = subplots(figsize=(7, 4))
     p = res.poles
     ax.plot(p["frequency_hz"][~p["stable"]], p["order"][~p["stable"]], "x", ms=3, color="0.6", label="pole")
     ax.plot(p["frequency_hz"][p["stable"]], p["order"][p["stable"]], "o", ms=3, color="C0", label="stable pole")
-    for f in res.modes["frequency_hz"]:
-        ax.axvline(f, color="C3", lw=0.8)
+    top = 1.15 * max([*p["frequency_hz"][p["stable"]], *res.modes["frequency_hz"], 1e-9])
+    for i, f in enumerate(res.modes["frequency_hz"]):
+        ax.axvline(f, color="C3", lw=0.8, label="identified mode" if i == 0 else None)
+        ax.annotate(f"{f:.4g}", (f, 1.0), xycoords=("data", "axes fraction"), rotation=90, fontsize=6,
+                    va="top", ha="right", color="C3")
+    shown = [f for f in model_hz if f <= top]
+    for i, f in enumerate(shown):
+        ax.axvline(f, color="k", lw=0.7, ls="--", label="filter's model" if i == 0 else None)
+    ax.set_xlim(0, top)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("model order")
     ax.set_title(title, fontsize=9)

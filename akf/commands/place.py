@@ -16,7 +16,7 @@ from core_akf.outputs import write_csv
 
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, check_scheduler
-from .common import add_print_job, print_written, seed
+from .common import add_print_job, finish, seed
 
 log = logging.getLogger("akf")
 
@@ -81,9 +81,11 @@ def _run_front(args, problem, settings, out):
     if front.empty:
         raise AKFInputError("no layout the GA tried is admissible (each is undetectable, fails its filter or breaks "
                             "the constraints)")
-    front["error"] = [problem.full_record_error(s.split()) for s in front["sensors"]]
+    # the GA's front and logbook first; the whole-record checks (a simulation each) then complete the front
     files = {"front": write_csv(front, os.path.join(out, "front.csv")),
              "logbook": write_csv(res.logbook, os.path.join(out, "logbook.csv"))}
+    front["error"] = [problem.full_record_error(s.split()) for s in front["sensors"]]
+    write_csv(front, files["front"])
     summary = {"front": json.loads(front.to_json(orient="records")), "evaluations": res.evaluations,
                "cost_per_kind": cost, "files": files,
                "units": {"error": "µε (average RMS strain error, full record)", "window_error": "µε",
@@ -99,7 +101,7 @@ def _run_front(args, problem, settings, out):
     if not args.no_plot:
         draw(files, "front", figure_notes, plot_pareto, front, os.path.join(out, "front.png"),
              f"{problem.name}: whole-record error against cost")
-    return _finish(args, summary, files, figure_notes, [])
+    return finish(args, summary, files, figure_notes, [])
 
 
 def _run_place(args, problem, settings, out):
@@ -172,19 +174,7 @@ def _run_place(args, problem, settings, out):
         draw(files, "layout", figure_notes, plot_layout, enc, res.best, os.path.join(out, "layout.png"),
              f"best layout: window error {res.best_error:.3f} {'%' if fatigue else 'µε'}, full record {error:.3f} µε",
              forces=obj.model.forces)
-    return _finish(args, summary, files, figure_notes, notes)
-
-
-def _finish(args, summary, files, figure_notes, notes):
-    """The figures' warnings, then the JSON summary or the written files with the notes."""
-    for note in figure_notes:
-        print(f"akf: warning: {note}", file=sys.stderr)
-    if args.json:
-        summary["warnings"] = figure_notes
-        print(json.dumps(summary))
-        return 0
-    print_written(files, notes)
-    return 0
+    return finish(args, summary, files, figure_notes, notes)
 
 
 def robustness(problem, objective, enc, sensors, out, files):
