@@ -15,7 +15,11 @@ sensor kind; ``force_increment_cov`` and ``model_error_cov`` multiply S and Q; `
 ``force_timescale`` multiply the standard deviation and the time scale of a Matérn force model
 (:mod:`core_akf.forcemodels`), one factor for all forces.  The stiffness is scanned on a grid first (the likelihood
 of a frequency can have several peaks); then L-BFGS-B refines all of them together.  Standard
-errors come from the curvature of the log-likelihood at the optimum (the observed information).
+errors come from the curvature of the log-likelihood at the optimum (the observed information),
+and robust ones from the per-step scores as well (the sandwich, :mod:`core_akf.inference`): the
+first hold only if the model made the record, the second also when it did not (a force prior
+that does not fit the loads, the usual case), and a warning names the parameters where the two
+differ by more than :data:`core_akf.inference.MISFIT_RATIO`.
 """
 from __future__ import annotations
 
@@ -33,6 +37,7 @@ from .filter import kernels
 from .filter.kernels import steady_logliks
 from .filter.model import Filter
 from .forcemodels import DummyMeasurements, ForceModel, as_force_model
+from .inference import MISFIT_RATIO, information_ratio, sandwich_covariance
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -67,7 +72,8 @@ class CalibrationResult:
         ``noise_cov:strain:13``, ``frequencies:2``, ...).
     std_errors : dict
         The standard error of each factor, relative (the standard error of its natural log,
-        from the observed information); NaN where the curvature is not negative.
+        from the observed information); NaN where the curvature is not negative.  Right only
+        if the model made the record.
     loglik_before, loglik_after : float
         The record's log-likelihood with the starting and the fitted values.
     warnings : list of str
@@ -85,6 +91,12 @@ class CalibrationResult:
         Per channel, the innovation RMS over its predicted standard deviation (after the first 5 %
         of the record; about 1 when the model and the covariances fit) with the starting and the
         fitted values.
+    robust_std_errors : dict
+        The same keys as ``std_errors``: the robust (sandwich) standard errors from the per-step
+        scores with their autocorrelation (:func:`core_akf.inference.sandwich_covariance`); they
+        hold also when the model does not fit the record (a wrong force prior).
+    hac_bandwidth : float
+        The autocorrelation lags (steps) the robust errors took into account.
     """
 
     values: dict
@@ -99,10 +111,12 @@ class CalibrationResult:
     layout: tuple = ()
     consistency_before: dict = field(default_factory=dict)
     consistency_after: dict = field(default_factory=dict)
+    robust_std_errors: dict = field(default_factory=dict)
+    hac_bandwidth: float = 0.0
 
     def summary(self) -> pd.DataFrame:
         """The fit as a table, as ``akf calibrate`` prints it: a row per parameter (``kind``
-        "parameter": its ``factor`` and relative ``std_error``) and a row per channel (``kind``
+        "parameter": its ``factor``, relative ``std_error`` and ``robust_std_error``) and a row per channel (``kind``
         "consistency": innovation RMS over predicted, ``before`` and ``after``).  ``attrs`` holds
         the log-likelihood before and after, the filters run, the seconds and the warnings.
 
@@ -112,17 +126,18 @@ class CalibrationResult:
         """
         import pandas as pd
 
-        rows = [{"kind": "parameter", "name": n, "factor": f, "std_error": self.std_errors[n]}
-                for n, f in self.multipliers.items()]
+        rows = [{"kind": "parameter", "name": n, "factor": f, "std_error": self.std_errors[n],
+                 "robust_std_error": self.robust_std_errors.get(n, np.nan)} for n, f in self.multipliers.items()]
         rows += [{"kind": "consistency", "name": c, "before": b, "after": self.consistency_after.get(c, np.nan)}
                  for c, b in self.consistency_before.items()]
-        frame = pd.DataFrame(rows, columns=["kind", "name", "factor", "std_error", "before", "after"])
+        frame = pd.DataFrame(rows, columns=["kind", "name", "factor", "std_error", "robust_std_error", "before", "after"])
         frame.attrs = {k: v for k, v in self.to_dict().items() if k in ("loglik_before", "loglik_after", "evaluations",
                                                                           "seconds", "warnings")}
         return frame
 
     def to_dict(self) -> dict:
-        """The fit's JSON block: factors and their standard errors, the log-likelihood and the
+        """The fit's JSON block: factors and their standard errors (observed information and
+        robust, with the same keys), the log-likelihood and the
         consistency per channel before and after, the warnings, the filters run and the seconds.
 
         Returns
@@ -130,6 +145,7 @@ class CalibrationResult:
         dict
         """
         return {"multipliers": dict(self.multipliers), "std_errors": dict(self.std_errors),
+                "robust_std_errors": dict(self.robust_std_errors), "hac_bandwidth_steps": self.hac_bandwidth,
                 "loglik_before": self.loglik_before, "loglik_after": self.loglik_after,
                 "consistency_before": dict(self.consistency_before), "consistency_after": dict(self.consistency_after),
                 "warnings": list(self.warnings), "evaluations": self.evaluations, "seconds": self.seconds}
@@ -291,12 +307,12 @@ class _Problem:
         est = f.estimates(kernels.steady(f, self.Y[None], loglik=True), self.Y[None, :, :len(self.layout)])[0]
         return {d["channel"]: d["consistency"] for d in est.diagnostics()}
 
-    def logliks(self, U):
-        """The log-likelihood at every row of ``U`` (one batch)."""
+    def logliks(self, U, per_step=False):
+        """The log-likelihood at every row of ``U`` (one batch), (B,); per step (B, N) with ``per_step``."""
         mats = [self.matrices(u) for u in np.atleast_2d(U)]
         self.evaluations += len(mats)
         A, G, Q, R = (np.stack(x) for x in zip(*mats))
-        return steady_logliks(A, G, Q, R, self.Y)
+        return steady_logliks(A, G, Q, R, self.Y, per_step=per_step)
 
 
 def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
@@ -419,13 +435,13 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     after = float(problem.logliks(u)[0])
     if after < before:                                  # never worse than the start
         u, after = np.zeros(len(u)), before
-    errors, warnings = _curvature(problem, u, bounds, before)
+    errors, robust, bandwidth, warnings = _curvature(problem, u, bounds, before)
     multipliers = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
     values = _values(multipliers, names, noise_cov, model_error_cov, force_model.increment_cov, layout)
     fitted_force = _fitted_force(problem, force_model, multipliers, names, values)
     consistency = [problem.consistency(v) for v in (np.zeros(len(u)), u)]      # two kernel runs
     return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
-                             time.perf_counter() - start_time, fitted_force, layout, *consistency)
+                             time.perf_counter() - start_time, fitted_force, layout, *consistency, robust, bandwidth)
 
 
 def _bounds(problem, force_model, n_steps, stiffness_range, decades):
@@ -590,8 +606,18 @@ def _level(value, name, scaled):
 
 
 def _curvature(problem, u, bounds, before):
-    """Standard errors of the log-factors from the observed information, and warnings for a fit on
-    a bound or a parameter the likelihood does not see."""
+    """Standard errors of the log-factors from the observed information and robust ones (the
+    sandwich of the per-step scores), and warnings for a fit on a bound, a parameter the
+    likelihood does not see, or robust errors far from the others (a model that does not fit).
+
+    Returns
+    -------
+    errors, robust : dict
+        By parameter name.
+    bandwidth : float
+        The scores' HAC bandwidth (steps).
+    warnings : list of str
+    """
     k = len(u)
     h = 10 * LOG_STEP
     E = np.eye(k) * h
@@ -612,10 +638,12 @@ def _curvature(problem, u, bounds, before):
         std = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
     except np.linalg.LinAlgError:
         std = np.full(k, np.nan)
-    errors = {}
+    robust, bandwidth = _robust(problem, u, h, H)
+    errors, named = {}, set()                   # named: a warning already says its errors mean little
     for i, name in enumerate(problem.names):
         lo, hi = bounds[i]
         errors[name] = float(std[i])
+        named.add(name)
         if np.isclose(u[i], lo, atol=1e-3) or np.isclose(u[i], hi, atol=1e-3):
             side = "lower" if np.isclose(u[i], lo, atol=1e-3) else "upper"
             ends = problem.logliks(np.array([np.where(np.arange(k) == i, b, u) for b in (lo, hi)]))
@@ -628,7 +656,39 @@ def _curvature(problem, u, bounds, before):
         elif not np.isfinite(std[i]) or H[i, i] > -FLAT:
             warnings.append(f"{name}: the likelihood barely changes with it near the optimum; the record does not "
                             "identify it well (its fitted value is uncertain)")
-    return errors, warnings
+        else:
+            named.discard(name)
+    ratio = information_ratio(std, robust)
+    off = [(n, r) for n, r in zip(problem.names, ratio)
+           if n not in named and np.isfinite(r) and not 1 / MISFIT_RATIO <= r <= MISFIT_RATIO]
+    if off:
+        warnings.append("the model does not fit the record as its likelihood assumes: the robust standard errors are "
+                        + ", ".join(f"{r:.2g}x ({n})" for n, r in off) + " the observed-information ones; use the robust "
+                        "ones. The usual cause, in order: a force prior whose spectrum is not the loads' (force_model), "
+                        "a model error the filter does not allow for (model_error_cov), non-Gaussian noise")
+    return errors, dict(zip(problem.names, map(float, robust))), bandwidth, warnings
+
+
+def _robust(problem, u, h, H):
+    """Robust standard errors of the log-factors ``u``: the sandwich of the observed information
+    ``-H`` and the per-step scores (central differences of each step's log-likelihood term), and
+    the HAC bandwidth used.  NaN where ``-H`` is not positive definite."""
+    from .inference import hac_bandwidth
+
+    k = len(u)
+    E = h * np.eye(k)
+    terms = problem.logliks(np.vstack([u + E, u - E]), per_step=True)
+    scores = ((terms[:k] - terms[k:]) / (2 * h)).T                     # (N, k)
+    nan = np.full(k, np.nan)
+    if not np.all(np.isfinite(scores)):
+        return nan, 0.0
+    try:
+        np.linalg.cholesky(-H)
+    except np.linalg.LinAlgError:
+        return nan, 0.0
+    bandwidth = hac_bandwidth(scores)
+    V = sandwich_covariance(-H, scores, bandwidth)
+    return np.sqrt(np.where(np.diag(V) > 0, np.diag(V), np.nan)), bandwidth
 
 
 def _values(multipliers, names, noise_cov, model_error_cov, force_increment_cov, layout):

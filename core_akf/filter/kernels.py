@@ -277,7 +277,7 @@ def steady_outputs(A, G, Q, R, Y, H):
     return fixed_gain(A, G, L, Y, outputs=H)
 
 
-def steady_logliks(A, G, Q, R, Y):
+def steady_logliks(A, G, Q, R, Y, per_step=False):
     """The log-likelihood of one record under a stack of steady-state filters.
 
     Parameters
@@ -288,10 +288,13 @@ def steady_logliks(A, G, Q, R, Y):
     R : ndarray (B, m, m)
     Y : ndarray (N, m)
         The record (SI), the same for every filter.
+    per_step : bool
+        Return each step's term (its channels summed) instead of the sum: the per-step scores of
+        robust standard errors (:mod:`core_akf.inference`) are their differences.
 
     Returns
     -------
-    ndarray (B,)
+    ndarray (B,), or (B, N) with ``per_step``
         One log-likelihood per filter; ``-inf`` where the steady-state gain does not exist.
 
     Examples
@@ -306,7 +309,7 @@ def steady_logliks(A, G, Q, R, Y):
     """
     Y = np.asarray(Y, float)
     B = A.shape[0]
-    out = np.full(B, -np.inf)
+    out = np.full((B, Y.shape[0]) if per_step else B, -np.inf)
     ok = np.arange(B)
     try:
         P, L = steady_gain(A, G, Q, R)
@@ -320,13 +323,14 @@ def steady_logliks(A, G, Q, R, Y):
     seen = observed(Ys)
     if seen is not None:                               # missing samples: the filter of each pattern
         run = steady_gapped(A, G, Q, R, Ys, seen, np.zeros(A.shape[:-1]), loglik=True, full=(P, L))
-        out[ok] = run.loglik
+        out[ok] = run.loglik_terms.sum(axis=-1) if per_step else run.loglik
         return out
     predicted = fixed_gain(A, G, L, Ys, outputs=G @ A)           # G A X_k: the next step's predicted channels
     E = np.empty_like(Ys)
     E[:, 0] = Ys[:, 0]
     E[:, 1:] = Ys[:, 1:] - predicted[:, :-1]
-    out[ok] = loglik_terms(E, innovation_covariance(G, P, R)).sum(axis=(1, 2))
+    terms = loglik_terms(E, innovation_covariance(G, P, R))
+    out[ok] = terms.sum(axis=-1) if per_step else terms.sum(axis=(1, 2))
     return out
 
 
