@@ -110,8 +110,9 @@ def uncertainty_of(job: Job):
 def calibrated_frequencies(job: Job, path: str):
     """The per-mode frequency factors of a calibration and the standard errors of their
     logarithms: ``[filter] frequency_factors`` of the ``calibrated.toml`` at ``path`` (relative to
-    the job file) and ``std_errors`` of the ``calibration.json`` that akf calibrate wrote beside it.
-    A mode the calibration did not fit keeps factor 1 with no spread."""
+    the job file) and the standard errors of the ``calibration.json`` that akf calibrate wrote
+    beside it: the larger of the robust and the observed-information one of each mode.  A mode the
+    calibration did not fit keeps factor 1 with no spread."""
     import json
     import os
 
@@ -133,7 +134,9 @@ def calibrated_frequencies(job: Job, path: str):
     report = os.path.join(os.path.dirname(path), "calibration.json")
     try:
         with open(report, encoding="utf-8") as fh:
-            errors = json.load(fh)["std_errors"]
+            saved = json.load(fh)
+        errors = {name: max(value, saved.get("robust_std_errors", {}).get(name, 0.0) or 0.0)
+                  for name, value in saved["std_errors"].items()}
     except (OSError, ValueError, KeyError, TypeError):
         raise AKFInputError(f"{where}: no calibration.json with the standard errors beside {path} (akf calibrate "
                             "writes it since this version: run it again)") from None

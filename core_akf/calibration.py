@@ -664,21 +664,28 @@ def _curvature(problem, u, bounds, before):
     if off:
         warnings.append("the model does not fit the record as its likelihood assumes: the robust standard errors are "
                         + ", ".join(f"{r:.2g}x ({n})" for n, r in off) + " the observed-information ones; use the robust "
-                        "ones. The usual cause, in order: a force prior whose spectrum is not the loads' (force_model), "
-                        "a model error the filter does not allow for (model_error_cov), non-Gaussian noise")
+                        "ones. Possible causes: a force prior whose spectrum is not the loads' (force_model), a model "
+                        "error the filter does not allow for (model_error_cov), non-Gaussian noise (outliers, spikes)")
     return errors, dict(zip(problem.names, map(float, robust))), bandwidth, warnings
 
 
 def _robust(problem, u, h, H):
     """Robust standard errors of the log-factors ``u``: the sandwich of the observed information
     ``-H`` and the per-step scores (central differences of each step's log-likelihood term), and
-    the HAC bandwidth used.  NaN where ``-H`` is not positive definite."""
+    the HAC bandwidth used.  NaN where ``-H`` is not positive definite.
+
+    The scores of the start-up transient (the first 5 %, as the consistency) are left out: the
+    steady filter starts from a zero mean with its converged covariance, so its first innovations
+    are far larger than predicted even when the model is right.  ``J`` of the rest is scaled to
+    the whole record."""
+    from .filter.results import skipped
     from .inference import hac_bandwidth
 
     k = len(u)
     E = h * np.eye(k)
     terms = problem.logliks(np.vstack([u + E, u - E]), per_step=True)
-    scores = ((terms[:k] - terms[k:]) / (2 * h)).T                     # (N, k)
+    n_steps = terms.shape[1]
+    scores = ((terms[:k] - terms[k:]) / (2 * h)).T[skipped(n_steps):]             # (N', k)
     nan = np.full(k, np.nan)
     if not np.all(np.isfinite(scores)):
         return nan, 0.0
@@ -687,7 +694,7 @@ def _robust(problem, u, h, H):
     except np.linalg.LinAlgError:
         return nan, 0.0
     bandwidth = hac_bandwidth(scores)
-    V = sandwich_covariance(-H, scores, bandwidth)
+    V = sandwich_covariance(-H, scores * np.sqrt(n_steps / scores.shape[0]), bandwidth)
     return np.sqrt(np.where(np.diag(V) > 0, np.diag(V), np.nan)), bandwidth
 
 

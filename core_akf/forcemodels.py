@@ -274,6 +274,44 @@ class ForceModel:
         poly = {0: 1.0, 1: 1.0 + r, 2: 1.0 + r + r ** 2 / 3.0}[self.order]
         return std[:, None] ** 2 * poly * np.exp(-r)
 
+    def sample(self, n_steps: int, dt: float, n_p: int = 1, seed: int | np.random.Generator | None = None) -> np.ndarray:
+        """Force histories drawn from this prior (a stationary model): its exact discretisation
+        started from the stationary distribution -- loads for which the prior is right.
+
+        Parameters
+        ----------
+        n_steps : int
+            Steps.
+        dt : float
+            Time step (s).
+        n_p : int
+            Forces.
+        seed : int or numpy.random.Generator, optional
+
+        Returns
+        -------
+        ndarray (n_steps, n_p)
+            (N).
+
+        Examples
+        --------
+        >>> f = ForceModel("matern12", std=100.0, timescale=0.01).sample(20000, 1e-3, seed=0)
+        >>> 80 < float(f.std()) < 120
+        True
+        """
+        if self.order is None:
+            raise AKFInputError("the random-walk force model is not stationary: draw its increments instead")
+        F_d, Q_d = self.discrete(n_p, dt)
+        rng = np.random.default_rng(seed)
+        L = np.linalg.cholesky(Q_d)
+        xi = rng.multivariate_normal(np.zeros(F_d.shape[0]), self.stationary_covariance(n_p))
+        H = self.output(n_p)
+        loads = np.empty((int(n_steps), n_p))
+        for k in range(int(n_steps)):
+            loads[k] = H @ xi
+            xi = F_d @ xi + L @ rng.standard_normal(F_d.shape[0])
+        return loads
+
     def scaled(self, std_factor: ArrayLike = 1.0, timescale_factor: ArrayLike = 1.0) -> ForceModel:
         """The same kind with its std and time scale multiplied (a Matérn model; calibration).
 

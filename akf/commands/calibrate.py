@@ -57,9 +57,10 @@ def _calibrate(args):
     print(f"{job.name}: calibrated {', '.join(job.calibrate)} on {report['record_steps']} steps "
           f"({report['seconds']:.2f} s, {report['evaluations']} filters)")
     print(f"  log-likelihood: {report['loglik_before']:.8g} -> {report['loglik_after']:.8g}")
-    print("  parameter                 factor     std error (relative)")
+    print("  parameter                 factor     std error (relative): observed     robust")
     for name, factor in report["multipliers"].items():
-        print(f"    {name:22s} {factor:10.5g}   {report['std_errors'][name]:10.3g}")
+        print(f"    {name:22s} {factor:10.5g}   {report['std_errors'][name]:29.3g} "
+              f"{report['robust_std_errors'][name]:10.3g}")
     if "stiffness_factor" in report:
         print(f"  stiffness_factor = {report['stiffness_factor']:.6g} (relative to [structure])")
     if "frequency_factors" in report:

@@ -200,17 +200,7 @@ def test_streamed_equals_whole_under_force_models(kw):
 
 def _gp_loads(model, n_steps, dt, seed):
     """Force histories drawn from a Matérn process (its exact discretisation), one column per force."""
-    n_p = np.size(model.std)
-    F_d, Q_d = model.discrete(n_p, dt)
-    rng = np.random.default_rng(seed)
-    L = np.linalg.cholesky(Q_d)
-    xi = rng.multivariate_normal(np.zeros(F_d.shape[0]), model.stationary_covariance(n_p))
-    H = model.output(n_p)
-    loads = np.empty((n_steps, n_p))
-    for k in range(n_steps):
-        loads[k] = H @ xi
-        xi = F_d @ xi + L @ rng.standard_normal(F_d.shape[0])
-    return loads
+    return model.sample(n_steps, dt, np.size(model.std), seed)
 
 
 def test_calibration_recovers_the_parameters_of_a_gaussian_process_load():
