@@ -18,6 +18,125 @@ def calibration_record(job, record):
     return next(iter(record.chunks(min(steps, record.n_steps))))[1]
 
 
+#: the periods of the model's first mode a record must hold for its modal analysis
+MIN_PERIODS = 20.0
+#: a calibrated frequency this many OMA standard errors from the identified one is named in a warning
+OMA_SIGMAS = 3.0
+#: the record is cut into this many pieces for the OMA frequencies' standard errors
+OMA_PIECES = 4
+
+
+def identify_modes(job, model, Y, source, block_rows=None, max_order=None):
+    """SSI-cov (:func:`core_akf.oma.ssi_cov`) of a job's accelerometer channels of the record ``Y``
+    (its longest stretch without missing samples), paired with ``model``'s modes by MAC.
+
+    Returns ``(result, paired, labels, Y_used, source, k)``: the identification, its modes with
+    their model modes (:func:`core_akf.oma.pair_modes`), the channels, the samples used, where
+    they came from, and the model modes compared.  Fewer than 2 accelerometers, or a record
+    shorter than :data:`MIN_PERIODS` periods of the model's first mode, is an
+    :class:`~core_akf.checks.AKFInputError`."""
+    from core_akf.checks import AKFInputError
+    from core_akf.oma import pair_modes, ssi_cov
+    from core_akf.sensors import selection_matrices
+
+    picked = [i for i, s in enumerate(job.sensors) if s.kind == "acc"]
+    if len(picked) < 2:
+        raise AKFInputError(f"operational modal analysis needs at least 2 accelerometers; the job has {len(picked)} "
+                            f"({', '.join(s.label for s in job.sensors)})")
+    labels = [job.sensors[i].label for i in picked]
+    Y = np.asarray(Y, float)[:, picked]
+    seen = np.all(np.isfinite(Y), axis=1)
+    if not seen.all():                  # the longest stretch without a hole
+        edges = np.flatnonzero(np.diff(np.r_[0, seen.astype(int), 0]))
+        starts, ends = edges[::2], edges[1::2]
+        j = int(np.argmax(ends - starts))
+        Y = Y[starts[j]:ends[j]]
+        source += f" (its longest stretch without missing samples: steps {starts[j]}-{ends[j] - 1})"
+    first = float(model.frequencies(1)[0])
+    if Y.shape[0] * job.dt * first < MIN_PERIODS:
+        raise AKFInputError(f"{source} holds {Y.shape[0] * job.dt:.4g} s, {Y.shape[0] * job.dt * first:.3g} periods "
+                            f"of the model's first mode ({first:.4g} Hz): modal analysis needs at least "
+                            f"{MIN_PERIODS:g} ({MIN_PERIODS / first:.4g} s)")
+    res = ssi_cov(Y, job.dt, channels=labels, block_rows=block_rows, max_order=max_order, min_periods=MIN_PERIODS)
+    k = min(model.n, max(12, 2 * len(res.modes)))
+    shapes = (selection_matrices(model, [job.sensors[i] for i in picked])["acc"] @ model.modes(k)).T
+    return res, pair_modes(res, model.frequencies(k), shapes), labels, Y, source, k
+
+
+def oma_frequencies(job, model, Y, modes):
+    """The identified frequency of each of ``modes`` (1-based, of ``model``) and its standard
+    error: SSI-cov of the whole record, and the spread over :data:`OMA_PIECES` pieces of it
+    (each long enough; else halves) divided by the square root of their number.
+
+    Returns ``{mode: (frequency_hz, std_error_hz)}`` for the modes identified and paired (the
+    error NaN when fewer than two pieces found the mode).  Raises
+    :class:`~core_akf.checks.AKFInputError` where no modal analysis can run."""
+    from core_akf.checks import AKFInputError
+
+    _, paired, _, Y_used, source, _ = identify_modes(job, model, Y, "the calibration record")
+    found = {}
+    for r in paired.itertuples():
+        if r.model_mode is not None and r.model_mode == r.model_mode and int(r.model_mode) in modes:
+            found.setdefault(int(r.model_mode), float(r.frequency_hz))
+    pieces = {}
+    for n in (OMA_PIECES, 2):
+        step = Y_used.shape[0] // n
+        try:
+            for i in range(n):
+                part = identify_modes(job, model, Y_used[i * step:(i + 1) * step], source)[1]
+                for r in part.itertuples():
+                    if r.model_mode is not None and r.model_mode == r.model_mode and int(r.model_mode) in found:
+                        pieces.setdefault(int(r.model_mode), []).append(float(r.frequency_hz))
+            break
+        except AKFInputError:
+            pieces = {}
+    return {k: (f, float(np.std(pieces[k], ddof=1) / np.sqrt(len(pieces[k]))) if len(pieces.get(k, [])) > 1
+                else float("nan")) for k, f in sorted(found.items())}
+
+
+def _oma_start(job, model, Y):
+    """The OMA seed of ``frequencies``: the starting factors, the identified frequencies and a note
+    (why none, when no modal analysis can run)."""
+    import time
+
+    from core_akf.calibration import calibration_modes
+    from core_akf.checks import AKFInputError
+    from core_akf.defaults import default
+
+    modes = job.calibrate_modes or calibration_modes(model, job.dt)
+    t0 = time.perf_counter()
+    try:
+        identified = oma_frequencies(job, model, Y, modes)
+    except AKFInputError as exc:
+        return {}, {}, f"no operational modal analysis to start from: {exc}"
+    f_model = model.frequencies(max(modes))
+    lo, hi = default("calibration_frequency_range")
+    start = {f"frequencies:{k}": f / f_model[k - 1] for k, (f, _) in identified.items()
+             if lo <= f / f_model[k - 1] <= hi}
+    missed = [k for k in modes if f"frequencies:{k}" not in start]
+    note = (f"started from the frequencies of an operational modal analysis of the accelerometers "
+            f"({time.perf_counter() - t0:.2f} s)" + (f"; modes {missed} were not identified (scanned)" if missed else ""))
+    return start, identified, note
+
+
+def _oma_check(identified, fitted_hz, modes):
+    """The calibrated frequencies against the identified ones: per mode a row, and a warning for
+    each mode more than :data:`OMA_SIGMAS` standard errors away."""
+    rows, warnings = [], []
+    for k in modes:
+        if k not in identified:
+            continue
+        f, se = identified[k]
+        z = (fitted_hz[k - 1] - f) / se if np.isfinite(se) and se > 0 else float("nan")
+        rows.append({"mode": k, "oma_hz": f, "oma_std_error_hz": se, "calibrated_hz": float(fitted_hz[k - 1]), "z": z})
+        if abs(z) > OMA_SIGMAS:
+            warnings.append(f"mode {k}: calibrated at {fitted_hz[k - 1]:.4f} Hz, outside the operational modal "
+                            f"analysis' {f:.4f} +- {OMA_SIGMAS:g} x {se:.2g} Hz ({z:+.1f} standard errors): one of the "
+                            "two is wrong -- the calibration when the force prior does not fit the loads, the modal "
+                            "analysis when the loads are not white near the mode (see oma_modes in akf oma)")
+    return rows, warnings
+
+
 def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     """Fit ``[filter] calibrate`` of a job on the record ``Y`` (:func:`core_akf.calibration.calibrate`).
 
@@ -29,8 +148,9 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     from core_akf.calibration import calibrate
 
     Q, fm = job.model_error_cov, job.force_model
+    start, identified, oma_note = _oma_start(job, model, Y) if "frequencies" in job.calibrate else ({}, {}, None)
     fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
-                    force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy)
+                    force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy, start=start)
     fitted = list(fit.apply(model, sensors, Q, fm.increment_cov, noise_cov))
     fitted[2] = fit.force_model if fm.stationary else ForceModel("random_walk", increment_cov=fitted[2])
 
@@ -57,4 +177,9 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
         if name in job.calibrate or f"{name}:forces" in job.calibrate:
             report[name] = fit.values[name]
     report |= fit.to_dict()
+    if oma_note is not None:
+        modes = sorted(int(n.split(":")[1]) for n in fit.multipliers if n.startswith("frequencies:"))
+        rows, warnings = _oma_check(identified, fitted[0].frequencies(max(modes)), modes)
+        report["oma"] = {"note": oma_note, "modes": rows}
+        report["warnings"] = report["warnings"] + warnings
     return (*fitted, report)

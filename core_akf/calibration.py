@@ -319,7 +319,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
               parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance | None = None,
               noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
               decades: float | None = None, modes: Sequence[int] | None = None,
-              force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None) -> CalibrationResult:
+              force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None,
+              start: dict | None = None) -> CalibrationResult:
     """Fit the filter's model and covariances to a record by maximum likelihood.
 
     Parameters
@@ -355,6 +356,11 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     force_model, dummy : optional
         The force model (its parameters are the starting ones) and dummy measurements, as in
         :func:`core_akf.filter.estimate`.
+    start : dict, optional
+        Starting factors by name, as :attr:`CalibrationResult.multipliers` (``"frequencies:2":
+        0.976``, from an operational modal analysis): the search starts there, and a frequency or
+        stiffness factor with a start is not scanned on a grid.  Each must lie inside its search
+        range.
 
     Returns
     -------
@@ -418,7 +424,13 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     if not np.isfinite(before):
         raise AKFInputError("the log-likelihood at the starting values is not finite (no steady-state filter): "
                             "check the covariances")
-    u0 = _grid_start(problem, u0, bounds, before)
+    given = _check_start(start, problem.names, bounds)
+    u0 = _grid_start(problem, u0, bounds, before, set(given))
+    for j, name in enumerate(problem.names):
+        if name in given:
+            u0[j] = np.log(given[name])
+    if given and not problem.logliks(u0)[0] > before:       # a start no better than the job's values: not taken
+        u0 = _grid_start(problem, np.zeros(len(problem.names)), bounds, before)
 
     def negative(u):
         k = len(u)
@@ -470,12 +482,26 @@ def _bounds(problem, force_model, n_steps, stiffness_range, decades):
     return bounds
 
 
-def _grid_start(problem, u0, bounds, before):
+def _check_start(start, names, bounds):
+    """The starting factors of :func:`calibrate`, checked: known names, positive, in range."""
+    given = dict(start or {})
+    for name, value in given.items():
+        if name not in names:
+            raise AKFInputError(f"start: {name!r} is not a parameter of this fit; they are {names}")
+        lo, hi = bounds[names.index(name)]
+        if not (isinstance(value, (int, float, np.floating)) and value > 0 and lo <= np.log(value) <= hi):
+            raise AKFInputError(f"start: {name} = {value!r} must be a factor inside its search range "
+                                f"[{np.exp(lo):.4g}, {np.exp(hi):.4g}]")
+    return {n: float(v) for n, v in given.items()}
+
+
+def _grid_start(problem, u0, bounds, before, skip=frozenset()):
     """The start of the local search: a grid first for what sets a frequency, whose likelihood may
     have several peaks -- the stiffness factor, or each mode's factor on its own (one batch; the
-    modes' peaks barely interact), and a force model's time scale."""
+    modes' peaks barely interact), and a force model's time scale.  Names in ``skip`` have a
+    start of their own."""
     scanned = [j for j, n in enumerate(problem.names)
-               if n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale"))]
+               if (n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale"))) and n not in skip]
     if not scanned:
         return u0
     grid = [np.linspace(*bounds[j], 25) for j in scanned]

@@ -7,7 +7,6 @@ import json
 import os
 import sys
 
-from core_akf.checks import AKFInputError
 from core_akf.outputs import write_csv
 
 from ..outputs import OutputFolder
@@ -17,9 +16,7 @@ from .common import add_print_job, finish
 def _oma(args):
     import numpy as np
 
-    from core_akf.oma import pair_modes, ssi_cov
-    from core_akf.sensors import selection_matrices
-
+    from ..calibrating import identify_modes
     from ..figures import draw
     from ..job import Job
     from .common import job_data, listing_or_template
@@ -28,10 +25,6 @@ def _oma(args):
     if done is not None:
         return done
     job = Job.from_dict(job_data(args, "estimate"), "estimate", source=args.job)
-    picked = [i for i, s in enumerate(job.sensors) if s.kind == "acc"]
-    if len(picked) < 2:
-        raise AKFInputError(f"operational modal analysis needs at least 2 accelerometers; the job has {len(picked)} "
-                            f"({', '.join(s.label for s in job.sensors)})")
     out = args.out or os.path.join("akf-out", job.name, "oma")
     with OutputFolder(out, "--out"):
         if job.spec.measurements is not None:
@@ -41,26 +34,9 @@ def _oma(args):
         else:
             Y = job.simulate().measurements
             source = "the simulated record"
-        labels = [job.sensors[i].label for i in picked]
-        Y = Y[:, picked]
-        seen = np.all(np.isfinite(Y), axis=1)
-        if not seen.all():                  # the longest stretch without a hole
-            edges = np.flatnonzero(np.diff(np.r_[0, seen.astype(int), 0]))
-            starts, ends = edges[::2], edges[1::2]
-            k = int(np.argmax(ends - starts))
-            Y = Y[starts[k]:ends[k]]
-            source += f" (its longest stretch without missing samples: steps {starts[k]}-{ends[k] - 1})"
         model = job.filter_model()
-        first = float(model.frequencies(1)[0])
-        if Y.shape[0] * job.dt * first < MIN_PERIODS:
-            raise AKFInputError(f"{source} holds {Y.shape[0] * job.dt:.4g} s, {Y.shape[0] * job.dt * first:.3g} periods "
-                                f"of the model's first mode ({first:.4g} Hz): modal analysis needs at least "
-                                f"{MIN_PERIODS:g} ({MIN_PERIODS / first:.4g} s)")
-        res = ssi_cov(Y, job.dt, channels=labels, block_rows=args.block_rows, max_order=args.max_order,
-                      min_periods=MIN_PERIODS)
-        k = min(model.n, max(12, 2 * len(res.modes)))
-        shapes = (selection_matrices(model, [job.sensors[i] for i in picked])["acc"] @ model.modes(k)).T
-        paired = pair_modes(res, model.frequencies(k), shapes)
+        res, paired, labels, Y, source, k = identify_modes(job, model, Y, source, block_rows=args.block_rows,
+                                                           max_order=args.max_order)
         files = {"modes": write_csv(paired, os.path.join(out, "oma_modes.csv")),
                  "stabilisation_table": write_csv(res.poles, os.path.join(out, "stabilisation.csv"))}
         summary = {"name": job.name, "channels": labels, "steps": int(Y.shape[0]), "source": source,
@@ -83,10 +59,6 @@ def _oma(args):
             draw(files, "stabilisation", figure_notes, plot_stabilisation, res, os.path.join(out, "stabilisation.png"),
                  f"{job.name}: stabilisation diagram", model_hz=model.frequencies(k))
     return finish(args, summary, files, figure_notes)
-
-
-#: the periods of the model's first mode a record must hold for its modal analysis
-MIN_PERIODS = 20.0
 
 
 def plot_stabilisation(res, path, title, model_hz=()):
