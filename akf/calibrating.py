@@ -173,7 +173,7 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
             report["noise_cov"] = fit.values["noise_cov"]
         else:
             report["noise_cov"] = [float(v) for v in np.diag(fitted[3])]
-    for name in ("force_increment_cov", "model_error_cov", "force_std", "force_timescale"):
+    for name in ("force_increment_cov", "model_error_cov", "force_std", "force_timescale", "force_band"):
         if name in job.calibrate or f"{name}:forces" in job.calibrate:
             report[name] = fit.values[name]
     report |= fit.to_dict()

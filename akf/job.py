@@ -215,6 +215,9 @@ class Job:
     def _force_model(self, f):
         """The :class:`~core_akf.forcemodels.ForceModel` of ``[filter]``, its keys checked together."""
         kind = f.force_model or "random_walk"
+        if kind != "butterworth" and (f.force_band is not None or f.force_band_order is not None):
+            raise AKFInputError("[filter] force_band and force_band_order belong to the Butterworth force model: set "
+                                "force_model = \"butterworth\", or remove them")
         if kind == "random_walk":
             if f.force_std is not None or f.force_timescale is not None:
                 raise AKFInputError("[filter] force_std and force_timescale belong to a Matérn force model: set "
@@ -223,6 +226,8 @@ class Job:
         if f.force_increment_cov is not None:
             raise AKFInputError(f"[filter] force_increment_cov is the random walk's S; force_model = \"{kind}\" takes "
                                 "force_std (N) and force_timescale (s) instead: remove force_increment_cov")
+        if kind == "butterworth":
+            return self._butterworth(f)
         if f.force_std is None or f.force_timescale is None:
             raise AKFInputError(f"[filter] force_model = \"{kind}\" needs force_std (N) and force_timescale (s), e.g. "
                                 "force_std = 500.0 and force_timescale = 0.005")
@@ -234,6 +239,30 @@ class Job:
         std, ell = (v[0] if isinstance(v, list) and len(v) == 1 else v for v in (f.force_std, f.force_timescale))
         check_force_prior(std, ell, self.dt)
         return ForceModel(kind, std=std, timescale=ell)
+
+    def _butterworth(self, f):
+        """The Butterworth force model of ``[filter]``: ``force_std``, ``force_band`` below Nyquist, an order 2-8."""
+        if f.force_timescale is not None:
+            raise AKFInputError("[filter] force_timescale belongs to a Matérn force model; force_model = \"butterworth\" "
+                                "takes force_band = [f_low, f_high] (Hz) instead")
+        if f.force_std is None or f.force_band is None:
+            raise AKFInputError("[filter] force_model = \"butterworth\" needs force_std (N) and force_band = [f_low, "
+                                "f_high] (Hz), e.g. force_std = 500.0 and force_band = [0.0, 120.0]")
+        n_p = len(self.spec.forces or [])
+        if isinstance(f.force_std, list) and len(f.force_std) not in (1, n_p):
+            raise AKFInputError(f"[filter] force_std has {len(f.force_std)} values for {n_p} forces: give one, or one per force")
+        std = f.force_std[0] if isinstance(f.force_std, list) and len(f.force_std) == 1 else f.force_std
+        check_force_prior(std, [], self.dt)
+        low, high = f.force_band
+        if not low < high:
+            raise AKFInputError(f"[filter] force_band = {f.force_band} must be [f_low, f_high] with f_low < f_high (Hz)")
+        if self.dt and not high < 0.5 / self.dt:
+            raise AKFInputError(f"[filter] force_band reaches {high:g} Hz, at or above the Nyquist frequency "
+                                f"{0.5 / self.dt:.4g} Hz of dt = {self.dt:g} s: give f_high below it")
+        order = 4 if f.force_band_order is None else f.force_band_order
+        if order not in range(2, 9):
+            raise AKFInputError(f"[filter] force_band_order = {order} must be an integer from 2 to 8")
+        return ForceModel("butterworth", std=std, band=(float(low), float(high)), band_order=int(order))
 
     @classmethod
     def from_dict(cls, data: dict, command: str, *, source: str | os.PathLike | None = None,

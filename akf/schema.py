@@ -109,9 +109,9 @@ class StructureSection(BaseModel):
 #: what ``[filter] calibrate`` may list (:data:`core_akf.calibration.PARAMETERS` and the noise of one kind or per channel)
 CALIBRATION_KEYS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "noise_cov:strain", "noise_cov:acc",
                     "noise_cov:vel", "noise_cov:disp", "noise_cov:channels", "force_increment_cov", "model_error_cov",
-                    "force_std", "force_timescale", "force_std:forces", "force_timescale:forces")
+                    "force_std", "force_timescale", "force_band", "force_std:forces", "force_timescale:forces")
 #: the force models of ``[filter] force_model`` (:data:`core_akf.forcemodels.FORCE_MODELS`)
-FORCE_MODEL_NAMES = ("random_walk", "matern12", "matern32", "matern52")
+FORCE_MODEL_NAMES = ("random_walk", "matern12", "matern32", "matern52", "butterworth")
 PerForce = Positive | Annotated[list[Positive], Field(min_length=1)]
 
 
@@ -145,13 +145,20 @@ class Filter(Section):
         "one of " + ", ".join(f'\"{k}\"' for k in FORCE_MODEL_NAMES),
         "the forces' prior: random_walk (the papers'; needs strain or displacement sensors), or a stationary "
         "Gaussian process with a Matérn covariance (matern12, matern32, matern52: smoothness 1/2, 3/2, 5/2; "
-        "force_std and force_timescale), which makes accelerometer-only sets detectable for zero-mean loads",
+        "force_std and force_timescale) or band-limited white noise (butterworth: force_std, force_band and "
+        "force_band_order), which makes accelerometer-only sets detectable for zero-mean loads",
         default_text='"random_walk"')
     force_std: PerForce = key("a positive number or one per force", "Matérn force model: the standard deviation of "
                               "each force (akf calibrate learns it: calibrate = [\"force_std\"])", unit="N")
     force_timescale: PerForce = key("a positive number or one per force", "Matérn force model: the time scale "
                                     "(length scale) of each force's covariance, over which it stays correlated",
                                     unit="s")
+    force_band: Annotated[list[NonNegative], Field(min_length=2, max_length=2)] = key(
+        "[f_low, f_high], 0 <= f_low < f_high", "Butterworth force model: the loads' band (f_low = 0: a low-pass; "
+        "f_low > 0: a band-pass), below the Nyquist frequency; akf calibrate learns it: calibrate = [\"force_band\"]",
+        unit="Hz")
+    force_band_order: int = key("an integer from 2 to 8", "Butterworth force model: the filter's order (the spectrum "
+                                "falls by 20 x order dB per decade outside the band)", default_text="4")
     dummy: Dummy = key("a table {sensors = [...], variance = ...}", "zero-valued pseudo-measurements of "
                        "displacements or strains added to the sensors (dummy measurements): they keep an "
                        "accelerometer-only random-walk filter from drifting, at the cost of a bias towards zero "

@@ -13,7 +13,8 @@ The parameters are searched in logarithms (a factor 2 up is as far as a factor 2
 root); ``damping`` multiplies its modal damping ratio; ``noise_cov`` multiplies R, one factor per
 sensor kind; ``force_increment_cov`` and ``model_error_cov`` multiply S and Q; ``force_std`` and
 ``force_timescale`` multiply the standard deviation and the time scale of a Matérn force model
-(:mod:`core_akf.forcemodels`), one factor for all forces.  The stiffness is scanned on a grid first (the likelihood
+(:mod:`core_akf.forcemodels`), one factor for all forces; ``force_band`` multiplies both edges of a
+Butterworth model's band.  The stiffness is scanned on a grid first (the likelihood
 of a frequency can have several peaks); then L-BFGS-B refines all of them together.  Standard
 errors come from the curvature of the log-likelihood at the optimum (the observed information),
 and robust ones from the per-step scores as well (the sandwich, :mod:`core_akf.inference`): the
@@ -46,9 +47,13 @@ if TYPE_CHECKING:
 
 #: the parameters :func:`calibrate` can learn
 PARAMETERS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "force_increment_cov", "model_error_cov",
-              "force_std", "force_timescale")
+              "force_std", "force_timescale", "force_band")
+#: the parameters of a stationary force model that may be learnt one per force (``force_std:forces``)
+FORCE_PARAMETERS = ("force_std", "force_timescale", "force_band")
 #: central-difference step of the gradient and the curvature, in natural-log units (a 1e-4 relative change)
 LOG_STEP = 1e-4
+#: a Butterworth force model's band is learnt up to this fraction of the Nyquist frequency
+BAND_BELOW_NYQUIST = 0.95
 #: a parameter whose log-likelihood changes by less than this over its whole search range is not
 #: identifiable from the record
 FLAT = 1e-3
@@ -66,7 +71,8 @@ class CalibrationResult:
         fitted); ``damping_factor``, the factor on its modal damping ratio; ``noise_cov`` a dict
         of variances per sensor kind (SI^2) when R was given per kind and learnt per kind, else
         a list of variances per channel; ``force_increment_cov`` and ``model_error_cov`` levels;
-        ``force_std`` (N) and ``force_timescale`` (s) of a Matérn force model, one per force.
+        ``force_std`` (N) and ``force_timescale`` (s) of a Matérn force model, one per force;
+        ``force_band`` (Hz, ``[f_low, f_high]``, or one per force) of a Butterworth model.
     multipliers : dict
         The fitted factor of each parameter on its starting value (``noise_cov:acc``,
         ``noise_cov:strain:13``, ``frequencies:2``, ...).
@@ -245,7 +251,7 @@ class _Problem:
                 self.names += [f"noise_cov:{s.label}" for s in layout]
             elif name == "frequencies":
                 self.names += [f"frequencies:{k}" for k in self.modes]
-            elif name in ("force_std:forces", "force_timescale:forces"):
+            elif name in tuple(f"{b}:forces" for b in FORCE_PARAMETERS):
                 self.names += [f"{name.split(':')[0]}:{node}:{d}" for node, d in locs]
             else:
                 self.names.append(name)
@@ -287,17 +293,18 @@ class _Problem:
 
     def force_factors(self, p):
         """The factors on each force's std and time scale of the log-factors ``p`` (by name): one
-        for all (``force_std``) times one per force (``force_std:8:y``).
+        for all (``force_std``) times one per force (``force_std:8:y``).  A factor on a band
+        (``force_band``) is the inverse of one on the time scale.
 
         Returns
         -------
         std, timescale : ndarray (n_p,)
         """
-        out = []
-        for base in ("force_std", "force_timescale"):
+        u = {}
+        for base in FORCE_PARAMETERS:
             own = np.array([p.get(f"{base}:{node}:{d}", 0.0) for node, d in self.locs])
-            out.append(np.exp(p.get(base, 0.0) + own))
-        return tuple(out)
+            u[base] = p.get(base, 0.0) + own
+        return np.exp(u["force_std"]), np.exp(u["force_timescale"] - u["force_band"])
 
     def consistency(self, u):
         """Per channel, the innovation RMS over its predicted standard deviation under the log-factors
@@ -341,7 +348,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         kind of the layout; ``noise_cov:<kind>`` (``noise_cov:acc``) the factor of one kind only,
         ``noise_cov:channels`` one factor per channel; ``frequencies`` a factor per mode of
         ``modes``; ``force_std`` and ``force_timescale`` the parameters of a Matérn ``force_model``
-        (one factor for all forces; ``force_std:forces``, ``force_timescale:forces`` one per force).
+        (one factor for all forces; ``force_std:forces``, ``force_timescale:forces`` one per force),
+        ``force_std`` and ``force_band`` those of a Butterworth one (a factor on both band edges).
     model_error_cov, force_increment_cov, noise_cov
         The starting Q, S and R, as in :func:`core_akf.filter.estimate`.
     stiffness_range : (float, float), optional
@@ -395,12 +403,18 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     Y = as_measurements(measurements, "measurements", ndim=2)
     force_model = as_force_model(force_model, force_increment_cov)
     asked = [str(n) for n in ([parameters] if isinstance(parameters, str) else parameters)]
+    own = ("force_std", "force_band") if force_model.kind == "butterworth" else ("force_std", "force_timescale")
     if force_model.stationary and "force_increment_cov" in asked:
         raise AKFInputError(f"force_increment_cov is the random walk's S; the {force_model.kind} force model learns "
-                            "force_std and force_timescale")
-    if not force_model.stationary and any(n.startswith(("force_std", "force_timescale")) for n in asked):
-        raise AKFInputError("force_std and force_timescale are the parameters of a Matérn force model "
-                            "(force_model = matern12, matern32 or matern52); the random walk learns force_increment_cov")
+                            f"{own[0]} and {own[1]}")
+    if not force_model.stationary and any(n.startswith(FORCE_PARAMETERS) for n in asked):
+        raise AKFInputError("force_std and force_timescale are the parameters of a Matérn force model (matern12, "
+                            "matern32 or matern52), force_std and force_band those of a Butterworth one; the random "
+                            "walk learns force_increment_cov")
+    other = [n for n in asked if n.startswith(FORCE_PARAMETERS) and not n.startswith(own)]
+    if other:
+        raise AKFInputError(f"cannot calibrate {other} of the {force_model.kind} force model: its parameters are "
+                            f"{own[0]} and {own[1]}")
     base = Filter(structure, [sensors], forces, dt, model_error_cov=model_error_cov, noise_cov=noise_cov, steady=True,
                   force_model=force_model, dummy=dummy)
     layout, locs = base.layouts[0], base.locs
@@ -468,12 +482,24 @@ def _bounds(problem, force_model, n_steps, stiffness_range, decades):
     if not force_model.stationary:
         return bounds
     dt, locs = problem.base.dt, problem.locs
-    ell = np.broadcast_to(np.asarray(force_model.timescale, float), (len(locs),))
+    labels = [f"{n}:{d}" for n, d in locs]
+    if force_model.kind == "butterworth":
+        band = force_model.parameters(len(locs))[1]
+    else:
+        ell = np.broadcast_to(np.asarray(force_model.timescale, float), (len(locs),))
     for j, name in enumerate(problem.names):
         if name.startswith("force_std"):       # a factor on a std: its variance spans the decades, as the others'
             bounds[j] = (-width / 2, width / 2)
+        elif name.startswith("force_band"):    # the top of the band between ten cycles of the record and Nyquist
+            top = band[:, 1] if name == "force_band" else band[[labels.index(name.split(":", 1)[1])], 1]
+            bounds[j] = (max(-width, float(np.log(10.0 / (n_steps * dt) / np.min(top)))),
+                         min(width, float(np.log(BAND_BELOW_NYQUIST * 0.5 / dt / np.max(top)))))
+            if bounds[j][0] >= bounds[j][1]:
+                raise AKFInputError(f"force_band {np.asarray(force_model.band).tolist()} Hz is outside what a record "
+                                    f"of {n_steps} steps of {dt:g} s can resolve (ten cycles of the record to "
+                                    "the Nyquist frequency)")
         elif name.startswith("force_timescale"):   # between one step and a tenth of the record: what it resolves
-            own = ell if name == "force_timescale" else ell[[f"{n}:{d}" for n, d in locs].index(name.split(":", 1)[1])]
+            own = ell if name == "force_timescale" else ell[labels.index(name.split(":", 1)[1])]
             bounds[j] = (max(-width, float(np.log(dt / np.min(own)))),
                          min(width, float(np.log(0.1 * n_steps * dt / np.max(own)))))
             if bounds[j][0] >= bounds[j][1]:
@@ -501,7 +527,8 @@ def _grid_start(problem, u0, bounds, before, skip=frozenset()):
     modes' peaks barely interact), and a force model's time scale.  Names in ``skip`` have a
     start of their own."""
     scanned = [j for j, n in enumerate(problem.names)
-               if (n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale"))) and n not in skip]
+               if (n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale", "force_band")))
+               and n not in skip]
     if not scanned:
         return u0
     grid = [np.linspace(*bounds[j], 25) for j in scanned]
@@ -522,9 +549,11 @@ def _fitted_force(problem, force_model, multipliers, names, values):
         return None
     factors = problem.force_factors({n: np.log(v) for n, v in multipliers.items()})
     # one factor for all forces keeps a single std or time scale single
-    factors = [f if f"{base}:forces" in names else float(f[0]) for base, f in zip(("force_std", "force_timescale"), factors)]
+    per_force = ("force_std:forces" in names,
+                 "force_timescale:forces" in names or "force_band:forces" in names)
+    factors = [f if each else float(f[0]) for each, f in zip(per_force, factors)]
     fitted = force_model.scaled(*factors)
-    for name, value in (("force_std", fitted.std), ("force_timescale", fitted.timescale)):
+    for name, value in (("force_std", fitted.std), ("force_timescale", fitted.timescale), ("force_band", fitted.band)):
         if name in names or f"{name}:forces" in names:
             value = np.asarray(value, float)
             values[name] = float(value) if value.ndim == 0 else value.tolist()
@@ -575,10 +604,11 @@ def _check_parameters(parameters, layout):
     kinds = {s.kind for s in layout}
     for name in names:
         base, _, detail = str(name).partition(":")
-        per_force = base in ("force_std", "force_timescale") and detail == "forces"
+        per_force = base in FORCE_PARAMETERS and detail == "forces"
         if base not in PARAMETERS or (detail and base != "noise_cov" and not per_force):
             raise AKFInputError(f"cannot calibrate {name!r}; the parameters are {list(PARAMETERS)}, and noise_cov:<kind> "
-                                "or noise_cov:channels, force_std:forces or force_timescale:forces (one factor per force)")
+                                "or noise_cov:channels, force_std:forces, force_timescale:forces or force_band:forces "
+                                "(one factor per force)")
         if detail and not per_force and detail != "channels" and detail not in kinds:
             what = "is not a sensor kind" if detail not in KINDS else "has no channel in this layout"
             raise AKFInputError(f"cannot calibrate {name!r}: {detail!r} {what}; the layout's kinds are "
@@ -592,7 +622,7 @@ def _check_parameters(parameters, layout):
     if "stiffness_factor" in names and "frequencies" in names:
         raise AKFInputError("stiffness_factor and frequencies overlap (a stiffness factor moves every frequency): "
                             "calibrate one of them")
-    for base in ("force_std", "force_timescale"):
+    for base in FORCE_PARAMETERS:
         if base in names and f"{base}:forces" in names:
             raise AKFInputError(f"{base} and {base}:forces overlap ({base} is one factor for every force): give one")
     return names

@@ -91,7 +91,7 @@ class Covariances:
         """
         if base is None or not base.stationary:
             return ForceModel("random_walk", increment_cov=self.force_increment)
-        return ForceModel(base.kind, std=float(np.sqrt(self.force_increment)), timescale=base.timescale)
+        return base.with_std(float(np.sqrt(self.force_increment)))
 
 
 def default_covariances(sensors: Layout, measurements: Measurements, model_error: float = default("model_error_cov"),
@@ -226,8 +226,7 @@ class ImpactModel:
             The observation rows of all installed sensors.
         """
         if loc not in self._systems:        # a Matérn model with unit std: Q_f scales with std^2
-            unit = None if self.force_model is None else ForceModel(self.force_model.kind, std=1.0,
-                                                                    timescale=self.force_model.timescale)
+            unit = None if self.force_model is None else self.force_model.with_std(1.0)
             fm = FilterModel(self.full, [loc], self.dt, self.n_modes, force_model=unit)
             self._systems[loc] = (fm, fm.observation(self.layout))
         return self._systems[loc]

@@ -93,7 +93,7 @@ def check_parameters(names):
 
 #: the [filter] keys akf calibrate writes (and the ones it removes: the fit is done)
 WRITTEN = ("stiffness_factor", "frequency_factors", "noise_cov", "force_increment_cov", "model_error_cov", "force_std",
-           "force_timescale")
+           "force_timescale", "force_band")
 
 
 def write_calibrated(source, report, path):
@@ -214,7 +214,8 @@ def register(sub):
     p.add_argument("--list-examples", action="store_true", help="list the built-in examples")
     p.add_argument("--parameters", nargs="+", metavar="KEY", help="the [filter] keys to learn (instead of [filter] "
                    "calibrate): stiffness_factor, frequencies, damping, noise_cov (noise_cov:<kind>, noise_cov:channels), "
-                   "force_increment_cov, model_error_cov; force_std, force_timescale (a Matérn force_model)")
+                   "force_increment_cov, model_error_cov; force_std, force_timescale (a Matérn force_model); force_std, "
+                   "force_band (a Butterworth force_model)")
     p.add_argument("--out", help="output folder (default akf-out/NAME)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     add_print_job(p)
