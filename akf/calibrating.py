@@ -2,9 +2,9 @@
 (:func:`core_akf.calibration.calibrate`) and its report in the job's own terms."""
 from __future__ import annotations
 
-import numpy as np
+from dataclasses import replace
 
-from core_akf.forcemodels import ForceModel
+import numpy as np
 
 #: steps of a measured record that calibrate the filter without ``[filter] calibrate_window``
 #: (the estimate's longest chunk: one read of the record)
@@ -152,7 +152,7 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov):
     fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
                     force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy, start=start)
     fitted = list(fit.apply(model, sensors, Q, fm.increment_cov, noise_cov))
-    fitted[2] = fit.force_model if fm.stationary else ForceModel("random_walk", increment_cov=fitted[2])
+    fitted[2] = fit.force_model if fm.stationary else replace(fm, increment_cov=fitted[2])
 
     report = {"parameters": list(job.calibrate), "record_steps": int(Y.shape[0])}
     m = fit.multipliers

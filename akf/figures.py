@@ -96,6 +96,33 @@ def plot_sensors(time, measured, predicted, sensors, path, title):
     return save_figure(fig, path)
 
 
+def plot_transfer(frequencies, transfer, force_labels, natural_frequencies, path, title):
+    """``|F_hat / F|`` of each force against frequency (log axes), with the cross-talk from the
+    other forces dashed and the structure's natural frequencies as grey lines: the band in which
+    the layout recovers a force (:func:`core_akf.filter.force_transfer`, one layout's
+    ``(n_f, n_p, n_p)``)."""
+    from core_akf.figures import save_figure, subplots
+
+    n_p = len(force_labels)
+    fig, axes = subplots(n_p, 1, figsize=(8, 1.9 * n_p + 0.9), squeeze=False, sharex=True)
+    for j, label in enumerate(force_labels):
+        ax = axes[j, 0]
+        for fn in natural_frequencies:
+            ax.axvline(fn, color="0.85", lw=0.8, zorder=0)
+        ax.axhspan(1 / np.sqrt(2), np.sqrt(2), color="tab:green", alpha=0.08, lw=0)
+        ax.loglog(frequencies, np.abs(transfer[:, j, j]), "-", color="k", lw=1.2, label=f"{label} from {label}")
+        for k in range(n_p):
+            if k != j:
+                ax.loglog(frequencies, np.abs(transfer[:, j, k]), "--", lw=0.7, label=f"from {force_labels[k]}")
+        ax.set_ylim(1e-3, 10.0)
+        ax.set_ylabel(f"|F̂/F| {label}", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.legend(loc="lower right", fontsize=6, ncol=min(n_p, 4))
+    axes[-1, 0].set_xlabel("frequency (Hz); grey: natural frequencies; green: within 3 dB")
+    fig.suptitle(title)
+    return save_figure(fig, path)
+
+
 def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity="Miner's damage"):
     """The damage map on the structure (members or nodes coloured by ``damage``, log scale; a
     3-D structure in 3-D) above the ten most damaged outputs, ranked.  The strain gauges are

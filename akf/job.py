@@ -222,7 +222,7 @@ class Job:
             if f.force_std is not None or f.force_timescale is not None:
                 raise AKFInputError("[filter] force_std and force_timescale belong to a Matérn force model: set "
                                     "force_model = \"matern32\" (or matern12, matern52), or remove them")
-            return ForceModel("random_walk", increment_cov=self.force_increment_cov)
+            return ForceModel("random_walk", increment_cov=self.force_increment_cov, hold=f.load_hold or "zero")
         if f.force_increment_cov is not None:
             raise AKFInputError(f"[filter] force_increment_cov is the random walk's S; force_model = \"{kind}\" takes "
                                 "force_std (N) and force_timescale (s) instead: remove force_increment_cov")
@@ -238,7 +238,7 @@ class Job:
                 raise AKFInputError(f"[filter] {name} has {len(value)} values for {n_p} forces: give one, or one per force")
         std, ell = (v[0] if isinstance(v, list) and len(v) == 1 else v for v in (f.force_std, f.force_timescale))
         check_force_prior(std, ell, self.dt)
-        return ForceModel(kind, std=std, timescale=ell)
+        return ForceModel(kind, std=std, timescale=ell, hold=f.load_hold or "zero")
 
     def _butterworth(self, f):
         """The Butterworth force model of ``[filter]``: ``force_std``, ``force_band`` below Nyquist, an order 2-8."""
@@ -262,7 +262,8 @@ class Job:
         order = 4 if f.force_band_order is None else f.force_band_order
         if order not in range(2, 9):
             raise AKFInputError(f"[filter] force_band_order = {order} must be an integer from 2 to 8")
-        return ForceModel("butterworth", std=std, band=(float(low), float(high)), band_order=int(order))
+        return ForceModel("butterworth", std=std, band=(float(low), float(high)), band_order=int(order),
+                          hold=f.load_hold or "zero")
 
     @classmethod
     def from_dict(cls, data: dict, command: str, *, source: str | os.PathLike | None = None,
@@ -456,7 +457,16 @@ class Job:
         loads = self.loads(n_steps)
         absolute = _absolute_noise(sp.absolute_noise) if sp.absolute_noise is not None else None
         return simulate(structure, sensors, forces, loads, dt, relative_noise=sp.relative_noise,
-                        absolute_noise=absolute, seed=sp.seed or 0)
+                        absolute_noise=absolute, seed=sp.seed or 0, load_hold=self.load_hold)
+
+    @property
+    def load_hold(self) -> str:
+        """``[simulation] load_hold`` of an estimate or locate job: ``"linear"`` unless the job says
+        ``"zero"``; placement simulates its records held (``"zero"``)."""
+        sp = self.spec.simulation
+        if self.command not in ("estimate", "locate"):
+            return "zero"
+        return (sp.load_hold if sp is not None else None) or "linear"
 
 def load_job_file(path: str | os.PathLike) -> dict:
     """A job (dict) from a TOML file, with clear errors for a missing, folder or invalid file."""

@@ -159,6 +159,10 @@ class Filter(Section):
         unit="Hz")
     force_band_order: int = key("an integer from 2 to 8", "Butterworth force model: the filter's order (the spectrum "
                                 "falls by 20 x order dB per decade outside the band)", default_text="4")
+    load_hold: Literal["zero", "linear"] = key(
+        "\"zero\" or \"linear\"", "how the filter takes a force from one sample to the next: held over the step "
+        "(zero, the papers' filter) or linear between samples (a continuous load: the filter runs the first-order "
+        "hold of the structure); match it to the loads: a measured load is continuous", default_text='"zero"')
     dummy: Dummy = key("a table {sensors = [...], variance = ...}", "zero-valued pseudo-measurements of "
                        "displacements or strains added to the sensors (dummy measurements): they keep an "
                        "accelerometer-only random-walk filter from drifting, at the cost of a bias towards zero "
@@ -245,6 +249,13 @@ class Simulation(Section):
         "a table of noise levels: strain, microstrain, acc, acc_mg, vel or disp",
         "sensor noise standard deviation per kind, e.g. {microstrain = 1, acc_mg = 1}", used_by=("estimate", "locate"))
     seed: Count0 = key("an integer >= 0", "noise seed")
+    load_hold: Literal["zero", "linear"] = key(
+        "\"zero\" or \"linear\"", "how a simulated load goes from one sample to the next: linear (a continuous "
+        "load, exact first-order hold) or zero (held over each step, as the filter assumes by default; the built-in "
+        "examples keep it so that their published numbers stay); a stepped load excites the structure below its "
+        "first mode far more than a continuous one and suits a held filter: it flatters the estimates of "
+        "measured (continuous) loads", used_by=("estimate", "locate"),
+        default_text='"linear"')
     loads: list[Load] = key("a list of tables", "one table per force location, in the order of `forces`")
 
 

@@ -13,11 +13,21 @@ accelerometer-only TH plate and the footbridge walk -- the force and strain erro
   maximum likelihood (``calibrate = ["force_std", "force_timescale"]``, starting at 300 N and
   10 ms), filtered; ``matern32_ml_smooth``: the same, smoothed;
 * ``matern32_hand``: Matérn-3/2 with the std of the loads' RMS and a time scale of a quarter
-  period of the highest load frequency, smoothed.
+  period of the highest load frequency, smoothed;
+* ``butterworth_ml_smooth``: the Butterworth model (order 4) with std and band learnt by maximum
+  likelihood (``calibrate = ["force_std", "force_band"]``, starting at 300 N and 0-300 Hz, capped
+  below Nyquist), smoothed.
+
+Every set runs three times, the ``hold`` column giving the loads' hold and the filter's:
+``zero/zero``, loads held over each step (``[simulation] load_hold = "zero"``, as the filter
+assumes by default and as the published numbers were made); ``linear/zero``, loads going linearly
+from sample to sample (a continuous load) under the same filter; ``linear/linear``, continuous
+loads and a filter that assumes them (``[filter] load_hold = "linear"``).
 
 Written per row: the mean RMS force error (N) and relative to the loads' mean RMS, the average strain
 error (µε), the drift (the force error RMS of the last quarter of the record over that of the
-second quarter; > 1.5 drifts), the fitted hyperparameters and the seconds.  Prints first, then
+second quarter; > 1.5 drifts), the fitted hyperparameters (the time scale in ms, or a Butterworth
+band's top in Hz) and the seconds.  Prints first, then
 writes ``bench/force_model_results.csv``.
 """
 from __future__ import annotations
@@ -32,7 +42,7 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 #: the columns of the CSV (a row of a method that cannot run has set, method and error only)
-FIELDS = ("set", "method", "force_error_N", "force_error_rel", "strain_error_microstrain", "drift", "force_std_N",
+FIELDS = ("set", "hold", "method", "force_error_N", "force_error_rel", "strain_error_microstrain", "drift", "force_std_N",
           "force_timescale_ms", "seconds", "loads_rms_N", "error")
 PLATE_ACC = ["acc:111:w", "acc:116:w", "acc:121:w", "acc:100:w", "acc:89:w", "acc:60:w"]
 
@@ -68,11 +78,10 @@ def _likeliest_dummy(job, sim, disp, static_std):
     from core_akf import DummyMeasurements, estimate
 
     best = (-np.inf, static_std)
-    S = job.force_increment_cov
     for factor in 10.0 ** np.arange(-1.0, 2.01, 0.5):
         std = static_std * factor
         est = estimate(job.filter_model(), job.sensors, job.forces, sim.measurements, job.dt,
-                       model_error_cov=job.model_error_cov, force_increment_cov=S, noise_cov=job.noise_cov(sim),
+                       model_error_cov=job.model_error_cov, force_model=job.force_model, noise_cov=job.noise_cov(sim),
                        dummy=DummyMeasurements(disp, std ** 2))
         best = max(best, (est.loglik, std))
     return best[1]
@@ -95,6 +104,10 @@ def _filter_keys(data, method, loads_rms, f_high, static_std):
     else:
         f.update(force_std=float(np.mean(loads_rms)), force_timescale=float(0.25 / f_high))
     f["smooth"] = method.endswith("smooth") or method == "matern32_hand"
+    if method.startswith("butterworth"):
+        f.pop("force_timescale")
+        f.update(force_model="butterworth", force_std=300.0, force_band=[0.0, min(300.0, 0.4 / data["dt"])],
+                 calibrate=["force_std", "force_band"])
 
 
 def main(argv=None):
@@ -106,11 +119,17 @@ def main(argv=None):
     parser.add_argument("--csv", default=os.path.join(HERE, "force_model_results.csv"))
     parser.add_argument("--quick", action="store_true", help="short records (a smoke run)")
     args = parser.parse_args(argv)
-    methods = ("random_walk", "random_walk_smooth", "dummy", "matern32_ml", "matern32_ml_smooth", "matern32_hand")
+    methods = ("random_walk", "random_walk_smooth", "dummy", "matern32_ml", "matern32_ml_smooth", "matern32_hand",
+               "butterworth_ml_smooth")
     rows = []
-    print(f"{'sensor set':24s} {'method':20s} {'force err N':>11s} {'x RMS':>7s} {'strain µε':>10s} {'drift':>6s} "
+    print(f"{'sensor set':24s} {'hold':13s} {'method':21s} {'force err N':>11s} {'x RMS':>7s} {'strain µε':>10s} {'drift':>6s} "
           f"{'std N':>8s} {'scale ms':>8s} {'s':>6s}")
-    for name, base, f_high in _jobs(args.quick):
+    holds = (("zero", "zero"), ("linear", "zero"), ("linear", "linear"))
+    for (name, base, f_high), (load_hold, filter_hold) in ((j, h) for j in _jobs(args.quick) for h in holds):
+        hold = f"{load_hold}/{filter_hold}"
+        base = copy.deepcopy(base)
+        base["simulation"]["load_hold"] = load_hold
+        base["filter"]["load_hold"] = filter_hold           # the jobs' random walk: the dummies' filter
         job0 = Job.from_dict(base, "estimate")
         sim = job0.simulate()
         loads_rms = np.sqrt(np.mean(sim.loads ** 2, axis=0))
@@ -129,16 +148,16 @@ def main(argv=None):
             data.pop("_S"), data.pop("_dummy")
             if method.startswith("random_walk") and not detectability(model, job0.sensors, job0.forces).detectable:
                 if method == "random_walk_smooth":
-                    rows.append(dict(set=name, method=method, error="not detectable"))
-                    print(f"{name:24s} {method:20s} not detectable")
+                    rows.append(dict(set=name, hold=hold, method=method, error="not detectable"))
+                    print(f"{name:24s} {hold:13s} {method:21s} not detectable")
                     continue
                 data["filter"].update(steady=False, allow_undetectable=True)
             t = time.perf_counter()
             try:
                 res = estimate_job(Job.from_dict(data, "estimate"))
             except Exception as exc:            # a method that cannot run on a set is a row, not a lost table
-                print(f"{name:24s} {method:20s} failed: {exc}")
-                rows.append(dict(set=name, method=method, error=str(exc).splitlines()[0]))
+                print(f"{name:24s} {hold:13s} {method:21s} failed: {exc}")
+                rows.append(dict(set=name, hold=hold, method=method, error=str(exc).splitlines()[0]))
                 continue
             seconds = time.perf_counter() - t
             est, true = res.estimate.forces, sim.loads
@@ -151,9 +170,11 @@ def main(argv=None):
             cal = res.metrics.get("calibration", {})
             std = np.mean(cal.get("force_std", data["filter"].get("force_std", np.nan)))
             scale = 1e3 * np.mean(cal.get("force_timescale", data["filter"].get("force_timescale", np.nan)))
-            print(f"{name:24s} {method:20s} {force_err:11.4g} {rel:7.3f} {strain:10.4g} {drift:6.2f} {std:8.4g} "
+            if "force_band" in data["filter"]:           # a Butterworth model: the band's top instead (Hz)
+                scale = float(np.max(cal.get("force_band", data["filter"]["force_band"])))
+            print(f"{name:24s} {hold:13s} {method:21s} {force_err:11.4g} {rel:7.3f} {strain:10.4g} {drift:6.2f} {std:8.4g} "
                   f"{scale:8.3g} {seconds:6.1f}", flush=True)
-            rows.append(dict(set=name, method=method, force_error_N=force_err, force_error_rel=rel,
+            rows.append(dict(set=name, hold=hold, method=method, force_error_N=force_err, force_error_rel=rel,
                              strain_error_microstrain=strain, drift=drift, force_std_N=std, force_timescale_ms=scale,
                              seconds=seconds, loads_rms_N=float(np.mean(loads_rms)), error=""))
     with open(args.csv, "w", newline="") as fh:

@@ -29,7 +29,7 @@ with the noise intensity set so that the force's standard deviation is ``std``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from math import comb, gamma, sqrt
 from typing import TYPE_CHECKING
 
@@ -46,6 +46,27 @@ if TYPE_CHECKING:
 FORCE_MODELS = {"random_walk": None, "matern12": 0, "matern32": 1, "matern52": 2, "butterworth": None}
 #: the orders a Butterworth force model may have
 BUTTERWORTH_ORDERS = range(2, 9)
+
+
+#: how a load goes from one sample to the next: held over the step, or linear between samples
+LOAD_HOLDS = ("zero", "linear")
+
+
+def check_load_hold(hold):
+    """``hold`` if it is one of :data:`LOAD_HOLDS`, else an :class:`AKFInputError` naming them.
+
+    Parameters
+    ----------
+    hold : str
+        ``"zero"`` or ``"linear"``.
+
+    Returns
+    -------
+    str
+    """
+    if hold not in LOAD_HOLDS:
+        raise AKFInputError(f"load_hold must be one of {list(LOAD_HOLDS)}, got {hold!r}")
+    return hold
 
 
 def _positive(value, name, n_p, unit):
@@ -192,6 +213,12 @@ class ForceModel:
     band_order : int
         Butterworth: the filter's order, 2-8 (default 4); the spectrum falls by ``20 band_order``
         dB per decade outside the band.
+    hold : str
+        How a force goes from one sample to the next, one of :data:`LOAD_HOLDS`: ``"zero"``
+        (default; held over the step, the papers' filter) or ``"linear"`` (linear between samples,
+        a continuous load; the filter then runs the first-order hold of the structure).  A filter
+        whose hold differs from the loads' is wrong by the load's change over a step
+        (``docs/guide/forcemodels.md``).
 
     Examples
     --------
@@ -211,8 +238,10 @@ class ForceModel:
     timescale: object = None
     band: object = None
     band_order: int = 4
+    hold: str = "zero"
 
     def __post_init__(self):
+        check_load_hold(self.hold)
         if self.kind not in FORCE_MODELS:
             raise AKFInputError(f"unknown force model {self.kind!r}; the force models are {list(FORCE_MODELS)}")
         if self.kind != "butterworth" and self.band is not None:
@@ -510,8 +539,8 @@ class ForceModel:
         if self.kind == "butterworth":
             t = np.asarray(timescale_factor, float)
             band = np.asarray(self.band, float) / (t[:, None] if t.ndim else t)
-            return ForceModel(self.kind, std=std, band=band, band_order=self.band_order)
-        return ForceModel(self.kind, std=std, timescale=np.asarray(self.timescale, float) * timescale_factor)
+            return replace(self, std=std, band=band)
+        return replace(self, std=std, timescale=np.asarray(self.timescale, float) * timescale_factor)
 
     def with_std(self, std: ArrayLike) -> ForceModel:
         """The same stationary model with another standard deviation.
@@ -527,7 +556,7 @@ class ForceModel:
         """
         if not self.stationary:
             raise AKFInputError("force_std belongs to a stationary force model (Matérn, Butterworth)")
-        return ForceModel(self.kind, std=std, timescale=self.timescale, band=self.band, band_order=self.band_order)
+        return replace(self, std=std)
 
     def psd(self, frequencies: ArrayLike, n_p: int = 1) -> np.ndarray:
         """The two-sided power spectral density of each force, from the state space:

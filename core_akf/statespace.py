@@ -144,6 +144,35 @@ def zoh(A_c, B_c, dt):
     return E[:nx, :nx], E[:nx, nx:]
 
 
+def foh(A_c, B_c, dt):
+    """First-order-hold discretisation (the input linear between samples) from one block
+    exponential: ``x_k+1 = A x_k + B0 u_k + B1 u_k+1``.
+
+    ``expm([[A_c, B_c, 0], [0, 0, I], [0, 0, 0]] dt)`` carries ``[x; u; v]`` with ``u(t) = u_k +
+    v t / dt``: its blocks ``[[A, E_u, E_v], ...]`` give ``B0 = E_u - E_v`` and ``B1 = E_v``.
+
+    Parameters
+    ----------
+    A_c : ndarray (n_x, n_x)
+    B_c : ndarray (n_x, n_u)
+    dt : float
+        Time step (s).
+
+    Returns
+    -------
+    A : ndarray (n_x, n_x)
+    B0, B1 : ndarray (n_x, n_u)
+    """
+    dt = _check_dt(dt)
+    nx, nu = B_c.shape
+    blk = np.zeros((nx + 2 * nu, nx + 2 * nu))
+    blk[:nx, :nx] = A_c
+    blk[:nx, nx:nx + nu] = B_c
+    blk[nx:nx + nu, nx + nu:] = np.eye(nu) / dt
+    E = scipy.linalg.expm(blk * dt)
+    return E[:nx, :nx], E[:nx, nx:nx + nu] - E[:nx, nx + nu:], E[:nx, nx + nu:]
+
+
 def observation(structure, sensors, forces):
     """``G`` and ``D`` of ``y = G x + D f`` (S17 eq. 27-30, IMP eq. 26-30).
 
@@ -288,8 +317,9 @@ def modal_state_transform(structure):
     return T, T_inv
 
 
-def modal_zoh(structure, forces, dt, rtol=1e-10):
-    """ZOH discretisation directly in the modal coordinates of :func:`modal_state_transform`.
+def modal_zoh(structure, forces, dt, rtol=1e-10, hold="zero"):
+    """ZOH discretisation directly in the modal coordinates of :func:`modal_state_transform`
+    (with ``hold = "linear"`` the first-order hold of :func:`foh`).
 
     Mode by mode, for a classically damped structure: each mode is a 2-state system
     ``d/dt [w q; q'] = [[0, w], [-omega^2 / w, -c]] [w q; q'] + [0; phi^T S_p] f`` (``w =
@@ -305,16 +335,19 @@ def modal_zoh(structure, forces, dt, rtol=1e-10):
         Time step (s).
     rtol : float
         Tolerance of the classical-damping test (:func:`modal_damping`).
+    hold : str
+        ``"zero"`` or ``"linear"``.
 
     Returns
     -------
     tuple or None
-        ``(A_z (2n, 2n), B_z (2n, n_p))``, or None for non-classical damping.
+        ``(A_z (2n, 2n), B_z (2n, n_p))``; with ``hold = "linear"`` ``(A_z, B0_z, B1_z)``, the
+        matrices of ``u_k`` and ``u_k+1``; None for non-classical damping.
     """
-    parts = modal_blocks(structure, forces, dt, rtol)
+    parts = modal_blocks(structure, forces, dt, rtol, hold)
     if parts is None:
         return None
-    blocks, B_z = parts
+    blocks = parts[0]
     n = blocks.shape[0]
     A_z = np.zeros((2 * n, 2 * n))
     idx = np.arange(n)
@@ -322,12 +355,13 @@ def modal_zoh(structure, forces, dt, rtol=1e-10):
     A_z[idx, n + idx] = blocks[:, 0, 1]
     A_z[n + idx, idx] = blocks[:, 1, 0]
     A_z[n + idx, n + idx] = blocks[:, 1, 1]
-    return A_z, B_z
+    return (A_z,) + tuple(parts[1:])
 
 
-def modal_blocks(structure, forces, dt, rtol=1e-10):
+def modal_blocks(structure, forces, dt, rtol=1e-10, hold="zero"):
     """The mode-by-mode ZOH of :func:`modal_zoh` as its 2 x 2 blocks, for work that runs on each
-    mode separately (a simulation, the dropped modes of a reduced filter).
+    mode separately (a simulation, the dropped modes of a reduced filter); with ``hold =
+    "linear"`` the first-order hold of :func:`foh`.
 
     Parameters
     ----------
@@ -339,11 +373,15 @@ def modal_blocks(structure, forces, dt, rtol=1e-10):
     rtol : float
         Tolerance of the classical-damping test (:func:`modal_damping`).
 
+    hold : str
+        ``"zero"`` or ``"linear"``.
+
     Returns
     -------
     tuple or None
         ``(blocks (n, 2, 2), B_z (2n, n_p))``: mode j's transition on ``[w q_j; q_j']`` and the
-        input matrix (displacement rows first, as in :func:`modal_zoh`); None for non-classical
+        input matrix (displacement rows first, as in :func:`modal_zoh`); with ``hold = "linear"``
+        ``(blocks, B0_z, B1_z)``, the matrices of ``u_k`` and ``u_k+1``; None for non-classical
         damping.
     """
     c = modal_damping(structure, rtol)
@@ -355,13 +393,20 @@ def modal_blocks(structure, forces, dt, rtol=1e-10):
     w = _modal_scale(omega)
     p = phi.T @ force_selection(structure, forces)          # (n, n_p) modal force participation
     npf = p.shape[1]
-    blk = np.zeros((n, 2 + npf, 2 + npf))
+    ramp = npf if hold == "linear" else 0
+    blk = np.zeros((n, 2 + npf + ramp, 2 + npf + ramp))
     blk[:, 0, 1] = w
     blk[:, 1, 0] = -omega ** 2 / w
     blk[:, 1, 1] = -c
-    blk[:, 1, 2:] = p
+    blk[:, 1, 2:2 + npf] = p
+    if ramp:
+        blk[:, 2:2 + npf, 2 + npf:] = np.eye(npf) / dt
     E = scipy.linalg.expm(blk * dt)
-    return E[:, :2, :2].copy(), np.vstack([E[:, 0, 2:], E[:, 1, 2:]])
+    Bu = np.vstack([E[:, 0, 2:2 + npf], E[:, 1, 2:2 + npf]])
+    if not ramp:
+        return E[:, :2, :2].copy(), Bu
+    Bv = np.vstack([E[:, 0, 2 + npf:], E[:, 1, 2 + npf:]])
+    return E[:, :2, :2].copy(), Bu - Bv, Bv
 
 
 # ---------------------------------------------------------------------------- detectability

@@ -90,7 +90,7 @@ class Covariances:
         ForceModel
         """
         if base is None or not base.stationary:
-            return ForceModel("random_walk", increment_cov=self.force_increment)
+            return ForceModel("random_walk", increment_cov=self.force_increment, hold="zero" if base is None else base.hold)
         return base.with_std(float(np.sqrt(self.force_increment)))
 
 
@@ -204,6 +204,7 @@ class ImpactModel:
                  force_model: ForceModel | None = None):
         self.full = structure
         self.force_model = force_model if force_model is not None and force_model.stationary else None
+        self.hold = "zero" if force_model is None else force_model.hold
         self.layout = as_layout(sensors)
         self.dt = float(dt)
         self.n_modes = resolve_modes(n_modes, structure, dt, sees_accelerations(self.layout))
@@ -226,7 +227,8 @@ class ImpactModel:
             The observation rows of all installed sensors.
         """
         if loc not in self._systems:        # a Matérn model with unit std: Q_f scales with std^2
-            unit = None if self.force_model is None else self.force_model.with_std(1.0)
+            unit = self.force_model.with_std(1.0) if self.force_model is not None else None if self.hold == "zero" \
+                else ForceModel("random_walk", increment_cov=0.0, hold=self.hold)   # S comes with each Q_a call
             fm = FilterModel(self.full, [loc], self.dt, self.n_modes, force_model=unit)
             self._systems[loc] = (fm, fm.observation(self.layout))
         return self._systems[loc]

@@ -1,7 +1,8 @@
 """``akf show MODEL`` or ``akf show JOB.toml``: a built-in structure, or the structure of a job
 file (a model of one's own included), with its node and member numbers (PNG), its first natural
 frequencies and what each strain output is, to write sensors and forces (``strain:13``,
-``acc:8:y``, ``8:y``)."""
+``acc:8:y``, ``8:y``).  ``akf show JOB.toml --transfer``: what the job's layout sees of each force
+per frequency (:func:`core_akf.filter.force_transfer`)."""
 from __future__ import annotations
 
 import json
@@ -53,9 +54,70 @@ def strain_outputs(structure):
     return rows
 
 
+def _transfer(args):
+    """``akf show JOB.toml --transfer``: the steady filter's force transfer function of the job's layout."""
+    import numpy as np
+
+    from core_akf.filter import Filter, force_transfer, recovered_band
+
+    from ..figures import draw, plot_transfer
+    from ..job import load_job
+
+    if not os.path.isfile(args.model):
+        raise AKFInputError(f"--transfer needs a job file of akf estimate (sensors, forces, [filter]); {args.model!r} is "
+                            "not a file")
+    job = load_job(args.model, "estimate")
+    name = job.spec.name or os.path.splitext(os.path.basename(args.model))[0]
+    sim = job.simulate() if job.spec.simulation is not None and isinstance(job.spec.filter.noise_cov, (str, type(None))) \
+        else None
+    model = job.filter_model()
+    f = Filter(model, [job.sensors], job.forces, job.dt, model_error_cov=job.model_error_cov,
+               force_model=job.force_model, noise_cov=job.noise_cov(sim), dummy=job.dummy)
+    nyquist = 0.5 / job.dt
+    natural = model.frequencies(min(model.n, 40))
+    natural = natural[(natural > 0) & (natural < nyquist)]
+    low = (natural[0] if natural.size else nyquist) / 100.0
+    freqs = np.geomspace(low, nyquist, 600)
+    T = force_transfer(f, np.r_[0.0, freqs])[0]
+    labels = [f"{node}:{d}" for node, d in job.forces]
+    rows = []
+    for j, label in enumerate(labels):
+        band = recovered_band(np.r_[0.0, freqs], np.abs(T[:, j, j]))
+        cross = np.abs(np.delete(T[1:, j, :], j, axis=1)).max(initial=0.0)
+        rows.append({"force": label, "static_gain": float(abs(T[0, j, j])), "recovered_band_hz": band,
+                     "max_cross_talk": float(cross)})
+    info = {"job": name, "sensors": [s.label for s in job.sensors], "force_model": job.force_model.describe(),
+            "load_hold": job.force_model.hold, "frequencies_hz": [float(low), float(nyquist)], "forces": rows}
+    if not args.json:
+        print(f"{name}: what {len(job.sensors)} sensors see of each force (steady filter, "
+              f"{job.force_model.describe()}, load hold {job.force_model.hold})")
+        for r in rows:
+            band = r["recovered_band_hz"]
+            seen = "nowhere" if band is None else f"{band[0]:.4g}-{band[1]:.4g} Hz"
+            print(f"  {r['force']:>10s}: static |F̂/F| = {r['static_gain']:.3g}; recovered within 3 dB: {seen}; "
+                  f"largest cross-talk {r['max_cross_talk']:.3g}")
+        sys.stdout.flush()
+    files, notes = {}, []
+    if not args.no_plot:
+        out = args.out or os.path.join("akf-out", "show")
+        with OutputFolder(out, "--out"):
+            draw(files, "transfer", notes, plot_transfer, freqs, T[1:], labels, natural,
+                 os.path.join(out, f"{name}-transfer.png"), f"{name}: |F̂/F| of the steady filter")
+    if args.json:
+        print(json.dumps(dict(info, files=files, warnings=notes)))
+        return 0
+    for k, v in files.items():
+        print(f"  wrote {k}: {v}")
+    for note in notes:
+        print(f"  WARNING: {note}")
+    return 0
+
+
 def _show(args):
     from core_akf.figures import plot_structure
 
+    if args.transfer:
+        return _transfer(args)
     structure, name, sensors, forces = _structure_of(args.model)
     f = structure.frequencies(min(args.modes, structure.n))
     info = {"model": name, "nodes": structure.n_nodes, "dofs": structure.n,
@@ -119,4 +181,6 @@ def register(sub):
     p.add_argument("--out", help="output folder (default akf-out/show)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
+    p.add_argument("--transfer", action="store_true", help="with a job file of akf estimate: the steady filter's "
+                   "|F̂/F| per force against frequency, the band in which the layout recovers each force")
     p.set_defaults(func=_show)

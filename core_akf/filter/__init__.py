@@ -12,6 +12,8 @@ with a random-walk or a Matérn Gaussian-process force model and dummy measureme
 - :mod:`~core_akf.filter.streaming` -- :class:`Estimator`, a record in chunks;
 - :mod:`~core_akf.filter.parallel` -- the time-parallel filter over a record's pieces;
 - :mod:`~core_akf.filter.smoother` -- the RTS and fixed-lag smoothers;
+- :mod:`~core_akf.filter.transfer` -- :func:`force_transfer`, what a layout sees of each force per
+  frequency;
 - :mod:`~core_akf.filter.riccati`, :mod:`~core_akf.filter.recursion` (with the threads for stacks)
   and :mod:`~core_akf.filter.likelihood` -- the numerics beneath.
 """
@@ -23,7 +25,8 @@ from .parallel import TimeParallel, estimate_in_parallel, zero_state_end
 from .results import Estimate
 from .smoother import FixedLagSmoother, SmoothResult, smooth
 from .streaming import CheckpointError, Estimator
+from .transfer import force_transfer, recovered_band
 
 __all__ = ["Filter", "FilterModel", "FilterRun", "Estimate", "estimate", "estimate_batch", "run_filter", "run",
            "filter_states", "smooth", "SmoothResult", "FixedLagSmoother", "Estimator", "CheckpointError",
-           "TimeParallel", "estimate_in_parallel", "zero_state_end"]
+           "TimeParallel", "estimate_in_parallel", "zero_state_end", "force_transfer", "recovered_band"]

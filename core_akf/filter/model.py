@@ -35,6 +35,7 @@ from ..statespace import (
     DetectabilityReport,
     check_detectable,
     continuous,
+    foh,
     modal_blocks,
     modal_state_transform,
     modal_zoh,
@@ -81,6 +82,7 @@ class FilterModel:
     def __init__(self, structure: Structure, forces: Forces, dt: float, n_modes: int | str | None = None,
                  force_model: ForceModel | None = None):
         self.full = structure
+        self.load_hold = load_hold = "zero" if force_model is None else force_model.hold
         self.forces = parse_force_locations(structure, forces)
         self.dt = float(dt)
         self.n_modes = resolve_modes(n_modes, structure, dt, accelerations=True)
@@ -90,11 +92,17 @@ class FilterModel:
         self.structure = structure if k is None else structure.memo(
             ("reduced with static correction", k), lambda: structure.reduce(k, static_correction=True))
         self.T, self.T_inv = modal_state_transform(self.structure)
-        AB = modal_zoh(self.structure, self.forces, self.dt)
+        AB = modal_zoh(self.structure, self.forces, self.dt, hold=load_hold)
         if AB is None:
-            A, B = zoh(*continuous(self.structure, self.forces), self.dt)
-            AB = (self.T_inv @ A @ self.T, self.T_inv @ B)
-        self.A_z, self.B_z = AB
+            AB = (zoh if load_hold == "zero" else foh)(*continuous(self.structure, self.forces), self.dt)
+            AB = (self.T_inv @ AB[0] @ self.T,) + tuple(self.T_inv @ B for B in AB[1:])
+        self.A_z, self.B_z = AB[:2]
+        # a linear hold, x_k+1 = A x_k + B0 f_k + B1 f_k+1, is an ordinary AKF in the states
+        # xi_k = x_k - B1 f_k: xi_k+1 = A xi_k + (A B1 + B0) f_k, every output row of x gaining a
+        # feed-through of the forces through B1 (E_z: x = xi + E_z f)
+        self.E_z = None if load_hold == "zero" else AB[2]
+        if self.E_z is not None:
+            self.B_z = self.A_z @ self.E_z + AB[1]
         self.n_states = AB[0].shape[0]
         self._level_given = force_model is not None        # else the random walk's S comes with each Q_a call
         self.force_model = force_model = ForceModel("random_walk", increment_cov=0.0) if force_model is None \
@@ -156,7 +164,14 @@ class FilterModel:
         ndarray (m, n_a)
         """
         G, D = observation(self.structure, as_layout(sensors), self.forces)
-        return np.hstack([G @ self.T, D @ self.H])
+        return self._held(np.hstack([G @ self.T, D @ self.H]))
+
+    def _held(self, rows):
+        """Output rows ``[C T, D H]`` of the physical state and forces, as rows of the filter's
+        state: under a linear hold, the states' part also reads the forces through ``E_z``."""
+        if self.E_z is not None:
+            rows[:, self.n_states:] += rows[:, :self.n_states] @ self.E_z @ self.H
+        return rows
 
     def strain_rows(self) -> FloatArray:
         """Rows giving every strain output from the augmented state (with the static correction).
@@ -171,7 +186,24 @@ class FilterModel:
         extra = strain_feedthrough(self.structure, self.forces)
         if extra is not None:
             out[:, self.n_states:] = extra @ self.H
-        return out
+        return self._held(out)
+
+    def state_transform(self) -> tuple[FloatArray, FloatArray]:
+        """``(Ta, Ta_inv)``: the physical augmented state ``[u; u'; g]`` from the filter's, ``x_a =
+        Ta z_a``, and back (modal coordinates; under a linear hold the states also take
+        ``E_z H g``).
+
+        Returns
+        -------
+        Ta, Ta_inv : ndarray (n_a, n_a)
+        """
+        ng = self.H.shape[1]
+        Ta = scipy.linalg.block_diag(self.T, np.eye(ng))
+        Ta_inv = scipy.linalg.block_diag(self.T_inv, np.eye(ng))
+        if self.E_z is not None:
+            Ta[:self.n_states, self.n_states:] = self.T @ self.E_z @ self.H
+            Ta_inv[:self.n_states, self.n_states:] = -self.E_z @ self.H
+        return Ta, Ta_inv
 
     def force_rows(self) -> FloatArray:
         """Rows giving the forces from the augmented state, ``[0, H]``.
@@ -428,11 +460,11 @@ class Filter:
         self.structure = fm.full
         self.A_a, self.H = fm.A_a, fm.H
         self.nx, ng = fm.n_states, fm.H.shape[1]
-        self.Ta = scipy.linalg.block_diag(fm.T, np.eye(ng))
-        self.Ta_inv = Ta_inv = scipy.linalg.block_diag(fm.T_inv, np.eye(ng))
+        self.Ta, self.Ta_inv = Ta, Ta_inv = fm.state_transform()
         self.G_a = np.stack([fm.observation(list(layout) + self.dummy_layout) for layout in self.layouts])
         Q_a = scipy.linalg.block_diag(state_covariance(fm.structure, self.model_error_cov), fm.Q_f)
-        Q_a = Ta_inv @ Q_a @ Ta_inv.T
+        Tq = scipy.linalg.block_diag(fm.T_inv, np.eye(ng))       # the noises: a hold shifts states, not noise
+        Q_a = Tq @ Q_a @ Tq.T
         self.Q_a = 0.5 * (Q_a + Q_a.T)
         self.z0 = None if self.x0 is None else Ta_inv @ as_finite_array(self.x0, "x0", ndim=1, shape=(self.nx + ng,))
         self.Pz0 = None if self.P0 is None else Ta_inv @ diag_levels(self.P0, self.nx + ng, "P0") @ Ta_inv.T
