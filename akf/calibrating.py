@@ -137,24 +137,67 @@ def _oma_check(identified, fitted_hz, modes):
     return rows, warnings
 
 
-def calibrate_job(job, model, sensors, forces, Y, noise_cov):
+class _CalibrationBar:
+    """A tqdm bar on stderr over the filters a calibration runs (``progress`` of
+    :func:`core_akf.calibration.calibrate`): its ETA from the first filters, the best
+    log-likelihood so far as its postfix.  Shown once the fit runs longer than 1 s; ``--quiet``
+    (``TQDM_DISABLE``) silences it."""
+
+    def __enter__(self):
+        from tqdm.auto import tqdm
+        self._bar = tqdm(total=1, desc="calibrate", unit="filter", leave=False, delay=1.0)
+        return self
+
+    def update(self, evaluations, expected, best):
+        bar = self._bar
+        if expected != bar.total:
+            bar.total = expected
+        bar.update(evaluations - bar.n)
+        if np.isfinite(best):
+            bar.set_postfix_str(f"loglik {best:.6g}", refresh=False)
+
+    def __exit__(self, *exc):
+        self._bar.close()
+        return False
+
+
+def window_note(job, Y, record_steps):
+    """What part of the record calibrates, in words naming ``[filter] calibrate_window``."""
+    used = Y.shape[0]
+    seconds = used * job.dt
+    if record_steps is None:
+        return f"calibrated on the whole simulated record ({used} steps, {seconds:.3g} s)"
+    if used < record_steps:
+        how = (f"[filter] calibrate_window = {job.calibrate_window:g} s" if job.calibrate_window is not None
+               else f"at most {CALIBRATION_STEPS} steps without [filter] calibrate_window")
+        return (f"calibrated on the record's first {seconds:.3g} s ({used} of {record_steps} steps; {how}); a "
+                "longer window narrows the standard errors and costs time in proportion")
+    return (f"calibrated on the whole record ({used} steps, {seconds:.3g} s); [filter] calibrate_window = "
+            "SECONDS fits on its first part only, faster in proportion")
+
+
+def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
     """Fit ``[filter] calibrate`` of a job on the record ``Y`` (:func:`core_akf.calibration.calibrate`).
 
     Returns the fitted ``(model, Q, force_model, R)`` and the report of the fit (the ``calibration`` object of
     the metrics): the fitted values under their ``[filter]`` names (``stiffness_factor`` relative to
     ``[structure]``; ``noise_cov`` per sensor kind when the job gives it so, else per channel), the
     log-likelihood and the consistency per channel before and after, the standard errors
-    (relative) and the warnings of the fit."""
+    (relative), the warnings of the fit and ``window``, what part of the record calibrated
+    (``record_steps``: the steps of the whole measured record; None for a simulated one)."""
     from core_akf.calibration import calibrate
 
     Q, fm = job.model_error_cov, job.force_model
     start, identified, oma_note = _oma_start(job, model, Y) if "frequencies" in job.calibrate else ({}, {}, None)
-    fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
-                    force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy, start=start)
+    with _CalibrationBar() as bar:
+        fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
+                        force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy, start=start,
+                        progress=bar.update)
     fitted = list(fit.apply(model, sensors, Q, fm.increment_cov, noise_cov))
     fitted[2] = fit.force_model if fm.stationary else replace(fm, increment_cov=fitted[2])
 
-    report = {"parameters": list(job.calibrate), "record_steps": int(Y.shape[0])}
+    report = {"parameters": list(job.calibrate), "record_steps": int(Y.shape[0]),
+              "window": window_note(job, Y, record_steps)}
     m = fit.multipliers
     if "stiffness_factor" in m:
         report["stiffness_factor"] = job.stiffness_factor * m["stiffness_factor"]

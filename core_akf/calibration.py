@@ -25,7 +25,7 @@ differ by more than :data:`core_akf.inference.MISFIT_RATIO`.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -257,6 +257,9 @@ class _Problem:
                 self.names.append(name)
         self._filters = {}
         self.evaluations = 0
+        self.best = -np.inf
+        self.expected = 0                 # the evaluations the fit is expected to take (set by calibrate)
+        self.progress = None              # called as progress(evaluations, expected, best log-likelihood)
         self.Y = base.extend(Y)
 
     def model_filter(self, p):
@@ -319,7 +322,14 @@ class _Problem:
         mats = [self.matrices(u) for u in np.atleast_2d(U)]
         self.evaluations += len(mats)
         A, G, Q, R = (np.stack(x) for x in zip(*mats))
-        return steady_logliks(A, G, Q, R, self.Y, per_step=per_step)
+        out = steady_logliks(A, G, Q, R, self.Y, per_step=per_step)
+        total = out.sum(axis=1) if per_step else out
+        if np.any(np.isfinite(total)):
+            self.best = max(self.best, float(np.nanmax(np.where(np.isfinite(total), total, -np.inf))))
+        if self.progress is not None:
+            self.expected = max(self.expected, self.evaluations)
+            self.progress(self.evaluations, self.expected, self.best)
+        return out
 
 
 def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
@@ -327,7 +337,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
               noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
               decades: float | None = None, modes: Sequence[int] | None = None,
               force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None,
-              start: dict | None = None) -> CalibrationResult:
+              start: dict | None = None, progress: Callable[[int, int, float], None] | None = None) -> CalibrationResult:
     """Fit the filter's model and covariances to a record by maximum likelihood.
 
     Parameters
@@ -369,6 +379,11 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         0.976``, from an operational modal analysis): the search starts there, and a frequency or
         stiffness factor with a start is not scanned on a grid.  Each must lie inside its search
         range.
+    progress : callable, optional
+        Called after every batch of filters as ``progress(evaluations, expected, best)``: the
+        filters run so far, the number the fit is expected to take (an estimate: the grid, 30
+        gradient steps and the curvature; it grows when exceeded) and the best log-likelihood so
+        far.  ``akf calibrate`` draws it as a progress bar with an ETA.
 
     Returns
     -------
@@ -430,10 +445,12 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         _level(force_model.increment_cov, "force_increment_cov", "force_increment_cov" in names)
     modes = _check_modes(structure, dt, modes) if "frequencies" in names else ()
     problem = _Problem(base, Y, names, modes)
+    problem.progress = progress
     if Y.shape[0] < 10 * (len(problem.names) + 1):
         raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(problem.names)} parameter(s)")
     bounds = _bounds(problem, force_model, Y.shape[0], stiffness_range, decades)
     u0 = np.zeros(len(problem.names))
+    problem.expected = _expected_evaluations(problem.names, start)
     before = float(problem.logliks(u0)[0])
     if not np.isfinite(before):
         raise AKFInputError("the log-likelihood at the starting values is not finite (no steady-state filter): "
@@ -519,6 +536,16 @@ def _check_start(start, names, bounds):
             raise AKFInputError(f"start: {name} = {value!r} must be a factor inside its search range "
                                 f"[{np.exp(lo):.4g}, {np.exp(hi):.4g}]")
     return {n: float(v) for n, v in given.items()}
+
+
+def _expected_evaluations(names, start):
+    """About how many filters a fit of ``names`` runs: the start, the grid of :func:`_grid_start`
+    (25 per scanned name), 30 gradient steps of ``2k + 1`` filters and the curvature's
+    (:func:`_curvature`, about ``2k^2 + 1``).  Only for the progress bar's ETA."""
+    k = len(names)
+    scanned = sum(1 for n in names if (n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale",
+                                                                               "force_band"))) and n not in (start or {}))
+    return 2 + (25 * scanned + 1 if scanned else 0) + 30 * (2 * k + 1) + 2 * k * k + 1
 
 
 def _grid_start(problem, u0, bounds, before, skip=frozenset()):

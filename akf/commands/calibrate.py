@@ -40,7 +40,8 @@ def _calibrate(args):
             sim = job.simulate()
             Y = sim.measurements
             noise_cov = job.noise_cov(sim)
-        *_, report = calibrate_job(job, job.filter_model(), job.sensors, job.forces, Y, noise_cov)
+        *_, report = calibrate_job(job, job.filter_model(), job.sensors, job.forces, Y, noise_cov,
+                                   None if record is None else record.n_steps)
         path = os.path.join(out, "calibrated.toml")
         source = args.job or example_path(args.example)
         write_calibrated(source, report, path)
@@ -56,6 +57,7 @@ def _calibrate(args):
         return 0
     print(f"{job.name}: calibrated {', '.join(job.calibrate)} on {report['record_steps']} steps "
           f"({report['seconds']:.2f} s, {report['evaluations']} filters)")
+    print(f"  {report['window']}")
     print(f"  log-likelihood: {report['loglik_before']:.8g} -> {report['loglik_after']:.8g}")
     print("  parameter                 factor     std error (relative): observed     robust")
     for name, factor in report["multipliers"].items():

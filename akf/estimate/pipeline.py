@@ -109,7 +109,7 @@ class Setup:
         if job.calibrate:        # learn the model and the covariances from the record first
             Y_cal = sim.measurements if sim is not None else calibration_record(job, record)
             setup.model, setup.Q, setup.force_model, setup.noise_cov, setup.calibration = calibrate_job(
-                job, model, sensors, job.forces, Y_cal, noise_cov)
+                job, model, sensors, job.forces, Y_cal, noise_cov, None if record is None else record.n_steps)
         setup.strains = strain_outputs(job, structure, n_total, setup.notes, setup.warnings) if out is not None else []
         setup.chunk = setup.chunk_length(n_a)
         return setup

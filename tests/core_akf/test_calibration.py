@@ -159,7 +159,25 @@ def test_a_measured_record_calibrates_on_its_first_seconds(tmp_path):
     res = estimate_job(Job.from_dict(measured, "estimate"), str(tmp_path / "o"), plot=False)
     c = res.metrics["calibration"]
     assert c["record_steps"] == 2048 and c["stiffness_factor"] == pytest.approx(1.0, abs=0.005)
+    assert "first 0.5 s (2048 of 4096 steps; [filter] calibrate_window = 0.5 s)" in c["window"]
     assert os.path.exists(res.files["summary"]) and res.metrics["n_steps"] == 4096
+
+
+def test_progress_reports_every_batch_of_filters():
+    """``progress`` is called after every batch: the filters run so far (increasing, ending at
+    the fit's own count), an expected total never below them, and the best log-likelihood so
+    far (never falling, ending at the fit's)."""
+    sensors = ["strain:13", "acc:8:y"]
+    loads = band_limited_white_noise(1500, 1e-3, 200.0, 0.0, 50.0, seed=3)[:, None]
+    sim = simulate(s17_truss(), sensors, ["8:y"], loads, 1e-3, relative_noise=0.02, seed=1)
+    calls = []
+    fit = calibrate(s17_truss().scaled(0.95), sensors, ["8:y"], sim.measurements, 1e-3,
+                    parameters=["stiffness_factor", "noise_cov"], model_error_cov=1e-16, force_increment_cov=1e3,
+                    noise_cov=np.diag(sim.noise_std ** 2), progress=lambda *a: calls.append(a))
+    n, expected, best = (np.array(x) for x in zip(*calls))
+    assert len(calls) > 5 and np.all(np.diff(n) > 0) and n[-1] == fit.evaluations
+    assert np.all(expected >= n) and np.all(np.diff(best) >= 0)
+    assert best[-1] == pytest.approx(fit.loglik_after, rel=1e-9)
 
 
 def test_the_damping_ratio_is_learnt_with_the_stiffness():
