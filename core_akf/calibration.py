@@ -538,13 +538,17 @@ def _check_start(start, names, bounds):
     return {n: float(v) for n, v in given.items()}
 
 
+def _scanned(name):
+    """Whether :func:`_grid_start` scans ``name`` on a grid: what sets a frequency or a time scale."""
+    return name == "stiffness_factor" or name.startswith(("frequencies:", "force_timescale", "force_band"))
+
+
 def _expected_evaluations(names, start):
     """About how many filters a fit of ``names`` runs: the start, the grid of :func:`_grid_start`
     (25 per scanned name), 30 gradient steps of ``2k + 1`` filters and the curvature's
     (:func:`_curvature`, about ``2k^2 + 1``).  Only for the progress bar's ETA."""
     k = len(names)
-    scanned = sum(1 for n in names if (n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale",
-                                                                               "force_band"))) and n not in (start or {}))
+    scanned = sum(1 for n in names if _scanned(n) and n not in (start or {}))
     return 2 + (25 * scanned + 1 if scanned else 0) + 30 * (2 * k + 1) + 2 * k * k + 1
 
 
@@ -553,9 +557,7 @@ def _grid_start(problem, u0, bounds, before, skip=frozenset()):
     have several peaks -- the stiffness factor, or each mode's factor on its own (one batch; the
     modes' peaks barely interact), and a force model's time scale.  Names in ``skip`` have a
     start of their own."""
-    scanned = [j for j, n in enumerate(problem.names)
-               if (n == "stiffness_factor" or n.startswith(("frequencies:", "force_timescale", "force_band")))
-               and n not in skip]
+    scanned = [j for j, n in enumerate(problem.names) if _scanned(n) and n not in skip]
     if not scanned:
         return u0
     grid = [np.linspace(*bounds[j], 25) for j in scanned]
