@@ -324,8 +324,9 @@ class _Problem:
         A, G, Q, R = (np.stack(x) for x in zip(*mats))
         out = steady_logliks(A, G, Q, R, self.Y, per_step=per_step)
         total = out.sum(axis=1) if per_step else out
-        if np.any(np.isfinite(total)):
-            self.best = max(self.best, float(np.nanmax(np.where(np.isfinite(total), total, -np.inf))))
+        finite = total[np.isfinite(total)]
+        if finite.size:
+            self.best = max(self.best, float(finite.max()))
         if self.progress is not None:
             self.expected = max(self.expected, self.evaluations)
             self.progress(self.evaluations, self.expected, self.best)
