@@ -192,7 +192,7 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
     with _CalibrationBar() as bar:
         fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
                         force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy, start=start,
-                        progress=bar.update)
+                        progress=bar.update, method=job.calibrate_method)
     fitted = list(fit.apply(model, sensors, Q, fm.increment_cov, noise_cov))
     fitted[2] = fit.force_model if fm.stationary else replace(fm, increment_cov=fitted[2])
 

@@ -171,6 +171,9 @@ class Job:
     calibrate_window : float or None
         Calibrate on the record's first this many seconds (None: the whole record, at most one
         chunk).
+    calibrate_method : str
+        The likelihood that learns a stationary force prior (``method`` of
+        :func:`core_akf.calibration.calibrate`): "auto", "time" or "whittle".
     force_model : ForceModel
         The forces' prior (``[filter] force_model``, ``force_std``, ``force_timescale``; the
         random walk of :attr:`force_increment_cov` by default).
@@ -202,6 +205,7 @@ class Job:
         if self.smooth_lag is not None and not self.smooth:
             raise AKFInputError("[filter] smooth_lag is the lag of the smoother: set smooth = true as well, or remove it")
         self.calibrate_window = f.calibrate_window
+        self.calibrate_method = f.calibrate_method or "auto"
         self.force_model = self._force_model(f)
         self.dummy = None if f.dummy is None else DummyMeasurements(f.dummy.sensors, f.dummy.variance)
         section = {"place": spec.place, "locate": spec.locate}.get(command)

@@ -206,6 +206,12 @@ class Filter(Section):
     calibrate_window: Positive = key("a positive number", "the first this many seconds of the record are used to "
                                      "calibrate (default the whole record, at most 65536 steps)",
                                      used_by=ESTIMATE, unit="s")
+    calibrate_method: Literal["auto", "time", "whittle"] = key(
+        '"auto", "time" or "whittle"', "the likelihood that learns a stationary force model's force_std, "
+        "force_timescale or force_band: time (every sample of the record), whittle (its spectrum against the "
+        "record's periodogram over the frequency bins standing 10x above the noise floor; the other parameters by "
+        "the time-domain likelihood after it), auto (whittle for a Matérn prior when at most half the bins hold signal, else time); "
+        "the JSON's calibration says which ran and why", default_text="auto", used_by=ESTIMATE)
 
 
 class LoadComponent(BaseModel):

@@ -21,6 +21,11 @@ and robust ones from the per-step scores as well (the sandwich, :mod:`core_akf.i
 first hold only if the model made the record, the second also when it did not (a force prior
 that does not fit the loads, the usual case), and a warning names the parameters where the two
 differ by more than :data:`core_akf.inference.MISFIT_RATIO`.
+
+A force prior's parameters can also be fitted by the Whittle likelihood of the record's signal
+bins (:mod:`core_akf.whittle`, ``method`` of :func:`calibrate`): band-limited loads leave most
+frequency bins empty, and a Matérn prior fitted to every bin by the time-domain likelihood bends
+to them.  ``method = "auto"`` chooses by the share of bins that hold signal.
 """
 from __future__ import annotations
 
@@ -39,6 +44,7 @@ from .filter.kernels import steady_logliks
 from .filter.model import Filter
 from .forcemodels import DummyMeasurements, ForceModel, as_force_model
 from .inference import MISFIT_RATIO, information_ratio, sandwich_covariance
+from .whittle import SIGNAL_RATIO, output_spectrum, signal_bins, stationary, structural_part, whittle_terms
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -54,6 +60,11 @@ FORCE_PARAMETERS = ("force_std", "force_timescale", "force_band")
 LOG_STEP = 1e-4
 #: a Butterworth force model's band is learnt up to this fraction of the Nyquist frequency
 BAND_BELOW_NYQUIST = 0.95
+#: the likelihoods that fit a force prior (``method`` of :func:`calibrate`)
+METHODS = ("auto", "time", "whittle")
+#: ``method = "auto"`` fits a force prior by the Whittle likelihood when at most this fraction of the
+#: record's frequency bins stand above its noise floor (:func:`core_akf.whittle.signal_bins`)
+AUTO_SIGNAL_FRACTION = 0.5
 #: a parameter whose log-likelihood changes by less than this over its whole search range is not
 #: identifiable from the record
 FLAT = 1e-3
@@ -102,7 +113,18 @@ class CalibrationResult:
         scores with their autocorrelation (:func:`core_akf.inference.sandwich_covariance`); they
         hold also when the model does not fit the record (a wrong force prior).
     hac_bandwidth : float
-        The autocorrelation lags (steps) the robust errors took into account.
+        The autocorrelation lags (steps) the robust errors took into account (frequency bins when
+        only a Whittle fit ran).
+    method : str
+        The likelihood that fitted the force prior: ``"whittle"`` (its spectrum against the record's
+        periodogram over the signal bins; every other parameter by the time-domain likelihood after
+        it) or ``"time"``.
+    method_reason : str
+        Why that likelihood: as asked, or the rule of ``method = "auto"`` with the record's figures.
+    whittle_loglik : tuple of float or None
+        The Whittle log-likelihood of the signal bins before and after its fit (None for
+        ``"time"``).  The time-domain ``loglik_after`` may then be below ``loglik_before``: it
+        also weighs the bins without signal, which the Whittle fit leaves out on purpose.
     """
 
     values: dict
@@ -119,6 +141,9 @@ class CalibrationResult:
     consistency_after: dict = field(default_factory=dict)
     robust_std_errors: dict = field(default_factory=dict)
     hac_bandwidth: float = 0.0
+    method: str = "time"
+    method_reason: str = ""
+    whittle_loglik: tuple | None = None
 
     def summary(self) -> pd.DataFrame:
         """The fit as a table, as ``akf calibrate`` prints it: a row per parameter (``kind``
@@ -154,7 +179,9 @@ class CalibrationResult:
                 "robust_std_errors": dict(self.robust_std_errors), "hac_bandwidth_steps": self.hac_bandwidth,
                 "loglik_before": self.loglik_before, "loglik_after": self.loglik_after,
                 "consistency_before": dict(self.consistency_before), "consistency_after": dict(self.consistency_after),
-                "warnings": list(self.warnings), "evaluations": self.evaluations, "seconds": self.seconds}
+                "warnings": list(self.warnings), "evaluations": self.evaluations, "seconds": self.seconds,
+                "method": self.method, "method_reason": self.method_reason,
+                "whittle_loglik": None if self.whittle_loglik is None else list(self.whittle_loglik)}
 
     def apply(self, structure: Structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance) -> tuple:
@@ -338,7 +365,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
               noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
               decades: float | None = None, modes: Sequence[int] | None = None,
               force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None,
-              start: dict | None = None, progress: Callable[[int, int, float], None] | None = None) -> CalibrationResult:
+              start: dict | None = None, progress: Callable[[int, int, float], None] | None = None,
+              method: str = "auto") -> CalibrationResult:
     """Fit the filter's model and covariances to a record by maximum likelihood.
 
     Parameters
@@ -385,6 +413,17 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         filters run so far, the number the fit is expected to take (an estimate: the grid, 30
         gradient steps and the curvature; it grows when exceeded) and the best log-likelihood so
         far.  ``akf calibrate`` draws it as a progress bar with an ETA.
+    method : {"auto", "time", "whittle"}
+        The likelihood that fits a stationary force prior's parameters (``force_std``,
+        ``force_timescale``, ``force_band``): ``"time"`` the filter's likelihood of every sample;
+        ``"whittle"`` the Whittle likelihood over the record's signal bins (the frequency bins
+        where it stands :data:`core_akf.whittle.SIGNAL_RATIO` times above its noise floor,
+        :mod:`core_akf.whittle`), the other parameters then by the time-domain likelihood with the
+        force prior held; ``"auto"`` (default) takes the Whittle likelihood for a Matérn prior when at most
+        :data:`AUTO_SIGNAL_FRACTION` of the bins hold signal (band-limited loads: the time-domain
+        likelihood would fit the prior to the empty bins), else the time-domain one (loads that
+        fill the band, a Butterworth prior whose band leaves the empty bins empty, a random
+        walk, a record with holes).
 
     Returns
     -------
@@ -395,7 +434,9 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     AKFInputError
         For an unknown parameter, a parameter given twice, a record too short to identify
         anything, a starting level of zero for a covariance to scale, damping to fit on a model
-        whose damping is not a modal ratio, or a likelihood that is not finite at the start.
+        whose damping is not a modal ratio, a likelihood that is not finite at the start, an
+        unknown ``method``, or ``"whittle"`` where it cannot run (no force parameter, dummy
+        measurements, missing samples, an unstable model, too few signal bins).
 
     Examples
     --------
@@ -413,8 +454,6 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     >>> round(1.05 * fit.values["stiffness_factor"], 2), fit.loglik_after > fit.loglik_before
     (1.0, True)
     """
-    from scipy.optimize import minimize
-
     start_time = time.perf_counter()
     Y = as_measurements(measurements, "measurements", ndim=2)
     force_model = as_force_model(force_model, force_increment_cov)
@@ -457,6 +496,45 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         raise AKFInputError("the log-likelihood at the starting values is not finite (no steady-state filter): "
                             "check the covariances")
     given = _check_start(start, problem.names, bounds)
+    method, reason, bins = _method(method, problem, force_model, Y)
+    spectral = [j for j, n in enumerate(problem.names) if method == "whittle" and n.startswith(FORCE_PARAMETERS)]
+    rest = [j for j in range(len(problem.names)) if j not in spectral]
+    u = np.zeros(len(problem.names))
+    errors, robust, bandwidth, warnings, whittle = {}, {}, 0.0, [], None
+    for part in ("whittle", "time"):
+        free = spectral if part == "whittle" else rest
+        if not free:
+            continue
+        view = _Whittle(problem, bins, u, free) if part == "whittle" else _Subset(problem, u, free)
+        v0 = np.zeros(len(free))
+        at_start = before if part == "time" and not spectral else float(view.logliks(v0)[0])
+        v = _maximise(view, v0, [bounds[j] for j in free], at_start, given)
+        u[free] = v
+        if part == "whittle":
+            whittle = (at_start, float(view.logliks(v)[0]))
+        e, r, bandwidth, w = _curvature(view, v, [bounds[j] for j in free], at_start)
+        errors |= e
+        robust |= r
+        warnings += w
+    after = float(problem.logliks(u)[0])
+    errors = {n: errors[n] for n in problem.names}
+    robust = {n: robust[n] for n in problem.names}
+    multipliers = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
+    values = _values(multipliers, names, noise_cov, model_error_cov, force_model.increment_cov, layout)
+    fitted_force = _fitted_force(problem, force_model, multipliers, names, values)
+    consistency = [problem.consistency(v) for v in (np.zeros(len(u)), u)]      # two kernel runs
+    return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
+                             time.perf_counter() - start_time, fitted_force, layout, *consistency, robust, bandwidth,
+                             method, reason, whittle)
+
+
+def _maximise(problem, u0, bounds, before, given):
+    """The log-factors of ``problem`` (a :class:`_Subset` or a :class:`_Whittle`) that maximise
+    its log-likelihood: a grid for what sets a frequency (:func:`_grid_start`) or the ``given``
+    starts, then L-BFGS-B with central differences in one batch; never worse than ``u0``."""
+    from scipy.optimize import minimize
+
+    given = {n: v for n, v in given.items() if n in problem.names}
     u0 = _grid_start(problem, u0, bounds, before, set(given))
     for j, name in enumerate(problem.names):
         if name in given:
@@ -475,17 +553,101 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
 
     fit = minimize(negative, u0, jac=True, method="L-BFGS-B", bounds=bounds,
                    options={"maxiter": 200, "ftol": 1e-12, "gtol": 1e-6})
-    u = fit.x
-    after = float(problem.logliks(u)[0])
-    if after < before:                                  # never worse than the start
-        u, after = np.zeros(len(u)), before
-    errors, robust, bandwidth, warnings = _curvature(problem, u, bounds, before)
-    multipliers = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
-    values = _values(multipliers, names, noise_cov, model_error_cov, force_model.increment_cov, layout)
-    fitted_force = _fitted_force(problem, force_model, multipliers, names, values)
-    consistency = [problem.consistency(v) for v in (np.zeros(len(u)), u)]      # two kernel runs
-    return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
-                             time.perf_counter() - start_time, fitted_force, layout, *consistency, robust, bandwidth)
+    if not float(problem.logliks(fit.x)[0]) >= before:        # never worse than the start
+        return np.zeros(len(fit.x))
+    return fit.x
+
+
+class _Subset:
+    """The likelihood of :class:`_Problem` over some of its log-factors (``free``), the others
+    held at ``u``: what the time-domain fit searches after a Whittle fit of the force prior."""
+
+    transient = True          # the filter's start-up: its first scores are left out of the robust errors
+
+    def __init__(self, problem, u, free):
+        self.problem, self.u, self.free = problem, np.array(u, float), list(free)
+        self.names = [problem.names[j] for j in self.free]
+
+    def full(self, V):
+        """The whole log-factor vectors of the rows of ``V`` (B, len(free))."""
+        U = np.tile(self.u, (len(V), 1))
+        U[:, self.free] = V
+        return U
+
+    def logliks(self, V, per_step=False):
+        """The time-domain log-likelihood at every row of ``V``, as :meth:`_Problem.logliks`."""
+        return self.problem.logliks(self.full(np.atleast_2d(V)), per_step=per_step)
+
+
+class _Whittle(_Subset):
+    """The Whittle likelihood of the record's signal bins (:mod:`core_akf.whittle`) over the force
+    prior's log-factors ``free``; the structure's decomposition is computed once (the force prior
+    does not change it).  ``per_step`` gives each bin's term."""
+
+    transient = False
+
+    def __init__(self, problem, bins, u, free):
+        super().__init__(problem, u, free)
+        self.bins = bins
+        A, G, Q, _ = problem.matrices(self.u)
+        self.nx, self.m = problem.base.nx, len(problem.layout)
+        self.part = structural_part(A, G[:self.m], Q, self.nx)
+
+    def logliks(self, V, per_step=False):
+        """The Whittle log-likelihood at every row of ``V``, (B,); per bin (B, K) with ``per_step``."""
+        out = []
+        for u in self.full(np.atleast_2d(V)):
+            A, G, Q, R = self.problem.matrices(u)
+            S = output_spectrum(A, G[:self.m], Q, R[:self.m, :self.m], self.nx, self.bins.omega, self.part)
+            out.append(whittle_terms(S, self.bins))
+        problem = self.problem
+        problem.evaluations += len(out)
+        if problem.progress is not None:
+            problem.expected = max(problem.expected, problem.evaluations)
+            problem.progress(problem.evaluations, problem.expected, problem.best)
+        out = np.array(out)
+        return out if per_step else out.sum(axis=1)
+
+
+def _method(method, problem, force_model, Y):
+    """The likelihood that fits the force prior (``"whittle"`` or ``"time"``), why, and the record's
+    signal bins (None for ``"time"``): ``method`` as asked, or by the rule of ``"auto"``."""
+    if method not in METHODS:
+        raise AKFInputError(f"unknown calibration method {method!r}; use one of {list(METHODS)}")
+    learnt = [n for n in problem.names if n.startswith(FORCE_PARAMETERS)]
+    if method == "time":
+        return "time", "the time-domain likelihood, as asked", None
+    if not learnt:
+        if method == "whittle":
+            raise AKFInputError("the Whittle likelihood fits a stationary force model's parameters (force_std, "
+                                "force_timescale, force_band); none of them is learnt")
+        return "time", "no force-model parameter is learnt: the time-domain likelihood", None
+    if method == "auto" and force_model.kind == "butterworth":
+        return "time", ("the time-domain likelihood: a Butterworth prior's band puts no power where the loads have "
+                        "none, so the empty bins do not pull it"), None
+    why = None
+    if problem.base.dummy_layout:
+        why = "dummy measurements are not a stationary record"
+    elif not np.all(np.isfinite(Y)):
+        why = "the record has missing samples (the periodogram needs every sample)"
+    elif not stationary(problem.base.A_a, problem.base.nx):
+        why = "the model has a pole on or outside the unit circle (no stationary spectrum)"
+    if why is None:
+        bins = signal_bins(Y, np.diag(problem.base.R[0])[:len(problem.layout)])
+        if bins.omega.size < 10 * len(learnt):
+            why = (f"only {bins.omega.size} frequency bins stand {SIGNAL_RATIO:g}x above the noise floor (at least "
+                   f"{10 * len(learnt)} are needed)")
+    if why is not None:
+        if method == "whittle":
+            raise AKFInputError(f"the Whittle likelihood cannot fit this record: {why}")
+        return "time", f"the time-domain likelihood: {why}", None
+    band = f"{100 * bins.fraction:.0f} % of the record's frequency bins stand {SIGNAL_RATIO:g}x above the noise floor"
+    if method == "whittle":
+        return "whittle", f"the Whittle likelihood over the signal bins, as asked ({band})", bins
+    if bins.fraction <= AUTO_SIGNAL_FRACTION:
+        return "whittle", (f"{band}: the time-domain likelihood would fit the force prior to the empty bins, so the "
+                           "Whittle likelihood over the signal bins fits it"), bins
+    return "time", (f"{band}: the loads fill the band, so the time-domain likelihood fits the force prior"), None
 
 
 def _bounds(problem, force_model, n_steps, stiffness_range, decades):
@@ -763,7 +925,7 @@ def _robust(problem, u, h, H):
     The scores of the start-up transient (the first 5 %, as the consistency) are left out: the
     steady filter starts from a zero mean with its converged covariance, so its first innovations
     are far larger than predicted even when the model is right.  ``J`` of the rest is scaled to
-    the whole record."""
+    the whole record.  A Whittle likelihood's terms are its frequency bins: none is left out."""
     from .filter.results import skipped
     from .inference import hac_bandwidth
 
@@ -771,7 +933,7 @@ def _robust(problem, u, h, H):
     E = h * np.eye(k)
     terms = problem.logliks(np.vstack([u + E, u - E]), per_step=True)
     n_steps = terms.shape[1]
-    scores = ((terms[:k] - terms[k:]) / (2 * h)).T[skipped(n_steps):]             # (N', k)
+    scores = ((terms[:k] - terms[k:]) / (2 * h)).T[skipped(n_steps) if problem.transient else 0:]   # (N', k)
     nan = np.full(k, np.nan)
     if not np.all(np.isfinite(scores)):
         return nan, 0.0

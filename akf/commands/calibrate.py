@@ -58,7 +58,12 @@ def _calibrate(args):
     print(f"{job.name}: calibrated {', '.join(job.calibrate)} on {report['record_steps']} steps "
           f"({report['seconds']:.2f} s, {report['evaluations']} filters)")
     print(f"  {report['window']}")
+    if any(p.startswith(("force_std", "force_timescale", "force_band")) for p in job.calibrate):
+        print(f"  force prior by the {report['method']} likelihood: {report['method_reason']}")
     print(f"  log-likelihood: {report['loglik_before']:.8g} -> {report['loglik_after']:.8g}")
+    if report.get("whittle_loglik"):
+        print("  Whittle log-likelihood of the signal bins: {:.8g} -> {:.8g} (the fit's own; the time-domain one above "
+              "also weighs the bins without signal)".format(*report["whittle_loglik"]))
     print("  parameter                 factor     std error (relative): observed     robust")
     for name, factor in report["multipliers"].items():
         print(f"    {name:22s} {factor:10.5g}   {report['std_errors'][name]:29.3g} "
@@ -100,7 +105,7 @@ WRITTEN = ("stiffness_factor", "frequency_factors", "noise_cov", "force_incremen
 
 def write_calibrated(source, report, path):
     """Write the job file ``source`` with the fitted ``[filter]`` values of ``report`` (and without
-    ``calibrate``, ``calibrate_window`` and ``calibrate_modes``) to ``path``.
+    ``calibrate``, ``calibrate_window``, ``calibrate_modes`` and ``calibrate_method``) to ``path``.
 
     Comments and layout are kept (tomlkit), a replaced value keeps its comment (its unit), and
     the relative data paths (the record, a model's files) are rewritten to point from ``path``'s
@@ -118,11 +123,11 @@ def write_calibrated(source, report, path):
     doc = tomlkit.parse(text)
     expected = tomllib.loads(text)
     fitted = {key: report[key] for key in WRITTEN if key in report}
-    for key in ("calibrate", "calibrate_window", "calibrate_modes"):
+    for key in ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method"):
         expected.get("filter", {}).pop(key, None)
     expected.setdefault("filter", {}).update(fitted)
     table = _plain_table(doc, "filter")
-    for key in ("calibrate", "calibrate_window", "calibrate_modes"):
+    for key in ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method"):
         if key in table:
             del table[key]
     for key, value in fitted.items():

@@ -122,10 +122,10 @@ def test_a_wrong_force_prior_biases_more_than_any_standard_error_shows():
     sim = simulate(s17_truss(), ACC, forces, loads, dt, relative_noise=0.02, seed=0)
     fit = calibrate(s17_truss(), ACC, forces, sim.measurements, dt, parameters=["force_std", "force_timescale"],
                     model_error_cov=1e-16, noise_cov=np.diag(sim.noise_std ** 2),
-                    force_model=ForceModel("matern32", std=500.0, timescale=2e-3))
+                    force_model=ForceModel("matern32", std=500.0, timescale=2e-3), method="time")
     ratio = information_ratio([fit.std_errors[n] for n in fit.multipliers],
                               [fit.robust_std_errors[n] for n in fit.multipliers])
-    assert np.all(ratio > 1.2) and fit.hac_bandwidth > 5
+    assert np.all(ratio > 1.2) and fit.hac_bandwidth > 5 and fit.method == "time"
     rms = float(np.sqrt(np.mean(loads ** 2)))
     assert fit.values["force_std"] > 1000 and np.log(fit.values["force_std"] / rms) > 5 * fit.robust_std_errors["force_std"]
 
