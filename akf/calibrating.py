@@ -184,7 +184,9 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
     ``[structure]``; ``noise_cov`` per sensor kind when the job gives it so, else per channel), the
     log-likelihood and the consistency per channel before and after, the standard errors
     (relative), the warnings of the fit and ``window``, what part of the record calibrated
-    (``record_steps``: the steps of the whole measured record; None for a simulated one)."""
+    (``record_steps``: the steps of the whole measured record; None for a simulated one).  A full
+    model (no ``[filter] n_modes``) is fitted on its modes below 3x the Nyquist frequency
+    (``n_modes="band"`` of :func:`core_akf.calibration.calibrate`), said in ``model_note``."""
     from core_akf.calibration import calibrate
 
     Q, fm = job.model_error_cov, job.force_model
@@ -192,12 +194,17 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
     with _CalibrationBar() as bar:
         fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
                         force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy, start=start,
-                        progress=bar.update, method=job.calibrate_method)
+                        progress=bar.update, method=job.calibrate_method,
+                        n_modes="band" if job.n_modes is None else None)
     fitted = list(fit.apply(model, sensors, Q, fm.increment_cov, noise_cov))
     fitted[2] = fit.force_model if fm.stationary else replace(fm, increment_cov=fitted[2])
 
     report = {"parameters": list(job.calibrate), "record_steps": int(Y.shape[0]),
               "window": window_note(job, Y, record_steps)}
+    if fit.filter_modes is not None:
+        report["model_note"] = (f"fitted on the lowest {fit.filter_modes} of the model's {model.n} modes (those below 3x "
+                                "the Nyquist frequency, with a static correction and the dropped modes' noise); the "
+                                "factors apply to the whole model")
     m = fit.multipliers
     if "stiffness_factor" in m:
         report["stiffness_factor"] = job.stiffness_factor * m["stiffness_factor"]

@@ -102,9 +102,20 @@ def signal_bins(Y, noise_var, ratio: float | None = None, segment: int | None = 
 
 
 def stationary(A_a, nx) -> bool:
-    """Whether the augmented model ``A_a`` (its structure in the first ``nx`` states) has a
-    stationary output: every pole inside the unit circle, and no force state driving back into the
-    structure's."""
+    """Whether an augmented model has a stationary output: every pole inside the unit circle, and
+    no structural state driving the force states.
+
+    Parameters
+    ----------
+    A_a : ndarray (n_a, n_a)
+        The augmented transition ``[[A, B H], [0, F]]``.
+    nx : int
+        The structure's states (the first ``nx``).
+
+    Returns
+    -------
+    bool
+    """
     if np.any(A_a[nx:, :nx] != 0):
         return False
     return bool(np.max(np.abs(np.linalg.eigvals(A_a))) < 1.0 - 1e-12)
@@ -173,13 +184,43 @@ def output_spectrum(A_a, G, Q_a, R, nx, omega, structural=None):
 
 
 def structural_part(A_a, G, Q_a, nx):
-    """The eigendecomposition of ``A_a``'s structural block that :func:`output_spectrum` reuses."""
+    """The eigendecomposition of the structural block that :func:`output_spectrum` reuses.
+
+    Parameters
+    ----------
+    A_a, G, Q_a : ndarray
+        The augmented transition (n_a, n_a), observation (m, n_a) and process covariance (n_a, n_a).
+    nx : int
+        The structure's states (the first ``nx``).
+
+    Returns
+    -------
+    object
+        To pass as ``structural`` to :func:`output_spectrum` while only the force model changes.
+
+    Raises
+    ------
+    AKFInputError
+        If the structural block is not diagonalisable.
+    """
     return _Structural(A_a[:nx, :nx], G[:, :nx], A_a[:nx, nx:], Q_a[:nx, :nx])
 
 
 def whittle_terms(S, bins: SignalBins):
-    """Each signal bin's Whittle term ``-(log det S_k + y_k^H S_k^-1 y_k / N)``, (K,); ``-inf`` where
-    ``S_k`` is not positive definite."""
+    """Each signal bin's Whittle term ``-(log det S_k + y_k^H S_k^-1 y_k / N)``.
+
+    Parameters
+    ----------
+    S : ndarray (K, m, m) complex
+        The model's output spectrum at the bins (:func:`output_spectrum`).
+    bins : SignalBins
+        The record's coefficients at the same bins.
+
+    Returns
+    -------
+    ndarray (K,)
+        ``-inf`` where ``S_k`` is not positive definite.
+    """
     try:
         L = np.linalg.cholesky(S)
     except np.linalg.LinAlgError:

@@ -58,6 +58,8 @@ def _calibrate(args):
     print(f"{job.name}: calibrated {', '.join(job.calibrate)} on {report['record_steps']} steps "
           f"({report['seconds']:.2f} s, {report['evaluations']} filters)")
     print(f"  {report['window']}")
+    if "model_note" in report:
+        print(f"  {report['model_note']}")
     if any(p.startswith(("force_std", "force_timescale", "force_band")) for p in job.calibrate):
         print(f"  force prior by the {report['method']} likelihood: {report['method_reason']}")
     print(f"  log-likelihood: {report['loglik_before']:.8g} -> {report['loglik_after']:.8g}")

@@ -78,7 +78,8 @@ def _print_results(job, res):
         print(f"  calibrated on {c['record_steps']} steps ({c['seconds']:.2f} s): log-likelihood {c['loglik_before']:.8g} "
               f"-> {c['loglik_after']:.8g}; factors " + ", ".join(f"{k} {v:.5g}" for k, v in c["multipliers"].items())
               + (f"; stiffness_factor = {c['stiffness_factor']:.6g}" if "stiffness_factor" in c else ""))
-        print(f"    {c['window']}")
+        whittle = c.get("method") == "whittle" and f"force prior by the Whittle likelihood: {c['method_reason']}"
+        print("\n".join(f"    {note}" for note in (c["window"], c.get("model_note"), whittle) if note))
     if "rms_force" in m:
         print("  RMS force error (N):")
         for k, v in m["rms_force"].items():
