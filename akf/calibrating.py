@@ -6,16 +6,36 @@ from dataclasses import replace
 
 import numpy as np
 
-#: steps of a measured record that calibrate the filter without ``[filter] calibrate_window``
-#: (the estimate's longest chunk: one read of the record)
+#: steps of a measured record that calibrate the filter without ``[filter] calibrate_window``, at
+#: most (the estimate's longest chunk: one read of the record)
 CALIBRATION_STEPS = 65536
+#: without ``[filter] calibrate_window``, the window holds about this many steps x (filter states)^2:
+#: each of the fit's few hundred filters costs in proportion to it (about 0.3 s at 2e8 on 2 cores)
+CALIBRATION_BUDGET = 2e8
+#: ... but never fewer than this many periods of the model's first mode (nor 2048 steps)
+CALIBRATION_PERIODS = 50
 
 
-def calibration_record(job, record):
-    """The part of a measured record that calibrates the filter: its first ``[filter]
-    calibrate_window`` seconds, or the whole record up to :data:`CALIBRATION_STEPS` steps."""
-    steps = CALIBRATION_STEPS if job.calibrate_window is None else max(2, int(round(job.calibrate_window / job.dt)))
-    return next(iter(record.chunks(min(steps, record.n_steps))))[1]
+def calibration_steps(job, model):
+    """The steps of a measured record that calibrate the filter: ``[filter] calibrate_window``, or
+    the rule without it -- :data:`CALIBRATION_BUDGET` over the squared states of the filter the fit
+    runs on (its modes below 3x Nyquist, :func:`core_akf.defaults.band_modes`, and the force
+    states), at least :data:`CALIBRATION_PERIODS` periods of the first mode and 2048 steps, at
+    most :data:`CALIBRATION_STEPS`."""
+    from core_akf.defaults import band_modes
+
+    if job.calibrate_window is not None:
+        return max(2, int(round(job.calibrate_window / job.dt)))
+    modes = model.n if job.n_modes is not None else band_modes(model, job.dt, any(s.kind == "acc" for s in job.sensors))
+    states = 2 * modes + job.force_model.states_per_force * len(job.forces)
+    floor = max(2048, int(CALIBRATION_PERIODS / (float(model.frequencies(1)[0]) * job.dt)))
+    return int(min(CALIBRATION_STEPS, max(floor, CALIBRATION_BUDGET / states ** 2)))
+
+
+def calibration_record(job, record, model):
+    """The part of a measured record that calibrates the filter: its first
+    :func:`calibration_steps`."""
+    return next(iter(record.chunks(min(calibration_steps(job, model), record.n_steps))))[1]
 
 
 #: the periods of the model's first mode a record must hold for its modal analysis
@@ -169,7 +189,8 @@ def window_note(job, Y, record_steps):
         return f"calibrated on the whole simulated record ({used} steps, {seconds:.3g} s)"
     if used < record_steps:
         how = (f"[filter] calibrate_window = {job.calibrate_window:g} s" if job.calibrate_window is not None
-               else f"at most {CALIBRATION_STEPS} steps without [filter] calibrate_window")
+               else "without [filter] calibrate_window: about a minute of fitting for this filter's size, at least "
+                    f"{CALIBRATION_PERIODS} periods of the first mode, at most {CALIBRATION_STEPS} steps")
         return (f"calibrated on the record's first {seconds:.3g} s ({used} of {record_steps} steps; {how}); a "
                 "longer window narrows the standard errors and costs time in proportion")
     return (f"calibrated on the whole record ({used} steps, {seconds:.3g} s); [filter] calibrate_window = "

@@ -204,7 +204,9 @@ class Filter(Section):
         "after which the record barely changes the estimate (smooth_lag_tolerance); default: the whole record for a "
         "record in one piece, \"auto\" for a record filtered in chunks", used_by=ESTIMATE, unit="s")
     calibrate_window: Positive = key("a positive number", "the first this many seconds of the record are used to "
-                                     "calibrate (default the whole record, at most 65536 steps)",
+                                     "calibrate (default: a window of about a minute of fitting for the filter's size, at "
+                                     "least 50 periods of the first mode, at most 65536 steps; the JSON's window names "
+                                     "it)",
                                      used_by=ESTIMATE, unit="s")
     calibrate_method: Literal["auto", "time", "whittle"] = key(
         '"auto", "time" or "whittle"', "the likelihood that learns a stationary force model's force_std, "

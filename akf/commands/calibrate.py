@@ -32,15 +32,16 @@ def _calibrate(args):
     out = args.out or os.path.join("akf-out", job.name)
     with OutputFolder(out, "--out"):
         sim = record = None
+        model = job.filter_model()
         if job.spec.measurements is not None:
             record = job.open_record()
-            Y = calibration_record(job, record)
+            Y = calibration_record(job, record, model)
             noise_cov = job.noise_cov()
         else:
             sim = job.simulate()
             Y = sim.measurements
             noise_cov = job.noise_cov(sim)
-        *_, report = calibrate_job(job, job.filter_model(), job.sensors, job.forces, Y, noise_cov,
+        *_, report = calibrate_job(job, model, job.sensors, job.forces, Y, noise_cov,
                                    None if record is None else record.n_steps)
         path = os.path.join(out, "calibrated.toml")
         source = args.job or example_path(args.example)

@@ -107,7 +107,7 @@ class Setup:
         setup = cls(job, out, sim, record, n_total, t0, model, job.model_error_cov, job.force_model, noise_cov,
                     warnings=notes, notes=[] if record is None else record.gap_notes())
         if job.calibrate:        # learn the model and the covariances from the record first
-            Y_cal = sim.measurements if sim is not None else calibration_record(job, record)
+            Y_cal = sim.measurements if sim is not None else calibration_record(job, record, model)
             setup.model, setup.Q, setup.force_model, setup.noise_cov, setup.calibration = calibrate_job(
                 job, model, sensors, job.forces, Y_cal, noise_cov, None if record is None else record.n_steps)
         setup.strains = strain_outputs(job, structure, n_total, setup.notes, setup.warnings) if out is not None else []
