@@ -164,6 +164,31 @@ def test_a_measured_record_calibrates_on_its_first_seconds(tmp_path):
     assert os.path.exists(res.files["summary"]) and res.metrics["n_steps"] == 4096
 
 
+def test_the_default_window_follows_the_filters_size():
+    """Without calibrate_window the window holds 2e8 / (filter states)^2 steps, at least 50 periods
+    of the first mode and 2048 steps, at most 65536: 40 816 steps for S17 case 4 (66 + 4 states),
+    about 3500 for a 147-DOF truss at 512 Hz (its band modes, 2 Matérn-1/2 forces); calibrate_window
+    overrides it."""
+    from akf.calibrating import calibration_steps
+    from core_akf.defaults import band_modes
+
+    job = Job.from_dict(example_job("s17-case4"), "estimate")
+    assert calibration_steps(job, job.filter_model()) == int(2e8 / 70 ** 2) == 40816
+    data = example_job("s17-case4")
+    data["filter"]["calibrate_window"] = 0.5
+    job = Job.from_dict(data, "estimate")
+    assert calibration_steps(job, job.filter_model()) == 2048
+    data = {"name": "own", "dt": 1 / 512, "sensors": ["acc:9:z", "acc:22:y"], "forces": ["17:z", "33:z"],
+            "structure": {"model": "footbridge", "n_panels": 12},
+            "filter": {"force_model": "matern12", "force_std": 300.0, "force_timescale": 5e-3}}
+    job = Job.from_dict(data, "estimate")
+    band = band_modes(job.filter_model(), job.dt, accelerations=True)
+    assert 100 < band < 147 and calibration_steps(job, job.filter_model()) == int(2e8 / (2 * band + 2) ** 2)
+    job = Job.from_dict(data | {"dt": 1 / 4096}, "estimate")      # sampled fast: 50 periods of 15 Hz is the floor
+    first = float(job.filter_model().frequencies(1)[0])
+    assert calibration_steps(job, job.filter_model()) == int(50 / (first / 4096)) > 2e8 / (2 * 147 + 2) ** 2
+
+
 def test_progress_reports_every_batch_of_filters():
     """``progress`` is called after every batch: the filters run so far (increasing, ending at
     the fit's own count), an expected total never below them, and the best log-likelihood so
