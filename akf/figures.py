@@ -22,35 +22,102 @@ def plot_estimate(time, forces, force_labels, path, title, reference=None, strai
     """Estimated forces (kN) against time, the reference (dashed, drawn on top) if given, the RMS
     strain error per output (µε; the worst :data:`WORST` ranked when there are many) and the
     consistency per sensor (``{channel: innovation RMS / predicted}``) if given; ``force_std``
-    (N, same shape as ``forces``) draws +-2 sigma bands around a smoothed estimate."""
-    from core_akf.figures import save_figure, subplots
+    (N, same shape as ``forces``) draws +-2 sigma bands around a smoothed estimate, and beside each
+    force a zoom on a stretch where the band can be seen (:func:`band_window`, shaded on the
+    whole record): on a kN axis over the whole record a band of a few N is a line."""
+    from core_akf.figures import figure, save_figure
 
     nf = forces.shape[1]
     panels = nf + (1 if strain_errors else 0) + (1 if consistency else 0)
-    fig, axes = subplots(panels, 1, figsize=(9, 2.2 * panels + (1.5 if strain_errors and len(strain_errors) > MANY_OUTPUTS
-                                                                 else 0)), squeeze=False)
+    fig = figure(figsize=(11 if force_std is not None else 9,
+                          2.2 * panels + (1.5 if strain_errors and len(strain_errors) > MANY_OUTPUTS else 0)))
+    zoomed = force_std is not None
+    grid = fig.add_gridspec(panels, 2 if zoomed else 1, width_ratios=[3, 1] if zoomed else None)
     for j, label in enumerate(force_labels):
-        ax = axes[j, 0]
-        if force_std is not None:
+        ax = fig.add_subplot(grid[j, 0])
+        if zoomed:
             ax.fill_between(time, (forces[:, j] - 2 * force_std[:, j]) / 1e3, (forces[:, j] + 2 * force_std[:, j]) / 1e3,
                             color="tab:red", alpha=0.2, lw=0, label="±2σ (smoothed)", zorder=1)
         ax.plot(time, forces[:, j] / 1e3, "-", color="tab:red", lw=0.9,
-                label="AKF estimate" + (" (smoothed)" if force_std is not None else ""), zorder=2)
+                label="AKF estimate" + (" (smoothed)" if zoomed else ""), zorder=2)
         if reference is not None:
             ax.plot(time, reference[:, j] / 1e3, "--", color="k", lw=0.9, label="reference", zorder=3)
         ax.set_ylabel(f"force {label}\n(kN)")
         ax.legend(loc="upper right", fontsize=7)
-    axes[nf - 1, 0].set_xlabel("time (s)" + note)
+        if j == nf - 1:
+            ax.set_xlabel("time (s)" + note)
+        if zoomed:
+            a, b = band_window(forces[:, j], force_std[:, j])
+            ax.axvspan(time[a], time[b - 1], color="0.6", alpha=0.25, lw=0, zorder=0)
+            _band_zoom(fig.add_subplot(grid[j, 1]), time[a:b], forces[a:b, j], force_std[a:b, j],
+                       None if reference is None else reference[a:b, j], label)
     if strain_errors:
-        _strain_error_panel(axes[nf, 0], strain_errors)
+        _strain_error_panel(fig.add_subplot(grid[nf, :]), strain_errors)
     if consistency:
-        ax = axes[-1, 0]
+        ax = fig.add_subplot(grid[panels - 1, :])
         ax.bar(range(len(consistency)), list(consistency.values()), color="tab:blue")
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_xticks(range(len(consistency)), list(consistency), rotation=45, fontsize=7)
         ax.set_ylabel("innovation /\npredicted")
     fig.suptitle(title)
     return save_figure(fig, path)
+
+
+#: the zoom of :func:`band_window` stops growing where the estimate spans this many times its 2σ
+BAND_SPAN = 7.0
+
+
+def band_window(values, std, span=None):
+    """The stretch ``(start, stop)`` of a smoothed estimate on which its ±2σ band can be seen.
+
+    Centred on the record's middle, it grows while the estimate's range over it stays within
+    ``span`` (default :data:`BAND_SPAN`) times the median 2σ, to at most a fifth of the record;
+    drawn on its own axis, the band then fills at least a tenth of it.
+
+    Parameters
+    ----------
+    values, std : ndarray (N,)
+        The estimate and its standard deviation (same unit).
+    span : float, optional
+
+    Returns
+    -------
+    (int, int)
+    """
+    values, std = np.asarray(values, float), np.asarray(std, float)
+    n = values.size
+    two_sigma = 2 * float(np.median(std)) if n else 0.0
+    if n < 4 or not two_sigma > 0:
+        return 0, n
+    limit = (BAND_SPAN if span is None else span) * two_sigma
+    lo, hi = max(0, n // 2 - 2), min(n, n // 2 + 3)
+    while hi - lo < max(5, n // 5) and (lo > 0 or hi < n):
+        grow = max(1, (hi - lo) // 4)
+        a, b = max(0, lo - grow), min(n, hi + grow)
+        if np.ptp(values[a:b]) > limit:
+            break
+        lo, hi = a, b
+    return lo, hi
+
+
+def _band_zoom(ax, time, values, std, reference, label):
+    """The zoom beside a force: the estimate with its ±2σ band (N), and the reference."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.fill_between(time, values - 2 * std, values + 2 * std, color="tab:red", alpha=0.25, lw=0)
+    marker = "." if time.size <= 60 else None
+    ax.plot(time, values, "-", color="tab:red", lw=0.9, marker=marker, ms=3)
+    if reference is not None:
+        ax.plot(time, reference, "--", color="k", lw=0.9)
+    low, high = float(np.min(values - 2 * std)), float(np.max(values + 2 * std))
+    pad = 0.05 * (high - low)
+    ax.set_ylim(low - pad, high + pad)
+    ax.set_title(f"zoom: ±2σ = ±{2 * float(np.median(std)):.3g} N", fontsize=8)
+    ax.set_ylabel(f"{label} (N)", fontsize=7)
+    ax.tick_params(labelsize=6)
+    ax.ticklabel_format(axis="x", useOffset=False)
+    ax.xaxis.set_major_locator(MaxNLocator(3))
+    ax.set_xlabel("time (s)", fontsize=7)
 
 
 def _strain_error_panel(ax, errors):
@@ -123,9 +190,14 @@ def plot_transfer(frequencies, transfer, force_labels, natural_frequencies, path
     return save_figure(fig, path)
 
 
+#: the fatigue map's colour scale spans the largest damage down to this fraction of it
+FATIGUE_RANGE = 1e4
+
+
 def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity="Miner's damage"):
-    """The damage map on the structure (members or nodes coloured by ``damage``, log scale; a
-    3-D structure in 3-D) above the ten most damaged outputs, ranked.  The strain gauges are
+    """The damage map on the structure (members or nodes coloured by ``damage``, log scale from
+    the largest down to 1/:data:`FATIGUE_RANGE` of it; a 3-D structure in 3-D) above the ten most
+    damaged outputs, ranked on a linear axis.  The strain gauges are
     marked: the outputs no gauge sees are the point of estimating them.  ``quantity`` names what
     is drawn (the damage-equivalent range when no cycle reaches the curve's cut-off)."""
     import matplotlib as mpl
@@ -137,6 +209,7 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity=
     channels, damage = list(channels), np.asarray(damage, float)
     positive = damage[damage > 0]
     lo, hi = (positive.min(), positive.max()) if positive.size else (1e-12, 1.0)
+    lo = max(lo, hi / FATIGUE_RANGE)         # what is 1e4 x below the worst does not matter: one colour
     norm = mpl.colors.LogNorm(vmin=lo, vmax=max(hi, lo * 10))
     cmap = mpl.colormaps["inferno_r"]
     xyz = structure.nodes
@@ -188,17 +261,15 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity=
             ax.set_zlabel(f"z (m, x{scale[1]:.3g})")
     else:
         ax.set_aspect("equal")
-    ax.set_title(f"{quantity} (grey: none)", fontsize=9)
+    ax.set_title(f"{quantity} (grey: none; the scale spans the largest down to 1/{FATIGUE_RANGE:g} of it)", fontsize=9)
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.8, label=quantity,
-                 pad=0.12 if three_d else 0.05)
+                 pad=0.12 if three_d else 0.05, extend="min" if positive.size and positive.min() < lo else "neither")
     ax2 = fig.add_subplot(grid[1])
     top = np.argsort(-damage, kind="stable")[:10]
     ax2.barh(range(len(top)), damage[top], color=[colour(d) for d in damage[top]])
     ax2.set_yticks(range(len(top)), [channels[i] for i in top], fontsize=8)
     ax2.invert_yaxis()
-    if np.any(damage[top] > 0):
-        ax2.set_xscale("log")
-    ax2.set_xlabel(f"{quantity} over the record")
+    ax2.set_xlabel(f"{quantity} over the record (linear: the bars compare as the values do)")
     ax2.set_title(f"the ten outputs of the largest {quantity}", fontsize=9)
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path)
@@ -213,11 +284,12 @@ def plot_events(structure, frame, path, title):
     fig = plot_structure(structure, numbers=structure.n_nodes <= 60)
     ax = fig.axes[0]
     ok = frame[frame["node"].notna()]
-    peaks = np.abs(ok["peak_force"].to_numpy(float))
+    peaks = np.abs(ok["peak_force_N"].to_numpy(float))
     sizes = 60 + 340 * peaks / max(peaks.max(), 1e-300)
     xy = structure.nodes[structure.node_rows(ok["node"].astype(int).to_numpy())][:, :2]
+    # the discs under the numbers (text is drawn at zorder 3): a located node stays readable
     sc = ax.scatter(xy[:, 0], xy[:, 1], s=sizes, c=ok["confidence"].to_numpy(float), cmap="viridis", vmin=0, vmax=1,
-                    alpha=0.75, edgecolors="k", zorder=5)
+                    alpha=0.55, edgecolors="k", zorder=2.5)
     for k, (x, y), p in zip(ok.index, xy, peaks):
         ax.annotate(f"#{k + 1}: {p / 1e3:.3g} kN", (x, y), textcoords="offset points", xytext=(8, -12), fontsize=8,
                     fontweight="bold", color="darkred", zorder=6)

@@ -98,9 +98,10 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
 
     Each event is located as a job of its own (:func:`run_locate_job`) and its ranking and force
     history are written to ``out/events/<file name>/``.  One table, ``events.csv``, has a row per
-    file: ``file``, ``node``, ``direction``, ``confidence``, ``margin``, ``peak_force`` (N),
-    ``time_of_peak`` (s, from the record's start), ``duration`` (s), ``impulse`` (N s) and
-    ``error`` (why a file could not be used; the others go on).  ``events.png`` draws the located
+    file: ``file`` (relative to the output folder when it can be), ``node``, ``direction``,
+    ``confidence``, ``margin``, ``peak_force_N``, ``time_of_peak_s`` (from the record's start),
+    ``duration_s``, ``impulse_Ns``, ``warnings`` and ``error`` (why a file could not be used; the
+    others go on).  ``events.png`` draws the located
     impacts on the structure.  Returns ``(DataFrame, {name: path})``."""
     import pandas as pd
 
@@ -109,19 +110,19 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
     files = record_files(job.spec.measurements.file)
     rows, written = [], {}
     os.makedirs(confined(out), exist_ok=True)
-    columns = ["file", "node", "direction", "confidence", "margin", "peak_force", "time_of_peak", "duration", "impulse",
-               "warnings", "error"]
+    columns = ["file", "node", "direction", "confidence", "margin", "peak_force_N", "time_of_peak_s", "duration_s",
+               "impulse_Ns", "warnings", "error"]
     written["events"] = os.path.join(out, "events.csv")
     for i, path in enumerate(files):
-        shown = printable_path(path)
+        shown = printable_path(_relative(path, out))
         name = os.path.splitext(os.path.basename(shown))[0]
         row = {"file": shown}
         try:
             result = run_locate_job(job.with_record(path), n_jobs=n_jobs, seed=seed, progress=False, tune=tune)
             d = result.to_dict()
             row |= {"node": d["identified"], "direction": d["direction"], "confidence": d["confidence"],
-                    "margin": d["margin"], "peak_force": d["peak_force"], "time_of_peak": d["time_of_peak"],
-                    "duration": d["duration"], "impulse": d["impulse"], "warnings": "; ".join(d["warnings"]),
+                    "margin": d["margin"], "peak_force_N": d["peak_force"], "time_of_peak_s": d["time_of_peak"],
+                    "duration_s": d["duration"], "impulse_Ns": d["impulse"], "warnings": "; ".join(d["warnings"]),
                     "error": ""}
             write_outputs(result, os.path.join(out, "events", name), plot=False)
         except Exception as exc:  # noqa: BLE001 -- one event that fails must not lose the others
@@ -132,7 +133,7 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
         else:
             if progress:
                 log.info(f"  [{i + 1}/{len(files)}] {name}: node {row['node']} ({row['direction']}), confidence "
-                      f"{row['confidence']:.2f}, peak {row['peak_force'] / 1e3:.3f} kN at {row['time_of_peak']:.4f} s")
+                      f"{row['confidence']:.2f}, peak {row['peak_force_N'] / 1e3:.3f} kN at {row['time_of_peak_s']:.4f} s")
                 for w in d["warnings"]:
                     log.warning(f"      WARNING: {w}")
         rows.append(row)
@@ -146,6 +147,15 @@ def locate_events(job, out, n_jobs=1, seed=0, progress=False, tune=None, plot=Tr
         if notes and progress:
             log.warning(f"  WARNING: {notes[0]}")
     return frame, written
+
+
+def _relative(path, out):
+    """``path`` relative to the output folder ``out`` (a table that moves with its records), or as
+    given where it cannot be (another drive)."""
+    try:
+        return os.path.relpath(os.path.abspath(path), os.path.abspath(out))
+    except ValueError:
+        return path
 
 
 def printable_path(path):

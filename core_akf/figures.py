@@ -115,7 +115,7 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
 
     xy = structure.nodes
     if xy.shape[1] == 3:
-        return plot_layout_3d(structure, sensors=sensors, forces=forces, path=path, title=title)
+        return plot_layout_3d(structure, sensors=sensors, forces=forces, path=path, title=title, numbers=numbers)
     span = np.ptp(xy, axis=0)
     aspect = span[1] / span[0] if span[0] > 0 else 1.0
     fig, ax = subplots(figsize=(min(12.0, 3 + 9 * min(1.0, 1 / max(aspect, 1e-3))), min(9.0, 2.5 + 8 * min(aspect, 1.0))))
@@ -141,12 +141,19 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
     for j, (node, direction) in enumerate(_force_pairs(forces)):
         x, y = xy[structure.node_rows(node)[0], :2]
         ax.plot(x, y, "x", color="red", ms=11, mew=2, zorder=4, label=f"load {j + 1}: node {node} ({direction})")
+    named = set()
     for s in (as_layout(list(sensors)) if len(sensors) else ()):
         ends = strain_ends(structure, s.member) if s.kind == "strain" and s.member is not None else None
+        label = None if s.kind in named else {"strain": "strain gauge", "acc": "accelerometer"}.get(s.kind, s.kind)
         if ends is not None:
-            ax.plot(*xy[structure.node_rows(list(ends))][:, :2].T, "-", color="tab:blue", lw=3, zorder=4)
-        elif s.node is not None:
-            ax.plot(*xy[structure.node_rows(s.node)[0], :2], "o", mfc="none", mec="tab:blue", ms=10, mew=1.5, zorder=4)
+            ax.plot(*xy[structure.node_rows(list(ends))][:, :2].T, "-", color="tab:blue", lw=3, zorder=4, label=label)
+        elif s.node is not None:      # a ring larger than a load's cross, drawn over it: both stay visible
+            marker = SENSOR_STYLE.get(s.kind, ("o",))[0]
+            ax.plot(*xy[structure.node_rows(s.node)[0], :2], marker, mfc="none", mec="tab:blue", ms=14, mew=1.5,
+                    zorder=5, label=label)
+        else:
+            continue
+        named.add(s.kind)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -157,6 +164,25 @@ def plot_structure(structure, path=None, title=None, numbers=True, forces=(), se
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+def _numbers_3d(ax, structure, P):
+    """Node numbers (black) and member numbers (blue) on a 3-D axis at the drawn points ``P``: every
+    k-th, at most :data:`NUMBERS_3D` of each; returns a note saying which when thinned."""
+    ids = structure.user_node_ids
+    step = max(1, -(-len(ids) // NUMBERS_3D))
+    for i in range(0, len(ids), step):
+        ax.text(*P[i], str(int(ids[i])), fontsize=6, color="k", zorder=6)
+    note = [] if step == 1 else [f"node numbers: every {step}th"]
+    if structure.members is not None:
+        m_step = max(1, -(-len(structure.members) // NUMBERS_3D))
+        rows = structure.node_rows(structure.members.ravel()).reshape(-1, 2)
+        for k in range(0, len(rows), m_step):
+            a, b = rows[k]
+            ax.text(*(0.5 * (P[a] + P[b])), str(k + 1), fontsize=5, color="tab:blue", zorder=6)
+        if m_step > 1:
+            note.append(f"member numbers (blue): every {m_step}th")
+    return "; ".join(note)
 
 
 def _force_pairs(forces):
@@ -175,7 +201,11 @@ SENSOR_STYLE = {"strain": ("s", "tab:blue"), "acc": ("o", "tab:red"), "vel": ("^
                 "disp": ("D", "tab:green")}
 
 
-def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exaggerate=None):
+#: at most this many node numbers and as many member numbers are written on a 3-D structure (every k-th)
+NUMBERS_3D = 60
+
+
+def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exaggerate=None, numbers=True):
     """A 3-D structure with a sensor layout.
 
     Members (grey lines), supports (grey squares), strain gauges (their member drawn thick in
@@ -197,6 +227,9 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
     exaggerate : float, optional
         Draw the cross-section (y and z) this many times larger than the length when the structure
         is slender (default: chosen to make it readable; the axis labels say so).
+    numbers : bool
+        Write node numbers (black) and member numbers (blue), every k-th of them so that at most
+        :data:`NUMBERS_3D` of each are written (the figure's note says which).
 
     Returns
     -------
@@ -224,6 +257,7 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
     sup = np.flatnonzero(counts < n_dof)
     if sup.size:
         ax.scatter(*P[sup].T, marker="s", s=30, color="0.4", label="support")
+    thinned = _numbers_3d(ax, structure, P) if numbers else ""
     arrow = 0.04 * span.max()
     dirs = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "w": (0, 0, 1)}
     labelled = set()
@@ -253,9 +287,9 @@ def plot_layout_3d(structure, sensors=(), forces=(), path=None, title=None, exag
         point, text, colour = placed[i]
         ax.text(*(point + (0.02 + 0.035 * (rank % 3)) * span.max() * np.array([0, 0, 1])), text, fontsize=7,
                 color=colour)
-    if unplaced:
-        ax.text2D(0.01, 0.02, "not drawn (strain operator rows, no place): " + ", ".join(unplaced), fontsize=7,
-                  transform=ax.transAxes)
+    notes = [f"not drawn (strain operator rows, no place): {', '.join(unplaced)}"] * bool(unplaced) + [thinned] * bool(thinned)
+    if notes:
+        ax.text2D(0.01, 0.02, "; ".join(notes), fontsize=7, transform=ax.transAxes)
     forces = _force_pairs(forces)
     for j, (node, direction) in enumerate(forces):
         point = P[structure.node_rows([node])[0]]

@@ -18,9 +18,10 @@ from ..schema import JOB_NAME_PATTERN
 
 
 def _structure_of(target):
-    """``(structure, name, sensors, forces)`` of a built-in model name or a job file."""
+    """``(structure, name, sensors, forces, filter model)`` of a built-in model name or a job file
+    (:func:`_filter_model`)."""
     if target in MODELS and target != "matrices":
-        return build_structure({"model": target}), target, [], []
+        return build_structure({"model": target}), target, [], [], None
     if not os.path.isfile(target):
         raise AKFInputError(f"{target!r} is neither a built-in structure ({', '.join(sorted(set(MODELS) - {'matrices'}))}) "
                             "nor a job file")
@@ -33,7 +34,27 @@ def _structure_of(target):
     if not re.fullmatch(JOB_NAME_PATTERN, name):
         raise AKFInputError(f"{target}: name must be a plain name (no '/', no '\\', not starting with '.'): the figure "
                             f"{name}.png is written into the output folder, and this name would leave it")
-    return build_structure(job["structure"]), name, list(job.get("sensors") or []), list(job.get("forces") or [])
+    structure = build_structure(job["structure"])
+    return structure, name, list(job.get("sensors") or []), list(job.get("forces") or []), _filter_model(job, structure)
+
+
+def _filter_model(job, structure):
+    """The filter's model of a job file -- ``[filter] stiffness_factor`` and ``frequency_factors``
+    on ``[structure]`` (placement's default stiffness factor for a place job) -- and what makes it
+    differ from the truth in words; None when it is the structure itself."""
+    from core_akf.defaults import default
+
+    f = job.get("filter") if isinstance(job.get("filter"), dict) else {}
+    placing = isinstance(job.get("place"), dict) and not isinstance(job.get("simulation"), dict)
+    factor = f.get("stiffness_factor", default("placement_stiffness_factor" if placing else "stiffness_factor"))
+    factors = f.get("frequency_factors") or []
+    if factor == 1.0 and not factors:
+        return None
+    model = structure.scaled(float(factor))
+    if factors:
+        model = model.with_frequency_factors([float(x) for x in factors])
+    words = f"stiffness_factor {factor:g}" + (f", frequency_factors {list(factors)}" if factors else "")
+    return model, words
 
 
 def strain_outputs(structure):
@@ -118,12 +139,15 @@ def _show(args):
 
     if args.transfer:
         return _transfer(args)
-    structure, name, sensors, forces = _structure_of(args.model)
+    structure, name, sensors, forces, filtered = _structure_of(args.model)
     f = structure.frequencies(min(args.modes, structure.n))
     info = {"model": name, "nodes": structure.n_nodes, "dofs": structure.n,
             "dof_directions": list(structure.dof_names), "node_ids": [int(structure.user_node_ids.min()),
                                                                        int(structure.user_node_ids.max())],
             "strain_outputs": structure.n_strain, "frequencies_hz": [float(x) for x in f]}
+    if filtered is not None:
+        info["filter_frequencies_hz"] = [float(x) for x in filtered[0].frequencies(len(f))]
+        info["filter_model"] = filtered[1]
     if structure.n_strain:
         info["first_strain_output"] = structure.strain_labels[0]
         info["last_strain_output"] = structure.strain_labels[-1]
@@ -139,8 +163,11 @@ def _show(args):
 
         out = args.out or os.path.join("akf-out", "show")
         with OutputFolder(out, "--out"):
+            title = (f"{name}" + (f" ({structure.name})" if structure.name and structure.name != name else "")
+                     + f": {structure.n_nodes} nodes" + (f", {info['members']} members" if "members" in info else ""))
             draw(files, "figure", notes, plot_structure, structure, os.path.join(out, f"{name}.png"),
-                 sensors=sensors, forces=forces, numbers=structure.n_nodes <= 200)
+                 sensors=sensors, forces=forces, numbers=structure.n_nodes <= 200 or structure.nodes.shape[1] == 3,
+                 title=title)
     if args.json:
         print(json.dumps(dict(info, files=files, warnings=notes)))
         return 0
@@ -169,7 +196,11 @@ def _print(info, structure):
                     print(f"    {r['output']:>12s}  {r['is']} {r['nodes'][0]}-{r['nodes'][1]}")
                 else:
                     print(f"    {r['output']:>12s}  row {r['row']} of the strain operator")
-    print("  first natural frequencies (Hz): " + ", ".join(f"{x:.4g}" for x in info["frequencies_hz"]))
+    truth = "" if "filter_frequencies_hz" not in info else " of [structure] (the truth of a simulation)"
+    print(f"  first natural frequencies (Hz){truth}: " + ", ".join(f"{x:.4g}" for x in info["frequencies_hz"]))
+    if "filter_frequencies_hz" in info:
+        print(f"  the filter's model ({info['filter_model']}): "
+              + ", ".join(f"{x:.4g}" for x in info["filter_frequencies_hz"]))
 
 
 def register(sub):

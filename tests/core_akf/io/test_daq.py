@@ -346,10 +346,11 @@ def test_locate_over_a_folder_of_impact_records(tmp_path, capsys):
     assert main(["locate", str(tmp_path / "job.toml"), "--no-tune", "--json", "--out", str(tmp_path / "out")]) == 0
     out = json.loads(capsys.readouterr().out)
     table = pd.read_csv(out["files"]["events"])
-    assert list(table.columns[:7]) == ["file", "node", "direction", "confidence", "margin", "peak_force", "time_of_peak"]
-    assert table["node"].tolist()[:3] == [14, 6, 11]
-    assert np.allclose(table["time_of_peak"][:3], 0.982, atol=0.002)
-    assert table["peak_force"][0] > table["peak_force"][2] > table["peak_force"][1] > 4e3
+    assert list(table.columns[:7]) == ["file", "node", "direction", "confidence", "margin", "peak_force_N",
+                                       "time_of_peak_s"]
+    assert table["node"].tolist()[:3] == [14, 6, 11] and not os.path.isabs(table["file"][0])
+    assert np.allclose(table["time_of_peak_s"][:3], 0.982, atol=0.002)
+    assert table["peak_force_N"][0] > table["peak_force_N"][2] > table["peak_force_N"][1] > 4e3
     assert np.isnan(table["node"][3]) and "'SG9' (strain:9) is constant" in table["error"][3]
     assert os.path.exists(out["files"]["events_figure"])
     assert (tmp_path / "out" / "events" / "impact-0002" / "ranking.csv").exists()
