@@ -50,12 +50,24 @@ def _calibrate(args):
         with atomic_path(fit) as tmp:
             with open(tmp, "w", encoding="utf-8") as fh:
                 json.dump(report, fh, indent=1)
+        files = {"calibrated_job": path, "calibration": fit}
+        if args.report:                        # after the results: a report that fails is a warning
+            from ..report import write_report
+            written = write_report(out, "calibrate", job, {"calibration": report}, files, report["warnings"],
+                                   source=args.job)
+            if written is not None:
+                files["report"] = written
     if args.json:
-        print(json.dumps({"name": job.name, "calibration": report,
-                          "files": {"calibrated_job": path, "calibration": fit}}))
+        print(json.dumps({"name": job.name, "calibration": report, "files": files}))
         for w in report["warnings"]:
             print(f"akf: warning: {w}", file=sys.stderr)
         return 0
+    _print_fit(job, report, files)
+    return 0
+
+
+def _print_fit(job, report, files):
+    """The fit as a table on stdout, its warnings and the files written."""
     print(f"{job.name}: calibrated {', '.join(job.calibrate)} on {report['record_steps']} steps "
           f"({report['seconds']:.2f} s, {report['evaluations']} filters)")
     print(f"  {report['window']}")
@@ -81,8 +93,7 @@ def _calibrate(args):
         print(f"    {channel:>14s}                                  {before:8.3g}  {report['consistency_after'][channel]:8.3g}")
     for w in report["warnings"]:
         print(f"  WARNING: {w}")
-    print_written({"calibrated_job": path, "calibration": fit})
-    return 0
+    print_written(files)
 
 
 def check_parameters(names):
@@ -228,5 +239,7 @@ def register(sub):
                    "force_band (a Butterworth force_model)")
     p.add_argument("--out", help="output folder (default akf-out/NAME)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    p.add_argument("--report", action="store_true", help="also write report.html: the fit, its standard errors and "
+                   "the consistency before and after, on one self-contained page")
     add_print_job(p)
     p.set_defaults(func=_calibrate)

@@ -23,12 +23,23 @@ def print_written(files, notes=()):
         print(f"  note: {note}")
 
 
-def finish(args, summary, files, figure_notes, notes=()):
-    """A command's ending once its results are written: the figures' warnings, then the JSON
-    ``summary`` (``--json``) or the files written with the notes; the exit code 0."""
+def finish(args, summary, files, figure_notes, notes=(), report=None):
+    """A command's ending once its results are written: ``report.html`` with ``--report``
+    (``report`` is ``(command, job, out)``; a report that fails is a warning), the figures'
+    warnings, then the JSON ``summary`` (``--json``) or the files written with the notes; the
+    exit code 0."""
     import json
     import sys
 
+    if report is not None and getattr(args, "report", False):
+        from ..report import write_report
+
+        command, job, out = report
+        warnings = list(figure_notes) + list(notes)
+        path = write_report(out, command, job, summary, files, warnings, source=getattr(args, "job", None))
+        figure_notes = list(figure_notes) + warnings[len(figure_notes) + len(notes):]
+        if path is not None:
+            files["report"] = path
     for note in figure_notes:
         print(f"akf: warning: {note}", file=sys.stderr)
     if args.json:

@@ -11,6 +11,12 @@ from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler, workers
 from .common import add_print_job, print_written, seed
 
+#: the captions of the figures in report.html
+FIGURES = {"figure": "the estimated forces (with the reference of a simulation, the ±2σ bands of a smoothed "
+                     "estimate and a zoom where they can be seen), the strain errors and each channel's consistency",
+           "sensors_figure": "every sensor's measured signal against the filter's one-step prediction",
+           "fatigue_figure": "the fatigue damage on the structure and the ten most damaged outputs"}
+
 
 def _estimate(args):
     from ..estimate import estimate_job
@@ -40,6 +46,12 @@ def _estimate(args):
                            progress=not args.json and sys.stderr.isatty(),
                            on_result=None if args.json else lambda r: shown.extend(_print_results(job, r)),
                            n_jobs=workers(args) if parallel else None)
+        if args.report and res.complete:        # after the results: a report that fails is a warning
+            from ..report import write_report
+            path = write_report(out, "estimate", job, res.metrics, res.files, res.metrics.setdefault("warnings", []),
+                                source=args.job, figures=FIGURES)
+            if path is not None:
+                res.files["report"] = path
     m = res.metrics
     if args.json:
         print(json.dumps({"name": job.name, "complete": res.complete, "detectable": m.get("detectable"),
@@ -129,6 +141,8 @@ def register(sub):
     p.add_argument("--duration", type=float, help="override the simulated record length (s)")
     p.add_argument("--seed", type=seed, help="override the noise seed")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
+    p.add_argument("--report", action="store_true", help="also write report.html: one self-contained page of the run "
+                   "(job, model, warnings, results with their bands, figures) to hand on")
     p.add_argument("--n-jobs", type=int, help="a measured record of many files: filter its files at the same time on "
                    "this many workers (time-parallel steady-state filter; -1: all cores)")
     add_scheduler_option(p)

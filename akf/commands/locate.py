@@ -29,7 +29,7 @@ def _locate(args):
 
         if is_event_folder(job):
             return _locate_events(args, job)
-    run, scenario, name = _prepare_locate(args, progress=not args.json)
+    run, scenario, name, job = _prepare_locate(args, progress=not args.json)
     out = args.out or os.path.join("akf-out", "locate", name)
     figure_notes = []
     with OutputFolder(out, "--out"):          # checked and locked before the work starts
@@ -37,7 +37,14 @@ def _locate(args):
                                               "seed repeats the tuning"):
             result = run()
         files = write_outputs(result, out, scenario, plot=not args.no_plot, notes=figure_notes)
-    d = result.to_dict()
+        d = result.to_dict()
+        if args.report:                       # after the results: a report that fails is a warning
+            from ..report import write_report
+            warnings = list(d["warnings"])
+            path = write_report(out, "locate", job, d, files, warnings, source=args.job)
+            figure_notes += warnings[len(d["warnings"]):]
+            if path is not None:
+                files["report"] = path
     if args.json:
         d["files"] = files
         if scenario is not None:
@@ -106,7 +113,7 @@ def _tune(args):
 
 
 def _prepare_locate(args, progress):
-    """What ``akf locate`` runs: ``(run, scenario or None, output name)``; ``run()`` does the
+    """What ``akf locate`` runs: ``(run, scenario or None, output name, job)``; ``run()`` does the
     identification and returns the :class:`~impactloc.locate.LocateResult`."""
     from ..examples.impact import example_scenario
     from ..locating import run_locate_job
@@ -117,7 +124,7 @@ def _prepare_locate(args, progress):
         def run():
             return run_locate_job(scenario.job, n_jobs=workers(args), seed=args.seed, progress=progress,
                                   tune=_tune(args), simulation=scenario.simulation)
-        return run, scenario, f"{args.example}-node{scenario.impact[0]}-{args.noise}"
+        return run, scenario, f"{args.example}-node{scenario.impact[0]}-{args.noise}", scenario.job
     if args.impact_node is not None:
         raise AKFInputError("--impact-node applies to the built-in examples (the data decide where a real impact hit)")
     job = load_job(args.job, "locate")
@@ -125,7 +132,7 @@ def _prepare_locate(args, progress):
     def run():
         return run_locate_job(job, n_jobs=workers(args), seed=args.seed, progress=progress,
                               tune=_tune(args))
-    return run, None, job.name
+    return run, None, job.name, job
 
 
 def register(sub):
@@ -147,5 +154,7 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bars)")
     p.add_argument("--out", help="output folder (default akf-out/locate/NAME)")
     p.add_argument("--no-plot", action="store_true", help="do not write PNG figures")
+    p.add_argument("--report", action="store_true", help="also write report.html: the location, its ranking, the "
+                   "force history's figures and the job, on one self-contained page")
     add_print_job(p)
     p.set_defaults(func=_locate)

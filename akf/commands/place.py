@@ -50,11 +50,11 @@ def _place(args):
                             "[\"error\", \"cost\"] (the front of error against cost)")
     with OutputFolder(out, "--out"):      # checked and locked before the work starts
         if objectives == ("error", "cost"):
-            return _run_front(args, problem, settings, out)
-        return _run_place(args, problem, settings, out)
+            return _run_front(args, problem, settings, out, job)
+        return _run_place(args, problem, settings, out, job)
 
 
-def _run_front(args, problem, settings, out):
+def _run_front(args, problem, settings, out, job):
     """``objectives = ["error", "cost"]``: NSGA-II over layouts of 1 to ``sensors`` sensors, the
     front written (``front.csv``, with each layout's whole-record error), printed, then drawn."""
     import numpy as np
@@ -101,10 +101,10 @@ def _run_front(args, problem, settings, out):
     if not args.no_plot:
         draw(files, "front", figure_notes, plot_pareto, front, os.path.join(out, "front.png"),
              f"{problem.name}: whole-record error against cost")
-    return finish(args, summary, files, figure_notes, [])
+    return finish(args, summary, files, figure_notes, [], report=("place", job, out))
 
 
-def _run_place(args, problem, settings, out):
+def _run_place(args, problem, settings, out, job):
 
     from core_akf.evolution import is_checkpoint
     from core_akf.sensors import sensor_positions
@@ -174,7 +174,7 @@ def _run_place(args, problem, settings, out):
         draw(files, "layout", figure_notes, plot_layout, enc, res.best, os.path.join(out, "layout.png"),
              f"best layout: window error {res.best_error:.3f} {'%' if fatigue else 'µε'}, full record {error:.3f} µε",
              forces=obj.model.forces)
-    return finish(args, summary, files, figure_notes, notes)
+    return finish(args, summary, files, figure_notes, notes, report=("place", job, out))
 
 
 def robustness(problem, objective, enc, sensors, out, files):
@@ -329,5 +329,7 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="print one JSON object (no progress bar)")
     p.add_argument("--out", help="output folder (default akf-out/place/NAME-N-seedS)")
     p.add_argument("--no-plot", action="store_true", help="do not write PNG figures")
+    p.add_argument("--report", action="store_true", help="also write report.html: the layout, its errors, the "
+                   "logbook's figures and the job, on one self-contained page")
     add_print_job(p)
     p.set_defaults(func=_place)
