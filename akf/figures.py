@@ -209,8 +209,9 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity=
     channels, damage = list(channels), np.asarray(damage, float)
     positive = damage[damage > 0]
     lo, hi = (positive.min(), positive.max()) if positive.size else (1e-12, 1.0)
-    lo = max(lo, hi / FATIGUE_RANGE)         # what is 1e4 x below the worst does not matter: one colour
-    norm = mpl.colors.LogNorm(vmin=lo, vmax=max(hi, lo * 10))
+    floor = max(lo, hi / FATIGUE_RANGE)      # what is 1e4 x below the worst does not matter: one colour
+    extend = "min" if floor > lo else "neither"
+    norm = mpl.colors.LogNorm(vmin=floor, vmax=max(hi, floor * 10))
     cmap = mpl.colormaps["inferno_r"]
     xyz = structure.nodes
     three_d = xyz.shape[1] == 3
@@ -263,7 +264,7 @@ def plot_fatigue(structure, channels, damage, path, title, sensors=(), quantity=
         ax.set_aspect("equal")
     ax.set_title(f"{quantity} (grey: none; the scale spans the largest down to 1/{FATIGUE_RANGE:g} of it)", fontsize=9)
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.8, label=quantity,
-                 pad=0.12 if three_d else 0.05, extend="min" if positive.size and positive.min() < lo else "neither")
+                 pad=0.12 if three_d else 0.05, extend=extend)
     ax2 = fig.add_subplot(grid[1])
     top = np.argsort(-damage, kind="stable")[:10]
     ax2.barh(range(len(top)), damage[top], color=[colour(d) for d in damage[top]])

@@ -46,15 +46,16 @@ def test_a_smoothed_estimate_has_a_zoom_where_its_band_fills_the_axis(tmp_path, 
     assert b - a >= 5 and np.ptp(forces[a:b, 0]) <= figures.BAND_SPAN * 2 * 8.0
 
 
-def test_the_fatigue_scale_starts_where_damage_matters_and_its_bars_are_linear(tmp_path):
+@pytest.mark.parametrize("three_d", [False, True], ids=["planar", "3-D"])
+def test_the_fatigue_scale_starts_where_damage_matters_and_its_bars_are_linear(tmp_path, three_d):
     """Damage from 1e-14 to 1 (a truss where most members barely work): the colours span the
     largest down to 1e-4 of it, the rest one colour (the bar is extended), and the ranking's
-    axis is linear."""
-    from core_akf.models import s17_truss
+    axis is linear; on the S17 truss and on a 3-D truss."""
+    from core_akf.models import footbridge, s17_truss
 
-    truss = s17_truss()
-    channels = [f"strain:{k}" for k in range(1, 35)]
-    damage = np.logspace(-14, 0, 34)
+    truss = footbridge(n_panels=4) if three_d else s17_truss()
+    channels = [f"strain:{k}" for k in range(1, truss.n_strain + 1)]
+    damage = np.logspace(-14, 0, truss.n_strain)
     fig = figures.plot_fatigue(truss, channels, damage, str(tmp_path / "f.png"), "t")
     ranking = [ax for ax in fig.axes if ax.get_title().startswith("the ten outputs")][0]
     assert ranking.get_xscale() == "linear"
