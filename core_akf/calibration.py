@@ -440,7 +440,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         (:func:`core_akf.defaults.band_modes`).  The factors found apply to ``structure`` as given
         (:meth:`CalibrationResult.apply`).  Default: the structure as given.  A model with many
         modes far above the record's band fits several times faster (a 147-DOF 3-D truss at 512 Hz:
-        118 modes, 5x faster, the stiffness factor within 2e-6 of the full model's).
+        117 modes, 3x faster, the stiffness factor within 2e-6 of the full model's).
 
     Returns
     -------
