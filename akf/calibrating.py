@@ -27,7 +27,7 @@ def calibration_steps(job, model):
     if job.calibrate_window is not None:
         return max(2, int(round(job.calibrate_window / job.dt)))
     modes = model.n if job.n_modes is not None else band_modes(model, job.dt, any(s.kind == "acc" for s in job.sensors))
-    states = 2 * modes + job.force_model.states_per_force * len(job.forces)
+    states = 2 * modes + job.force_model.n_states(len(job.forces))
     floor = max(2048, int(CALIBRATION_PERIODS / (float(model.frequencies(1)[0]) * job.dt)))
     return int(min(CALIBRATION_STEPS, max(floor, CALIBRATION_BUDGET / states ** 2)))
 

@@ -362,10 +362,15 @@ class _Problem:
         finite = total[np.isfinite(total)]
         if finite.size:
             self.best = max(self.best, float(finite.max()))
+        self.report_progress()
+        return out
+
+    def report_progress(self):
+        """Tell ``progress`` the evaluations so far, the expected count (never below them) and the
+        best log-likelihood."""
         if self.progress is not None:
             self.expected = max(self.expected, self.evaluations)
             self.progress(self.evaluations, self.expected, self.best)
-        return out
 
 
 def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,
@@ -620,11 +625,8 @@ class _Whittle(_Subset):
             A, G, Q, R = self.problem.matrices(u)
             S = output_spectrum(A, G[:self.m], Q, R[:self.m, :self.m], self.nx, self.bins.omega, self.part)
             out.append(whittle_terms(S, self.bins))
-        problem = self.problem
-        problem.evaluations += len(out)
-        if problem.progress is not None:
-            problem.expected = max(problem.expected, problem.evaluations)
-            problem.progress(problem.evaluations, problem.expected, problem.best)
+        self.problem.evaluations += len(out)
+        self.problem.report_progress()
         out = np.array(out)
         return out if per_step else out.sum(axis=1)
 
