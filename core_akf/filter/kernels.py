@@ -25,6 +25,8 @@ or sensors.
 """
 from __future__ import annotations
 
+import hashlib
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -34,12 +36,14 @@ from ..checks import AKFInputError
 from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError, RiccatiWarning, steady_gain
+from .switched import LIFT_FROM, repeats, switched_filter
 
 #: the time-varying filter tests every this many steps whether its covariance has converged
 CHECK_EVERY = 32
-#: the steady filter with missing samples runs a stretch of one pattern of observed channels this
-#: long with that pattern's own steady-state gain, and lifted (:func:`switched_filter`)
-LONG_STRETCH = 256
+#: the steady filter with missing samples runs a stretch of one pattern of observed channels (or
+#: of one cycle of patterns) this long with its own steady-state gains, and lifted
+#: (:func:`~.switched.switched_filter`)
+LONG_STRETCH = LIFT_FROM
 
 
 @dataclass
@@ -568,26 +572,33 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     states = np.empty((B, N, A.shape[-1]))
     terms = np.zeros((B, N, m)) if loglik else None
     h = 0 if seen_before is None else seen_before.shape[1]
+    gains = []
     for b in range(B):
-        patterns, which = _patterns(seen[b] if not h else np.vstack([seen_before[b], seen[b]]))
+        seen_b = seen[b] if not h else np.vstack([seen_before[b], seen[b]])
+        patterns, which = _patterns(seen_b)
+        period = sampling_period(seen_b, long_stretch // 2)
         G_p, R_p = masked(np.broadcast_to(G[b], (len(patterns),) + G.shape[1:]),
                           np.broadcast_to(R[b], (len(patterns),) + R.shape[1:]), patterns)
-        which, pattern, P = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which.reshape(-1), long_stretch)
+        which, pattern, P = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which.reshape(-1), long_stretch,
+                                           period)
         which = which[h:]
         G_e, R_e = G_p[pattern], R_p[pattern]
         S = innovation_covariance(G_e, P, R_e)
         L = np.swapaxes(np.linalg.solve(S, G_e @ P), -1, -2)       # P G_W^T S^-1 (S symmetric)
         Y0 = np.where(seen[b], Y[b], 0.0)
-        states[b] = switched_filter(A[b], G_e, L, which, Y0, x[b])
-        if loglik:
-            E0 = innovations(A[b:b + 1], G[b:b + 1], states[b:b + 1], Y0[None], x[b:b + 1])[0]
-            for e in range(len(P)):
-                rows = which == e
-                if rows.any():
-                    terms[b, rows] = loglik_terms(np.where(seen[b, rows], E0[rows], 0.0), S[e])
+        switched_filter(A[b], G_e, L, which, Y0, x[b], period, out=states[b])
+        gains.append((which, S))
+    innov = innovations(A, G, states, Y, x)
     if loglik:
+        for b, (which, S) in enumerate(gains):
+            E0 = np.where(seen[b], innov[b], 0.0)
+            order = np.argsort(which.astype(np.int16) if len(S) < 2 ** 15 else which, kind="stable")
+            bounds = np.r_[0, np.flatnonzero(np.diff(which[order])) + 1, len(order)]
+            for a, z in zip(bounds[:-1], bounds[1:]):                  # the steps of one gain at a time
+                rows = order[a:z]
+                terms[b, rows] = loglik_terms(E0[rows], S[which[rows[0]]])
         terms[~seen] = 0.0
-    return FilterRun(states, innovations(A, G, states, Y, x), L_full, P_full, True, terms)
+    return FilterRun(states, innov, L_full, P_full, True, terms)
 
 
 def _patterns(seen):
@@ -597,23 +608,58 @@ def _patterns(seen):
         patterns, which = np.unique(seen, axis=0, return_inverse=True)
         return patterns, which.reshape(-1)
     codes = seen.astype(np.int64) @ (np.int64(1) << np.arange(m, dtype=np.int64))    # one integer per row
-    values, which = np.unique(codes, return_inverse=True)
+    if m <= 16:                                     # a table of every code: no sort
+        present = np.zeros(1 << m, bool)
+        present[codes] = True
+        values = np.flatnonzero(present)
+        index = np.cumsum(present) - 1
+        which = index[codes]
+    else:
+        values, which = np.unique(codes, return_inverse=True)
     return ((values[:, None] >> np.arange(m)) & 1).astype(bool), which.reshape(-1)
 
 
-def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch):
+def sampling_period(seen, longest=LONG_STRETCH):
+    """The cycle of the observed channels of a record whose slower channels sample every ``d``-th
+    step (mixed sampling rates): the least common multiple of each channel's ``d`` (the greatest
+    common divisor of the distances between its samples), 1 when there is none or it is longer
+    than ``longest`` steps.
+
+    Parameters
+    ----------
+    seen : ndarray (N, m) of bool
+    longest : int
+
+    Returns
+    -------
+    int
+    """
+    p = 1
+    for column in seen.T:
+        if column.all():
+            continue
+        steps = np.flatnonzero(column)
+        if len(steps) > 2:
+            p = math.lcm(p, int(np.gcd.reduce(np.diff(steps))))
+    return p if p <= longest else 1
+
+
+def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period=1):
     """The covariances the gains of :func:`steady_gapped` come from, for one record.
 
     Returns ``which`` (N,) the gain of each step, ``pattern`` (E,) the pattern of each gain and
     ``P`` (E, n, n) its covariance: gain i < len(G_p) is pattern i's (``patterns`` (K, m), the
     observed channels) from the complete layout's ``P_full``; the others are the own steady
-    states of patterns, used once a pattern has lasted ``long_stretch`` steps.
+    states of patterns, used once a pattern has lasted ``long_stretch`` steps, and the periodic
+    steady states of cycles of ``period`` patterns (:func:`_cycle_covariances`), used once a cycle
+    has come round twice (``period <= long_stretch / 2``, so a stream's last ``long_stretch``
+    steps decide as the whole record does).
     """
     n_p = len(G_p)
     pattern, P = list(range(n_p)), [P_full] * n_p
     own = {}
     cuts = np.r_[0, np.flatnonzero(np.diff(which)) + 1, len(which)]
-    which = which.copy()
+    base, which = which, which.copy()
     for a, b in zip(cuts[:-1], cuts[1:]):
         p = int(which[a])
         if b - a <= long_stretch or patterns[p].all():     # short, or the complete layout (P_full)
@@ -632,69 +678,71 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch):
                     pass
         if own[p] is not None:
             which[a + long_stretch:b] = own[p]
+    for a, b in (repeats(base, period) if period > 1 else []):
+        cycle = base[a:a + period]
+        if b - a <= 2 * period or np.all(cycle == cycle[0]):
+            continue
+        P_cycle = _cycle_covariances(A, Q, G_p, R_p, patterns, cycle, P_full)
+        if P_cycle is None:
+            continue
+        k = np.arange(a + 2 * period, b)                  # once the cycle has come round twice
+        which[k] = len(P) + (k - a) % period
+        pattern.extend(cycle.tolist())
+        P.extend(P_cycle)
     return which, np.array(pattern), np.array(P)
 
 
-def switched_filter(A, G, L, which, Y0, x):
-    """The fixed-gain filter of one record whose gain switches from step to step.
+#: the periodic steady states of cycles of patterns, by their matrices (:func:`_cycle_covariances`)
+_CYCLES = {}
+#: the periodic Riccati recursion stops when a period changes the covariance by less than this
+#: (relative), and gives up after this many steps (a cycle whose layout is not detectable)
+CYCLE_TOL, CYCLE_STEPS = 1e-12, 20000
 
-    ``X_k = (I - L_i G_i) A X_k-1 + L_i y_k`` with ``i = which[k]``: stretches of one gain of at least
-    :data:`LONG_STRETCH` steps run lifted (:func:`fixed_gain`), the rest step by step.
 
-    Parameters
-    ----------
-    A : ndarray (n, n)
-    G : ndarray (E, m, n)
-        The (masked) observation of each gain.
-    L : ndarray (E, n, m)
-        The gains.
-    which : ndarray (N,) of int
-        The gain of each step.
-    Y0 : ndarray (N, m)
-        Measurements, zero where missing.
-    x : ndarray (n,)
-        Prior mean of the first step.
-
-    Returns
-    -------
-    ndarray (N, n)
-        The filtered states.
+def _cycle_covariances(A, Q, G_p, R_p, patterns, cycle, P_start):
+    """The periodic steady state of the filter whose observed channels repeat ``cycle`` (``p``
+    pattern indices): the prior covariance (p, n, n) at each step of the cycle, from the
+    covariance recursion run over whole cycles from ``P_start`` until a cycle no longer changes it
+    (None when it does not settle in :data:`CYCLE_STEPS` steps).  The recursion starts at the
+    cycle's canonical rotation, so every window of a record onto the same cycle gets the same
+    numbers; they are cached by the matrices.
     """
-    N, n = len(which), A.shape[-1]
-    I_LG, F = closed_loop(A, G, L)
-    # the inputs L_i y_k, computed a gain at a time into one buffer in that order (no scatter)
-    order = np.argsort(which, kind="stable")
-    bounds = np.r_[0, np.flatnonzero(np.diff(which[order])) + 1, N]
-    U = np.empty((N, n))
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        np.matmul(Y0[order[a:b]], L[which[order[a]]].T, out=U[a:b])
-    at = np.empty(N, int)
-    at[order] = np.arange(N)                                       # step k's input is U[at[k]]
-    X = np.empty((N, n))
-    X[0] = I_LG[which[0]] @ x + U[at[0]]
-    Ft = [np.ascontiguousarray(f.T) for f in F]
-    rows, gains, dot, add = list(X), which.tolist(), np.dot, np.add
-    inputs, at = list(U), at.tolist()
+    p = len(cycle)
+    codes = [patterns[c].tobytes() for c in cycle]
+    r = min(range(p), key=lambda i: codes[i:] + codes[:i])
+    canonical = np.roll(cycle, -r)
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (A, Q, P_start, G_p[canonical], R_p[canonical]):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    key = digest.hexdigest()
+    if key not in _CYCLES:
+        if len(_CYCLES) >= 32:
+            _CYCLES.pop(next(iter(_CYCLES)))
+        _CYCLES[key] = _periodic_riccati(A, Q, G_p[canonical], R_p[canonical], P_start)
+    found = _CYCLES[key]
+    return None if found is None else found[(np.arange(p) - r) % p]
 
-    def stepwise(k0, k1):
-        x = rows[k0 - 1]
-        for k in range(k0, k1):
-            xk = rows[k]
-            dot(x, Ft[gains[k]], out=xk)          # x_k = F_i x_k-1 + L_i y_k, in place, no temporaries
-            add(xk, inputs[at[k]], out=xk)
-            x = xk
 
-    cuts = np.r_[0, np.flatnonzero(np.diff(which)) + 1, N]
-    k = 1
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        if b - a < LONG_STRETCH:
-            continue
-        stepwise(k, a + 1)                             # up to and including step a (none for a = 0)
-        e = which[a]
-        X[a:b] = lti_response(F[e][None], L[e][None], Y0[None, a:b], X[a][None])[0]
-        k = b
-    stepwise(k, N)
-    return X
+def _periodic_riccati(A, Q, G_c, R_c, P):
+    """The prior covariances (p, n, n) of the converged covariance recursion over the cycle of
+    observations ``G_c`` (p, m, n), ``R_c`` (p, m, m), or None."""
+    p = len(G_c)
+    out = np.empty((p,) + P.shape)
+    scale = max(np.abs(P).max(), np.finfo(float).tiny)
+    for _ in range(max(1, CYCLE_STEPS // p)):
+        before = P
+        for j in range(p):
+            out[j] = P
+            GP = G_c[j] @ P
+            S = GP @ G_c[j].T + R_c[j]
+            P = A @ (P - GP.T @ np.linalg.solve(S, GP)) @ A.T + Q
+            P = (P + P.T) / 2
+        if not np.all(np.isfinite(P)):
+            return None
+        scale = max(scale, np.abs(P).max())
+        if np.abs(P - before).max() <= CYCLE_TOL * scale:
+            return out
+    return None
 
 
 # ------------------------------------------------------------------------- over a Filter
