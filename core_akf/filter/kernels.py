@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import threading
 import warnings
 from dataclasses import dataclass
 
@@ -44,6 +45,11 @@ CHECK_EVERY = 32
 #: of one cycle of patterns) this long with its own steady-state gains, and lifted
 #: (:func:`~.switched.switched_filter`)
 LONG_STRETCH = LIFT_FROM
+#: the longest cycle of patterns (a slow channel sampled every p-th step) that gets periodic gains,
+#: and the memory their covariances may take (bytes); a stream keeps the observed samples of its
+#: last ``HISTORY`` steps, so a chunk decides on long stretches and cycles as the whole record does
+MAX_CYCLE, CYCLE_BYTES = 1024, 2 ** 26
+HISTORY = max(LONG_STRETCH, 2 * MAX_CYCLE)
 
 
 @dataclass
@@ -560,7 +566,7 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
         The complete layout's steady prior covariance and gain, if known.
     seen_before : ndarray (B, h, m) of bool, optional
         The observed samples of the ``h`` steps before the record (a stream's previous chunks,
-        ``h <= long_stretch``): a pattern's run continues across.
+        ``h <= HISTORY``): a pattern's run, and a cycle's, continues across.
 
     Returns
     -------
@@ -576,7 +582,7 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     for b in range(B):
         seen_b = seen[b] if not h else np.vstack([seen_before[b], seen[b]])
         patterns, which = _patterns(seen_b)
-        period = sampling_period(seen_b, long_stretch // 2)
+        period = sampling_period(seen_b, min(MAX_CYCLE, CYCLE_BYTES // (8 * A.shape[-1] ** 2)))
         G_p, R_p = masked(np.broadcast_to(G[b], (len(patterns),) + G.shape[1:]),
                           np.broadcast_to(R[b], (len(patterns),) + R.shape[1:]), patterns)
         which, pattern, P = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which.reshape(-1), long_stretch,
@@ -619,7 +625,7 @@ def _patterns(seen):
     return ((values[:, None] >> np.arange(m)) & 1).astype(bool), which.reshape(-1)
 
 
-def sampling_period(seen, longest=LONG_STRETCH):
+def sampling_period(seen, longest=MAX_CYCLE):
     """The cycle of the observed channels of a record whose slower channels sample every ``d``-th
     step (mixed sampling rates): the least common multiple of each channel's ``d`` (the greatest
     common divisor of the distances between its samples), 1 when there is none or it is longer
@@ -652,8 +658,8 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period
     observed channels) from the complete layout's ``P_full``; the others are the own steady
     states of patterns, used once a pattern has lasted ``long_stretch`` steps, and the periodic
     steady states of cycles of ``period`` patterns (:func:`_cycle_covariances`), used once a cycle
-    has come round twice (``period <= long_stretch / 2``, so a stream's last ``long_stretch``
-    steps decide as the whole record does).
+    has come round twice (``period <= MAX_CYCLE``, so a stream's last :data:`HISTORY` steps
+    decide as the whole record does).
     """
     n_p = len(G_p)
     pattern, P = list(range(n_p)), [P_full] * n_p
@@ -693,7 +699,7 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period
 
 
 #: the periodic steady states of cycles of patterns, by their matrices (:func:`_cycle_covariances`)
-_CYCLES = {}
+_CYCLES, _CYCLES_LOCK = {}, threading.Lock()
 #: the periodic Riccati recursion stops when a period changes the covariance by less than this
 #: (relative), and gives up after this many steps (a cycle whose layout is not detectable)
 CYCLE_TOL, CYCLE_STEPS = 1e-12, 20000
@@ -715,11 +721,14 @@ def _cycle_covariances(A, Q, G_p, R_p, patterns, cycle, P_start):
     for array in (A, Q, P_start, G_p[canonical], R_p[canonical]):
         digest.update(np.ascontiguousarray(array).tobytes())
     key = digest.hexdigest()
-    if key not in _CYCLES:
-        if len(_CYCLES) >= 32:
-            _CYCLES.pop(next(iter(_CYCLES)))
-        _CYCLES[key] = _periodic_riccati(A, Q, G_p[canonical], R_p[canonical], P_start)
-    found = _CYCLES[key]
+    with _CYCLES_LOCK:
+        found = _CYCLES.get(key, False)
+    if found is False:
+        found = _periodic_riccati(A, Q, G_p[canonical], R_p[canonical], P_start)
+        with _CYCLES_LOCK:                       # threads of a batch may share it
+            if len(_CYCLES) >= 32:
+                _CYCLES.pop(next(iter(_CYCLES)))
+            _CYCLES[key] = found
     return None if found is None else found[(np.arange(p) - r) % p]
 
 

@@ -240,7 +240,7 @@ class Estimator:
         if self._seen_tail is None and seen.all():
             return
         tail = seen if self._seen_tail is None else np.vstack([self._seen_tail, seen])
-        tail = tail[-kernels.LONG_STRETCH:]
+        tail = tail[-kernels.HISTORY:]
         self._seen_tail = None if tail.all() else np.ascontiguousarray(tail)
 
     def restarted_at(self, step: int) -> Estimator:
