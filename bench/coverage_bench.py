@@ -14,9 +14,11 @@ standard errors (z, robust).  Scenarios (all on the S17 truss):
    model error, and 1e-16 m^2 on the displacements is seen by the accelerometers: with it, the
    horizontal accelerometer's innovations are half their predicted variance even under the true
    model, so ``noise_cov:acc`` fits a value the truth does not have.
-4. ``acc-matern``: five accelerometers, two loads drawn from a Matérn-3/2 process (500 N, 4 ms),
+4. ``case4-learn-q``: case 4 with ``model_error_cov`` learnt as well (from the job's 1e-16; it
+   stops at its lower bound, 1e-3 of that).
+5. ``acc-matern``: five accelerometers, two loads drawn from a Matérn-3/2 process (500 N, 4 ms),
    ``force_std`` and ``force_timescale`` from 250 N and 8 ms.
-5. ``acc-band``: the same job with band-limited loads (600 and 425 N RMS, 0-120 Hz) under the same
+6. ``acc-band``: the same job with band-limited loads (600 and 425 N RMS, 0-120 Hz) under the same
    Matérn-3/2 prior; the "true" std is the loads' RMS, and no Matérn time scale is true.
 
 Writes ``bench/coverage_results.csv`` (default) with a row per scenario and parameter.
@@ -35,7 +37,7 @@ Z90 = 1.6448536269514722
 ACC = ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x"]
 
 
-def _case4(seed, random_walk, model_error_cov=None):
+def _case4(seed, random_walk, model_error_cov=None, learn_q=False):
     from akf.calibrating import calibrate_job
     from akf.examples import example_job
     from akf.job import Job
@@ -46,7 +48,7 @@ def _case4(seed, random_walk, model_error_cov=None):
         for c in load["components"]:
             if "seed" in c:
                 c["seed"] = 100 * seed + c["seed"]
-    data["filter"]["calibrate"] = ["stiffness_factor", "noise_cov"]
+    data["filter"]["calibrate"] = ["stiffness_factor", "noise_cov"] + (["model_error_cov"] if learn_q else [])
     if model_error_cov is not None:
         data["filter"]["model_error_cov"] = model_error_cov
     job = Job.from_dict(data, "estimate")
@@ -89,6 +91,7 @@ def _acc_only(seed, matern):
 
 SCENARIOS = {"case4": lambda s: _case4(s, False), "case4-rw": lambda s: _case4(s, True),
              "case4-q": lambda s: _case4(s, False, 1e-22),
+             "case4-learn-q": lambda s: _case4(s, False, learn_q=True),
              "acc-matern": lambda s: _acc_only(s, True), "acc-band": lambda s: _acc_only(s, False)}
 
 

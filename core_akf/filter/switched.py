@@ -3,7 +3,7 @@
 ``X_k = F_i X_k-1 + L_i y_k`` with ``F_i = (I - L_i G_i) A`` and ``i = which[k]``, the gain of step
 ``k`` (:func:`core_akf.filter.kernels.steady_gapped` picks it from the pattern of observed
 channels).  A step-by-step loop costs a Python round trip per step; this module runs the same
-recursion in three ways, each exact up to rounding (``tests/core_akf/test_switched.py`` pins them
+recursion in three ways, each exact up to rounding (``tests/core_akf/filter/test_switched.py`` pins them
 against the plain loop):
 
 - a stretch of one gain of :data:`LIFT_FROM` steps or more runs lifted
@@ -71,15 +71,17 @@ def switched_filter(A, G, L, which, Y0, x, period=1, out=None):
     for a, b, _ in lifted:
         free[a:b] = False
     chunks = _Chunks(which, free, F, Ft, Lt, Y0)
-    rows, dot, add = list(X), np.dot, np.add
+    ends = [X[e] for e in chunks.end.tolist()]                 # views of the rows the loop writes
+    powers = [chunks.power_t[i] for i in chunks.power.tolist()]
+    inputs, dot, add = list(chunks.v), np.dot, np.add
     k = 0                                        # chunks before this one are done
     for a, b, p in lifted + [(N, N, 0)]:
         k1 = chunks.first_after(a)
-        x_prev = rows[chunks.start[k] - 1] if k < k1 else None
+        x_prev = X[chunks.start[k] - 1] if k < k1 else None
         for i in range(k, k1):                   # x <- F^K x + v, in place
-            xe = rows[chunks.end[i]]
-            dot(x_prev, chunks.power_t[chunks.power[i]], out=xe)
-            add(xe, chunks.v[i], out=xe)
+            xe = ends[i]
+            dot(x_prev, powers[i], out=xe)
+            add(xe, inputs[i], out=xe)
             x_prev = xe
         k = k1
         if a == N:
@@ -169,7 +171,7 @@ class _Chunks:
         if not len(steps):
             self.start = self.end = np.zeros(0, np.int64)
             self.v = np.zeros((0, F.shape[-1]))
-            self.groups = []
+            self.power, self.power_t, self.groups = np.zeros(0, np.int64), [], []
             return
         # stretches of one gain among the free steps
         cut = np.r_[True, (np.diff(steps) != 1) | (which[steps[1:]] != which[steps[:-1]])]
