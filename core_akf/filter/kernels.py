@@ -37,7 +37,7 @@ from ..checks import AKFInputError
 from .likelihood import loglik_terms
 from .recursion import lti_response
 from .riccati import RiccatiError, RiccatiWarning, steady_gain
-from .switched import LIFT_FROM, repeats, switched_filter
+from .switched import LIFT_FROM, gain_groups, repeats, switched_filter
 
 #: the time-varying filter tests every this many steps whether its covariance has converged
 CHECK_EVERY = 32
@@ -598,11 +598,8 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     if loglik:
         for b, (which, S) in enumerate(gains):
             E0 = np.where(seen[b], innov[b], 0.0)
-            order = np.argsort(which.astype(np.int16) if len(S) < 2 ** 15 else which, kind="stable")
-            bounds = np.r_[0, np.flatnonzero(np.diff(which[order])) + 1, len(order)]
-            for a, z in zip(bounds[:-1], bounds[1:]):                  # the steps of one gain at a time
-                rows = order[a:z]
-                terms[b, rows] = loglik_terms(E0[rows], S[which[rows[0]]])
+            for e, rows in gain_groups(which):                     # the steps of one gain at a time
+                terms[b, rows] = loglik_terms(E0[rows], S[e])
         terms[~seen] = 0.0
     return FilterRun(states, innov, L_full, P_full, True, terms)
 

@@ -58,11 +58,12 @@ def switched_filter(A, G, L, which, Y0, x, period=1, out=None):
     """
     which = np.asarray(which, np.int64)
     N, n = len(which), A.shape[-1]
-    F = (np.eye(n) - L @ G) @ A
+    I_LG = np.eye(n) - L @ G                      # kernels.closed_loop, which imports this module
+    F = I_LG @ A
     Ft = np.ascontiguousarray(np.swapaxes(F, -1, -2))
     Lt = np.ascontiguousarray(np.swapaxes(L, -1, -2))
     X = np.empty((N, n)) if out is None else out
-    X[0] = (x - L[which[0]] @ (G[which[0]] @ x)) + L[which[0]] @ Y0[0]
+    X[0] = I_LG[which[0]] @ x + L[which[0]] @ Y0[0]
     if N == 1:
         return X
     lifted = _lifted_runs(which, period)
@@ -207,10 +208,10 @@ class _Chunks:
         # zero-state ends: singles are L y_k; longer chunks a phase at a time, per gain
         self.v = np.empty((len(self.start), F.shape[-1]))
         single = self.size == 1
-        for e, idx in _by_gain(self.gain, single):
+        for e, idx in gain_groups(self.gain, single):
             self.v[idx] = Y0[self.start[idx]] @ Lt[e]
         self.groups = []
-        for e, idx in _by_gain(self.gain, ~single):
+        for e, idx in gain_groups(self.gain, ~single):
             idx = idx[np.argsort(-self.size[idx], kind="stable")]          # longest first
             s, K = self.start[idx], self.size[idx]
             longer = np.searchsorted(-K, -np.arange(int(K[0]) + 1), side="left")    # longer[j]: chunks with K > j
@@ -234,11 +235,23 @@ class _Chunks:
                 X[s[:longer[j + 1]] + j] = prev
 
 
-def _by_gain(gain, mask):
-    """``(gain, indices)`` of the chunks in ``mask``, one group per gain."""
-    idx = np.flatnonzero(mask)
+def gain_groups(gain, mask=None):
+    """The steps (or chunks) of each gain: ``[(gain, indices), ...]``, one stable sort.
+
+    Parameters
+    ----------
+    gain : ndarray (N,) of int
+    mask : ndarray (N,) of bool, optional
+        Only these.
+
+    Returns
+    -------
+    list of (int, ndarray of int)
+    """
+    idx = np.arange(len(gain)) if mask is None else np.flatnonzero(mask)
     if not len(idx):
         return []
-    idx = idx[np.argsort(gain[idx], kind="stable")]
+    g = gain[idx]
+    idx = idx[np.argsort(g.astype(np.int16) if g.max(initial=0) < 2 ** 15 else g, kind="stable")]   # int16: a radix sort
     bounds = np.r_[0, np.flatnonzero(np.diff(gain[idx])) + 1, len(idx)]
     return [(int(gain[idx[a]]), idx[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
