@@ -49,7 +49,10 @@ LONG_STRETCH = LIFT_FROM
 #: and the memory their covariances may take (bytes); a stream keeps the observed samples of its
 #: last ``HISTORY`` steps, so a chunk decides on long stretches and cycles as the whole record does
 MAX_CYCLE, CYCLE_BYTES = 1024, 2 ** 26
-HISTORY = max(LONG_STRETCH, 2 * MAX_CYCLE)
+#: a hole within this many steps of a cycle's periodic gains (a mixed-rate record whose cycle is
+#: broken) runs the exact covariance recursion until the cycle is back
+BROKEN_CYCLE = 2 * MAX_CYCLE
+HISTORY = max(LONG_STRETCH, 2 * MAX_CYCLE + BROKEN_CYCLE)
 
 
 @dataclass
@@ -71,6 +74,10 @@ class FilterRun:
     loglik_terms : ndarray (B, N, m) or None
         The log-likelihood of the innovations per step and channel
         (:func:`core_akf.filter.likelihood.loglik_terms`); None unless asked for.
+    hole_P : ndarray (B, n, n) or None
+        The steady filter with missing samples (:func:`steady_gapped`): the prior covariance of the
+        last step where it ran the exact recursion through a hole, NaN where it did not (a
+        stream carries it to its next chunk); None without holes.
     """
 
     states: np.ndarray
@@ -79,6 +86,7 @@ class FilterRun:
     P_prior: np.ndarray
     switched: bool = True
     loglik_terms: np.ndarray | None = None
+    hole_P: np.ndarray | None = None
 
     @property
     def loglik(self):
@@ -534,20 +542,32 @@ def gapped_filter(A, G, Q, R, Y, seen, x, P, switch_tol, transition=None, loglik
     return FilterRun(states, innov, run.gain, P, run.switched, terms)
 
 
-def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETCH, full=None, seen_before=None):
-    """The steady-state AKF over a stack of records with missing samples: one cached gain per
-    pattern of observed channels.
+def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETCH, full=None, seen_before=None,
+                  carry=None):
+    """The steady-state AKF over a stack of records with missing samples: cached gains per pattern
+    of observed channels, and the exact covariance recursion through a hole where those would not
+    be stable.
 
-    At a step with pattern ``W`` (observed rows) the gain is that of the steady prior covariance
-    ``P`` of the complete layout updated with the observed rows only,
-    ``L_W = P G_W^T (G_W P G_W^T + R_W)^-1`` -- the exact gain of the first step of any hole, one
-    small solve per pattern, also for a set of live channels that is not detectable.  A pattern
-    that has lasted ``long_stretch`` steps (a dead channel) goes on with its own steady-state gain
-    (one Riccati solve per such pattern, cached) where one exists: a causal rule, so a record run
-    in chunks gets the gains of the whole (``seen_before``).  Back at the complete layout
-    the filter is at its steady gain again.  The covariance is not propagated through a hole, so
-    the gains are approximate while the layout is incomplete (the exact filter:
-    ``steady=False``; the accuracy is measured in the docs' "real records" page).
+    - At a step where the channels ``W`` are observed the gain is that of the complete layout's
+      steady prior covariance ``P`` updated with the observed rows only,
+      ``L_W = P G_W^T (G_W P G_W^T + R_W)^-1`` -- the exact gain of the first step of any hole, one
+      small solve per pattern, cached.
+    - Applied step after step, ``L_W`` is not always a stable filter for the channels that are
+      left (the spectral radius of ``(I - L_W G_W) A`` above one): from the first step of a hole
+      with such a pattern on, until the layout is complete again, the filter runs the exact
+      covariance recursion (from ``P``), one gain per distinct sequence of patterns, computed a
+      depth at a time for all holes at once.  A record with mixed sampling rates does so at every
+      step until its cycle of patterns has come round twice.
+    - A pattern that has lasted ``long_stretch`` steps (a dead channel) goes on with its own
+      steady-state gain (one Riccati solve per such pattern, cached) where one exists; where none
+      exists the gain of that step is held.
+    - A record whose channels repeat a cycle of ``p`` patterns (mixed sampling rates) runs with
+      the cycle's periodic steady-state gains once the cycle has come round twice.
+    - Back at the complete layout the filter is at its steady gain again.
+
+    The rules are causal, so a record run in chunks gets the gains of the whole (``seen_before``,
+    ``carry``).  The exact filter: ``steady=False``; the accuracy is measured in the docs' "real
+    records" page.
 
     Parameters
     ----------
@@ -559,7 +579,7 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     x : ndarray (B, n)
         Prior mean of the first step.
     loglik : bool
-        Also the log-likelihood terms, under each pattern's innovation covariance.
+        Also the log-likelihood terms, under each gain's innovation covariance.
     long_stretch : int
         Steps after which a pattern runs with its own steady-state gain.
     full : (P (B, n, n), L (B, n, m)), optional
@@ -567,32 +587,44 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     seen_before : ndarray (B, h, m) of bool, optional
         The observed samples of the ``h`` steps before the record (a stream's previous chunks,
         ``h <= HISTORY``): a pattern's run, and a cycle's, continues across.
+    carry : ndarray (B, n, n), optional
+        The prior covariance of the last step before the record where that step ran the exact
+        recursion through a hole (NaN where it did not): the previous chunk's ``hole_P``.
 
     Returns
     -------
     FilterRun
-        ``gain`` and ``P_prior`` are the complete layout's steady ones.
+        ``gain`` and ``P_prior`` are the complete layout's steady ones; ``hole_P`` the prior
+        covariance of the last step where it ran the exact recursion (NaN elsewhere).
     """
     P_full, L_full = steady_gain(A, G, Q, R) if full is None else full
     B, N, m = Y.shape
-    states = np.empty((B, N, A.shape[-1]))
+    n = A.shape[-1]
+    states = np.empty((B, N, n))
     terms = np.zeros((B, N, m)) if loglik else None
     h = 0 if seen_before is None else seen_before.shape[1]
+    hole_P = np.full((B, n, n), np.nan)
     gains = []
     for b in range(B):
         seen_b = seen[b] if not h else np.vstack([seen_before[b], seen[b]])
         patterns, which = _patterns(seen_b)
-        period = sampling_period(seen_b, min(MAX_CYCLE, CYCLE_BYTES // (8 * A.shape[-1] ** 2)))
+        period = sampling_period(seen_b, min(MAX_CYCLE, CYCLE_BYTES // (8 * n ** 2)))
         G_p, R_p = masked(np.broadcast_to(G[b], (len(patterns),) + G.shape[1:]),
                           np.broadcast_to(R[b], (len(patterns),) + R.shape[1:]), patterns)
-        which, pattern, P = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which.reshape(-1), long_stretch,
-                                           period)
-        which = which[h:]
-        G_e, R_e = G_p[pattern], R_p[pattern]
-        S = innovation_covariance(G_e, P, R_e)
-        L = np.swapaxes(np.linalg.solve(S, G_e @ P), -1, -2)       # P G_W^T S^-1 (S symmetric)
+        P_carry = None if carry is None or not np.all(np.isfinite(carry[b])) else carry[b]
+        plan = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which, long_stretch, period, h, P_carry)
+        if plan.P_last is not None:
+            hole_P[b] = plan.P_last
+        which = plan.which[h:]
+        G_e, R_e = G_p[plan.pattern], R_p[plan.pattern]
+        S = innovation_covariance(G_e, plan.P, R_e)
+        L = np.swapaxes(np.linalg.solve(S, G_e @ plan.P), -1, -2)       # P G_W^T S^-1 (S symmetric)
+        fixed = len(L)
+        if len(plan.hole_pattern):
+            G_e = np.concatenate([G_e, G_p[plan.hole_pattern]])
+            L, S = np.concatenate([L, plan.hole_L]), np.concatenate([S, plan.hole_S])
         Y0 = np.where(seen[b], Y[b], 0.0)
-        switched_filter(A[b], G_e, L, which, Y0, x[b], period, out=states[b])
+        switched_filter(A[b], G_e, L, which, Y0, x[b], period, out=states[b], fixed=fixed)
         gains.append((which, S))
     innov = innovations(A, G, states, Y, x)
     if loglik:
@@ -601,7 +633,7 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
             for e, rows in gain_groups(which):                     # the steps of one gain at a time
                 terms[b, rows] = loglik_terms(E0[rows], S[e])
         terms[~seen] = 0.0
-    return FilterRun(states, innov, L_full, P_full, True, terms)
+    return FilterRun(states, innov, L_full, P_full, True, terms, hole_P)
 
 
 def _patterns(seen):
@@ -647,28 +679,75 @@ def sampling_period(seen, longest=MAX_CYCLE):
     return p if p <= longest else 1
 
 
-def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period=1):
-    """The covariances the gains of :func:`steady_gapped` come from, for one record.
+@dataclass
+class _GainPlan:
+    """The gains of :func:`steady_gapped` for one record: ``which`` (h + N,) the gain of each
+    step; the first gains from cached covariances, ``pattern`` (E,) and ``P`` (E, n, n); then the
+    gains of the exact recursion through holes, ``hole_pattern`` (E_h,), ``hole_L`` (E_h, n, m),
+    ``hole_S`` (E_h, m, m); ``P_last`` the prior covariance of the last step if it ran that
+    recursion."""
 
-    Returns ``which`` (N,) the gain of each step, ``pattern`` (E,) the pattern of each gain and
-    ``P`` (E, n, n) its covariance: gain i < len(G_p) is pattern i's (``patterns`` (K, m), the
-    observed channels) from the complete layout's ``P_full``; the others are the own steady
-    states of patterns, used once a pattern has lasted ``long_stretch`` steps, and the periodic
-    steady states of cycles of ``period`` patterns (:func:`_cycle_covariances`), used once a cycle
-    has come round twice (``period <= MAX_CYCLE``, so a stream's last :data:`HISTORY` steps
-    decide as the whole record does).
+    which: np.ndarray
+    pattern: np.ndarray
+    P: np.ndarray
+    hole_pattern: np.ndarray
+    hole_L: np.ndarray
+    hole_S: np.ndarray
+    P_last: np.ndarray | None
+
+
+def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period=1, h=0, P_carry=None):
+    """The gains of :func:`steady_gapped` for one record (``h`` steps of history first), a
+    :class:`_GainPlan`.
+
+    Gain i < len(G_p) is pattern i's (``patterns`` (K, m), the observed channels) from the complete
+    layout's ``P_full``; then the own steady states of patterns, used once a pattern has lasted
+    ``long_stretch`` steps, and the periodic steady states of cycles of ``period`` patterns
+    (:func:`_cycle_covariances`), used once a cycle has come round twice (``period <= MAX_CYCLE``,
+    so a stream's last :data:`HISTORY` steps decide as the whole record does).  The steps of a
+    hole from :func:`_exact_steps` on run the exact covariance recursion (:func:`_hole_gains`);
+    ``P_carry`` continues the recursion of the step before the record.
     """
     n_p = len(G_p)
     pattern, P = list(range(n_p)), [P_full] * n_p
-    own = {}
     cuts = np.r_[0, np.flatnonzero(np.diff(which)) + 1, len(which)]
+    run_start = np.repeat(cuts[:-1], np.diff(cuts))
     base, which = which, which.copy()
+    _own_gains(A, Q, G_p, R_p, patterns, cuts, which, long_stretch, pattern, P)
+    first_cycle = len(P)
+    for a, b in (repeats(base, period) if period > 1 else []):
+        cycle = base[a:a + period]
+        if b - a <= 2 * period or np.all(cycle == cycle[0]):
+            continue
+        P_cycle = _cycle_covariances(A, Q, G_p, R_p, patterns, cycle, P_full)
+        if P_cycle is None:
+            continue
+        k = np.arange(a + 2 * period, b)                  # once the cycle has come round twice
+        which[k] = len(P) + (k - a) % period
+        pattern.extend(cycle.tolist())
+        P.extend(P_cycle)
+    exact = _exact_steps(A, G_p, R_p, patterns, P_full, base, which, which >= first_cycle, h, P_carry)
+    hole = _hole_gains(A, Q, G_p, R_p, base, which, exact, np.array(P), np.array(pattern), P_full, run_start,
+                       long_stretch, h, P_carry)
+    if hole is None:
+        empty = np.zeros((0,) + G_p.shape[1:])
+        return _GainPlan(which, np.array(pattern), np.array(P), np.zeros(0, np.int64), np.swapaxes(empty, 1, 2),
+                         np.zeros((0, G_p.shape[1], G_p.shape[1])), None)
+    gain, hole_pattern, hole_L, hole_S, P_last = hole
+    which[exact] = len(P) + gain
+    return _GainPlan(which, np.array(pattern), np.array(P), hole_pattern, hole_L, hole_S, P_last)
+
+
+def _own_gains(A, Q, G_p, R_p, patterns, cuts, which, long_stretch, pattern, P):
+    """The own steady states of the patterns whose runs (between ``cuts``) outlast
+    ``long_stretch`` steps, appended to ``pattern`` and ``P``; ``which`` set to them from then on."""
+    own = {}
     for a, b in zip(cuts[:-1], cuts[1:]):
         p = int(which[a])
         if b - a <= long_stretch or patterns[p].all():     # short, or the complete layout (P_full)
             continue
         if p not in own:
-            own[p] = None                     # no steady state (nothing observed, or not detectable): the gain from P_full
+            own[p] = None                     # no steady state (nothing observed, or not detectable)
             if patterns[p].any():
                 try:
                     with warnings.catch_warnings():
@@ -681,18 +760,200 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period
                     pass
         if own[p] is not None:
             which[a + long_stretch:b] = own[p]
-    for a, b in (repeats(base, period) if period > 1 else []):
-        cycle = base[a:a + period]
-        if b - a <= 2 * period or np.all(cycle == cycle[0]):
+
+
+def _exact_steps(A, G_p, R_p, patterns, P_full, base, which, periodic, h, P_carry):
+    """(h + N,) bool: the steps that run the exact covariance recursion (none before ``h``).
+
+    The other steps of a hole (not complete, not at a cached steady state) run it from the first
+    whose pattern's gain from ``P_full`` is not a stable filter (:func:`_unstable_patterns`), or
+    that lies within :data:`BROKEN_CYCLE` steps after a step with a cycle's periodic gain
+    (``periodic``: a mixed-rate record whose cycle a hole broke -- its complete steps too), to the
+    hole's end; all of a hole the record starts in when ``P_carry`` is given.
+    """
+    N = len(base)
+    cyclic = np.maximum.accumulate(np.where(periodic, np.arange(N), -N - BROKEN_CYCLE))
+    broken = np.arange(N) - np.r_[-N - BROKEN_CYCLE, cyclic[:-1]] <= BROKEN_CYCLE
+    free = (which == base) & (broken | ~patterns[base].all(axis=1))
+    exact = np.zeros(N, bool)
+    edges = np.flatnonzero(np.diff(np.r_[False, free, False].astype(np.int8)))
+    unstable = None
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b <= h:
             continue
-        P_cycle = _cycle_covariances(A, Q, G_p, R_p, patterns, cycle, P_full)
-        if P_cycle is None:
+        a = max(a, h)
+        if a == h and P_carry is not None:
+            exact[a:b] = True
             continue
-        k = np.arange(a + 2 * period, b)                  # once the cycle has come round twice
-        which[k] = len(P) + (k - a) % period
-        pattern.extend(cycle.tolist())
-        P.extend(P_cycle)
-    return which, np.array(pattern), np.array(P)
+        if unstable is None:
+            unstable = _unstable_patterns(A, G_p, R_p, P_full)
+        first = np.flatnonzero(unstable[base[a:b]] | broken[a:b])
+        if len(first):
+            exact[a + first[0]:b] = True
+    return exact
+
+
+#: whether each pattern's gain from the complete layout's covariance is a stable filter, by the
+#: matrices (:func:`_unstable_patterns`)
+_STABLE, _STABLE_LOCK = {}, threading.Lock()
+#: a pattern's gain from the complete layout's covariance is not used step after step when its
+#: closed loop's spectral radius exceeds one by more than this
+STABLE_MARGIN = 1e-9
+
+
+def _unstable_patterns(A, G_p, R_p, P_full):
+    """(K,) bool: whether the gain of each pattern (``G_p``, ``R_p`` masked) from ``P_full`` is not
+    a stable filter, ``max |eig((I - L_W G_W) A)| > 1 + STABLE_MARGIN`` (cached by the matrices)."""
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (A, P_full):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    base = digest.copy()
+    keys, out, todo = [], np.zeros(len(G_p), bool), []
+    for i in range(len(G_p)):
+        d = base.copy()
+        d.update(np.ascontiguousarray(G_p[i]).tobytes())
+        d.update(np.ascontiguousarray(R_p[i]).tobytes())
+        keys.append(d.hexdigest())
+    with _STABLE_LOCK:
+        for i, key in enumerate(keys):
+            if key in _STABLE:
+                out[i] = _STABLE[key]
+            else:
+                todo.append(i)
+    if todo:
+        G_t, R_t = G_p[todo], R_p[todo]
+        S = innovation_covariance(G_t, P_full, R_t)
+        L = np.swapaxes(np.linalg.solve(S, G_t @ P_full), -1, -2)
+        F = (np.eye(A.shape[-1]) - L @ G_t) @ A
+        radius = np.abs(np.linalg.eigvals(F)).max(axis=-1)
+        out[todo] = ~(radius <= 1.0 + STABLE_MARGIN)
+        with _STABLE_LOCK:
+            if len(_STABLE) > 4096:
+                _STABLE.clear()
+            _STABLE.update({keys[i]: bool(out[i]) for i in todo})
+    return out
+
+
+def _riccati_step(A, Q, G, R, P):
+    """The prior covariances (k, n, n) of the step after priors ``P`` (k, n, n) updated with
+    observations ``G`` (k, m, n), ``R`` (k, m, m) (masked)."""
+    GP = G @ P
+    S = GP @ np.swapaxes(G, -1, -2) + R
+    post = P - np.swapaxes(GP, -1, -2) @ np.linalg.solve(S, GP)
+    nxt = A @ post @ A.T + Q
+    return (nxt + np.swapaxes(nxt, -1, -2)) / 2
+
+
+def _hole_gains(A, Q, G_p, R_p, base, which, exact, P_cached, pattern_cached, P_full, run_start, long_stretch, h,
+                P_carry):
+    """The gains of the exact covariance recursion over the steps ``exact`` of a record (patterns
+    ``base``, the other steps' gains ``which`` from ``P_cached``, ``pattern_cached``).
+
+    A stretch of such steps starts from the prior after the step before it (its cached gain's
+    covariance updated with its pattern, and predicted; ``P_full`` at the record's first step;
+    ``P_carry`` at a stream's).  Each step's prior is a node of :func:`_hole_nodes`; the nodes'
+    covariances, and their gains, are computed a depth at a time for every hole at once.
+
+    Returns None when no step runs the recursion; else the gain index of each such step (in
+    order), the pattern, gain (E_h, n, m) and innovation covariance (E_h, m, m) of each gain, and
+    the prior covariance of the record's last step if it ran the recursion.
+    """
+    steps = np.flatnonzero(exact)
+    if not len(steps):
+        return None
+    step_gain, parent, via, depth, roots, gain_node, gain_pattern, last = _hole_nodes(
+        steps, base, which, run_start, long_stretch, h, P_carry is not None)
+    n, m = A.shape[-1], G_p.shape[1]
+    hole_L, hole_S = np.empty((len(gain_node), n, m)), np.empty((len(gain_node), m, m))
+    P_last = None
+    level = np.flatnonzero(depth == 0)
+    P_level = np.empty((len(level), n, n))
+    for j, r in enumerate(level.tolist()):
+        key = roots[r]
+        if key[0] == "carry":
+            P_level[j] = P_carry
+        elif key[0] == "start":
+            P_level[j] = P_full
+        else:
+            e = key[1]
+            p = pattern_cached[e]
+            P_level[j] = _riccati_step(A, Q, G_p[p][None], R_p[p][None], P_cached[e][None])[0]
+    gain_order = np.argsort(gain_node, kind="stable")
+    gain_bounds = np.searchsorted(gain_node[gain_order], np.arange(len(parent) + 1))
+    by_depth = np.argsort(depth, kind="stable")
+    depth_bounds = np.searchsorted(depth[by_depth], np.arange(depth.max() + 2))
+    position = np.empty(len(parent), np.int64)
+    for d in range(depth.max() + 1):
+        if d:
+            children = by_depth[depth_bounds[d]:depth_bounds[d + 1]]
+            v = via[children]
+            P_level = _riccati_step(A, Q, G_p[v], R_p[v], P_level[position[parent[children]]])
+            level = children
+        position[level] = np.arange(len(level))
+        mine = np.concatenate([gain_order[gain_bounds[u]:gain_bounds[u + 1]] for u in level.tolist()])
+        if len(mine):
+            p = gain_pattern[mine]
+            G_w, R_w = G_p[p], R_p[p]
+            GP = G_w @ P_level[position[gain_node[mine]]]
+            S = GP @ np.swapaxes(G_w, -1, -2) + R_w
+            hole_S[mine] = S
+            hole_L[mine] = np.swapaxes(np.linalg.solve(S, GP), -1, -2)
+        if last is not None and depth[last] == d:
+            P_last = P_level[position[last]].copy()
+    return step_gain, gain_pattern, hole_L, hole_S, P_last
+
+
+def _hole_nodes(steps, base, which, run_start, long_stretch, h, carried):
+    """The nodes of the exact recursion over ``steps`` (the prior covariance of each step): a
+    stretch's first step is a root -- ``("after", gain)`` of the step before, ``("start",)``, or
+    the node of the step before the record ``("carry",)`` (``carried``) -- and every other step's
+    node is the node of the step before updated with that step's pattern, or the same node where
+    a pattern without a steady state has lasted ``long_stretch`` steps (its gain held).  Nodes,
+    and gains (node, pattern), are shared by every hole with the same sequence of patterns.
+
+    Returns the gain of each step, each node's ``parent``, the pattern ``via`` which it follows
+    from it and its ``depth`` (arrays), the roots' keys by node, each gain's node and pattern, and
+    the node of the record's last step (None unless it is in ``steps``).
+    """
+    node_of, parent, via, depth, roots = {}, [], [], [], {}
+    gain_of, gain_node, gain_pattern = {}, [], []
+    step_gain = np.empty(len(steps), np.int64)
+    base_l, which_l, run_l = base.tolist(), which.tolist(), run_start.tolist()
+    node, previous = -1, -2
+    for i, k in enumerate(steps.tolist()):
+        start = k != previous + 1
+        if start:                                        # a stretch starts: its root
+            if k == h and carried:
+                key, start = ("carry",), False           # the node of the step before, carried
+            else:
+                key = ("start",) if k == 0 else ("after", which_l[k - 1])
+            node = node_of.get(key)
+            if node is None:
+                node = node_of[key] = len(parent)
+                parent.append(-1)
+                via.append(-1)
+                depth.append(0)
+                roots[node] = key
+        if not start and not (base_l[k] == base_l[k - 1] and k - run_l[k] >= long_stretch):
+            key = (node, base_l[k - 1])
+            child = node_of.get(key)
+            if child is None:
+                child = node_of[key] = len(parent)
+                parent.append(node)
+                via.append(base_l[k - 1])
+                depth.append(depth[node] + 1)
+            node = child
+        previous = k
+        gkey = (node, base_l[k])
+        g = gain_of.get(gkey)
+        if g is None:
+            g = gain_of[gkey] = len(gain_node)
+            gain_node.append(node)
+            gain_pattern.append(base_l[k])
+        step_gain[i] = g
+    last = node if steps[-1] == len(base) - 1 else None
+    return (step_gain, np.array(parent), np.array(via), np.array(depth), roots, np.array(gain_node),
+            np.array(gain_pattern), last)
 
 
 #: the periodic steady states of cycles of patterns, by their matrices (:func:`_cycle_covariances`)
@@ -781,7 +1042,7 @@ def steady(f, Y, start=None, loglik=False):
         raise f.riccati_error(exc) from None
 
 
-def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None):
+def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None, carry=None):
     """The filter ``f`` with a given constant gain over a stack of records (a stream's chunk once
     its gain is steady or has converged).
 
@@ -804,6 +1065,8 @@ def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None):
         Also the log-likelihood terms.
     seen_before : ndarray (B, h, m_f) of bool, optional
         As :func:`steady_gapped`.
+    carry : ndarray (B, n_a, n_a), optional
+        As :func:`steady_gapped` (the previous chunk's ``hole_P``).
 
     Returns
     -------
@@ -812,9 +1075,11 @@ def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None):
     B, n = Y.shape[0], f.A_a.shape[0]
     A = np.broadcast_to(f.A_a, (B, n, n))
     seen = observed(Y)
+    if seen is None and (seen_before is not None or carry is not None):   # a complete chunk after holes
+        seen = np.ones(Y.shape, bool)
     if seen is not None:
         return steady_gapped(A, f.G_a, np.broadcast_to(f.Q_a, (B, n, n)), f.R, Y, seen, _start(f, B, start), loglik,
-                             full=(P, L), seen_before=seen_before)
+                             full=(P, L), seen_before=seen_before, carry=carry)
     return constant_gain(A, f.G_a, f.R, L, P, Y, _start(f, B, start), loglik)
 
 

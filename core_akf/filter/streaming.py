@@ -126,6 +126,7 @@ class Estimator:
             self._L = None
         self._switched = self.steady       # True: the fixed-gain recursion runs
         self._seen_tail = None             # the observed samples of the last steps, None while all are
+        self._hole_P = None                # the prior covariance of the exact recursion through a hole
         self.lagged = None
         if smooth_lag is not None:
             from .smoother import FixedLagSmoother
@@ -217,7 +218,10 @@ class Estimator:
         gapped = not seen.all()
         if self._switched and (self.steady or not gapped):     # the time-varying filter is exact through a hole
             run = kernels.with_gain(f, Y[None], self._L[None], self._P[None], x[None], loglik=True,
-                                    seen_before=None if self._seen_tail is None else self._seen_tail[None])
+                                    seen_before=None if self._seen_tail is None else self._seen_tail[None],
+                                    carry=None if self._hole_P is None else self._hole_P[None])
+            self._hole_P = (None if run.hole_P is None or not np.all(np.isfinite(run.hole_P[0]))
+                            else np.ascontiguousarray(run.hole_P[0]))
         else:
             run = kernels.time_varying(f, Y[None], (x[None], self._P[None]), loglik=True, switch_tol=self.switch_tol)
             self._P = np.ascontiguousarray(run.P_prior[0])
@@ -257,7 +261,7 @@ class Estimator:
         Estimator
         """
         out = copy.copy(self)
-        out._z, out._seen_tail = None, None
+        out._z, out._seen_tail, out._hole_P = None, None, None
         out.n_steps = out.n_returned = int(step)
         if not self.steady:
             f = self.filter
@@ -335,7 +339,8 @@ class Estimator:
                 "P": self._P.copy(), "L": self._gain().copy(), "switched": np.array(self._switched),
                 "started": np.array(self._z is not None), "fingerprint": np.array(self._fingerprint),
                 "n_returned": np.array(self.n_returned),
-                "seen_tail": np.ones((0, self.filter.G_a.shape[1]), bool) if self._seen_tail is None else self._seen_tail.copy()} | \
+                "seen_tail": np.ones((0, self.filter.G_a.shape[1]), bool) if self._seen_tail is None else self._seen_tail.copy(),
+                "hole_P": np.zeros((0, n)) if self._hole_P is None else self._hole_P.copy()} | \
             ({} if self.lagged is None else self.lagged.state())
 
     def restore(self, state: Mapping[str, np.ndarray]) -> Estimator:
@@ -377,6 +382,12 @@ class Estimator:
             raise CheckpointError(f"the saved state's observed-sample tail has shape {tail.shape}; expected (steps, "
                                   f"{self.filter.G_a.shape[1]})")
         self._seen_tail = None if tail.all() else np.ascontiguousarray(tail)
+        n = self.filter.A_a.shape[0]
+        hole = np.asarray(state["hole_P"], float) if "hole_P" in state else np.zeros((0, n))
+        if hole.shape not in ((0, n), (n, n)) or not np.all(np.isfinite(hole)):
+            raise CheckpointError(f"the saved state's hole covariance has shape {hole.shape} or is not finite; expected "
+                                  f"({n}, {n}) or none")
+        self._hole_P = np.ascontiguousarray(hole) if hole.shape == (n, n) else None
         self.n_steps, self._P, self._switched = n_steps, np.ascontiguousarray(P), switched
         self._L = np.ascontiguousarray(L) if switched else None
         self._z = z.copy() if started else None

@@ -16,7 +16,10 @@ against the plain loop):
   (largest first).  Each chunk's zero-state end ``v = sum_j F^(K-1-j) L y_j`` comes from a
   recursion over the chunks' phases, all chunks of one gain at once; then one loop over the
   chunks in time order, ``x <- F^K x + v``; then the chunks' inner steps, again a phase at a time.
-  A stretch of 29 steps is four round trips (16 + 8 + 4 + 1) instead of 29.
+  A stretch of 29 steps is four round trips (16 + 8 + 4 + 1) instead of 29;
+- a step whose gain is one of many used once each (the exact covariance recursion through a
+  hole, from :func:`~core_akf.filter.kernels.steady_gapped`) runs as it is,
+  ``x <- A x - L (G A x - y)``, without forming its ``F``.
 """
 from __future__ import annotations
 
@@ -30,7 +33,7 @@ LIFT_FROM = 256
 LARGEST_CHUNK = 128
 
 
-def switched_filter(A, G, L, which, Y0, x, period=1, out=None):
+def switched_filter(A, G, L, which, Y0, x, period=1, out=None, fixed=None):
     """The fixed-gain filter of one record whose gain switches from step to step.
 
     Parameters
@@ -50,6 +53,9 @@ def switched_filter(A, G, L, which, Y0, x, period=1, out=None):
         The cycle of gains to look for (1: stretches of one gain only).
     out : ndarray (N, n), optional
         Where to write the states (C-contiguous).
+    fixed : int, optional
+        Gains ``0 .. fixed-1`` run through their ``F`` (lifted or chunked); the steps of the others
+        run one at a time (default: all through ``F``).
 
     Returns
     -------
@@ -58,25 +64,32 @@ def switched_filter(A, G, L, which, Y0, x, period=1, out=None):
     """
     which = np.asarray(which, np.int64)
     N, n = len(which), A.shape[-1]
-    I_LG = np.eye(n) - L @ G                      # kernels.closed_loop, which imports this module
+    E = len(L) if fixed is None else int(fixed)
+    I_LG = np.eye(n) - L[:E] @ G[:E]              # kernels.closed_loop, which imports this module
     F = I_LG @ A
     Ft = np.ascontiguousarray(np.swapaxes(F, -1, -2))
     Lt = np.ascontiguousarray(np.swapaxes(L, -1, -2))
     X = np.empty((N, n)) if out is None else out
-    X[0] = I_LG[which[0]] @ x + L[which[0]] @ Y0[0]
+    one = which >= E                                            # the steps run one at a time
+    if one[0]:
+        _one_at_a_time(X, A, G, L, which, Y0, 0, 1, x)
+    else:
+        X[0] = I_LG[which[0]] @ x + L[which[0]] @ Y0[0]
     if N == 1:
         return X
-    lifted = _lifted_runs(which, period)
-    free = np.ones(N, bool)
+    blocks = _lifted_runs(np.where(one, -1 - np.arange(N), which), period)     # no lifting across them
+    free = ~one
     free[0] = False
-    for a, b, _ in lifted:
+    for a, b, _ in blocks:
         free[a:b] = False
+    edges = np.flatnonzero(np.diff(np.r_[False, one[1:], False].astype(np.int8)))
+    blocks = sorted(blocks + [(int(a) + 1, int(b) + 1, 0) for a, b in zip(edges[::2], edges[1::2])])
     chunks = _Chunks(which, free, F, Ft, Lt, Y0)
     ends = [X[e] for e in chunks.end.tolist()]                 # views of the rows the loop writes
     powers = [chunks.power_t[i] for i in chunks.power.tolist()]
     inputs, dot, add = list(chunks.v), np.dot, np.add
     k = 0                                        # chunks before this one are done
-    for a, b, p in lifted + [(N, N, 0)]:
+    for a, b, p in blocks + [(N, N, -1)]:
         k1 = chunks.first_after(a)
         x_prev = X[chunks.start[k] - 1] if k < k1 else None
         for i in range(k, k1):                   # x <- F^K x + v, in place
@@ -87,13 +100,25 @@ def switched_filter(A, G, L, which, Y0, x, period=1, out=None):
         k = k1
         if a == N:
             break
-        if p == 1:
+        if p == 0:
+            _one_at_a_time(X, A, G, L, which, Y0, a, b, A @ X[a - 1])
+        elif p == 1:
             e = which[a]
             X[a - 1:b] = lti_response(F[e][None], L[e][None], Y0[None, a - 1:b], X[a - 1][None])[0]
         else:
             _periodic(X, F, Ft, Lt, Y0, which[a:a + p], a, b)
     chunks.fill(X)
     return X
+
+
+def _one_at_a_time(X, A, G, L, which, Y0, a, b, z):
+    """Steps ``a .. b-1`` of :func:`switched_filter`, each with its own gain, from the prior mean
+    ``z`` of step ``a``: ``x = z - L (G z - y)``, then ``z = A x``."""
+    for k in range(a, b):
+        e = which[k]
+        x = X[k]
+        np.subtract(z, L[e] @ (G[e] @ z - Y0[k]), out=x)
+        z = A @ x
 
 
 def repeats(which, p):

@@ -5,7 +5,9 @@ import pytest
 
 from core_akf import estimate, simulate
 from core_akf.checks import AKFInputError
-from core_akf.filter import Estimator, Filter, filter_states, smooth
+from core_akf.filter import Estimator, Filter, filter_states, kernels, smooth
+from core_akf.filter.riccati import steady_gain
+from core_akf.filter.streaming import CheckpointError
 from core_akf.models import s17_truss
 from core_akf.sensors import as_layout, parse_force_locations
 
@@ -137,6 +139,39 @@ def test_a_dead_channel_gets_its_own_steady_gain_and_a_stream_agrees():
         forces.append(stream.update(Yn[a:a + 250]).forces)
         state = stream.state()
     np.testing.assert_allclose(np.vstack(forces), whole.forces, rtol=0, atol=1e-8 * np.abs(whole.forces).max())
+
+
+def test_a_hole_whose_cached_gain_is_unstable_runs_the_exact_recursion():
+    """strain:13 dead for 0.9 s: the gain of the two channels left from the complete layout's
+    covariance is not a stable filter (spectral radius 1.019); the cached gains alone reached
+    1.2e8 N here.  The steady filter runs the exact recursion through the hole instead."""
+    Y, R, loads = _record(2000)
+    Yn = Y.copy()
+    Yn[600:1500, 0] = np.nan
+    f = _setup(R)
+    P, _ = steady_gain(f.A_a[None], f.G_a, f.Q_a[None], f.R)
+    patterns = np.array([[False, True, True], [True, True, True]])
+    G_p, R_p = kernels.masked(np.repeat(f.G_a, 2, 0), np.repeat(f.R, 2, 0), patterns)
+    assert kernels._unstable_patterns(f.A_a, G_p, R_p, P[0]).tolist() == [True, False]
+    kw = dict(noise_cov=R, **COV)
+    exact = estimate(s17_truss(), SENSORS, FORCES, Yn, DT, steady=False, **kw)
+    fast = estimate(s17_truss(), SENSORS, FORCES, Yn, DT, steady=True, **kw)
+    hole = slice(600, 1500)
+    scale = np.abs(loads).max()
+    assert np.abs(fast.forces).max() < 1.05 * scale
+    np.testing.assert_allclose(fast.forces[hole], exact.forces[hole], rtol=0, atol=1e-3 * scale)
+
+
+def test_a_checkpoint_with_a_bad_hole_covariance_is_refused():
+    Y, R, _ = _record(400)
+    Y[250:400, 0] = np.nan                             # to the end, shorter than a pattern's own gain
+    stream = Estimator(s17_truss(), SENSORS, FORCES, DT, noise_cov=R, steady=True, **COV)
+    stream.update(Y)
+    state = stream.state()
+    assert state["hole_P"].shape == (stream.filter.A_a.shape[0],) * 2      # the exact recursion carries on
+    state["hole_P"] = np.full_like(state["hole_P"], np.nan)
+    with pytest.raises(CheckpointError, match="hole covariance"):
+        Estimator(s17_truss(), SENSORS, FORCES, DT, noise_cov=R, steady=True, **COV).restore(state)
 
 
 def test_diagnostics_count_the_holes(gappy):

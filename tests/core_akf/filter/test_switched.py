@@ -57,6 +57,19 @@ def test_the_switched_filter_is_the_step_by_step_recursion(name):
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
 
 
+@pytest.mark.parametrize("name", ["random", "stretches", "cycle, a long stretch, a break", "one step"])
+def test_steps_with_gains_used_once_run_one_at_a_time_and_are_the_recursion(name):
+    """Gains from ``fixed`` on (the exact recursion through a hole) run without their ``F``."""
+    A, G, L, rng = _system(2)
+    which, period = _sequences(rng)[name]
+    which = which.copy()
+    which[(np.arange(len(which)) % 7 == 0) | (which == 4)] = 4       # gain 4: steps one at a time
+    Y0, x = rng.normal(size=(len(which), G.shape[1])), rng.normal(size=A.shape[0])
+    expected = _loop(A, G, L, which, Y0, x)
+    got = switched_filter(A, G, L, which, Y0, x, period, fixed=4)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
 def test_sampling_period():
     seen = np.ones((960, 3), bool)
     assert sampling_period(seen) == 1
@@ -122,6 +135,46 @@ def test_slow_gauges_alone_stay_stable(every, n):
     assert np.abs(fast.forces).max() < 1.1 * np.abs(exact.forces).max()
     late = slice(n - 500, None)
     np.testing.assert_allclose(fast.forces[late], exact.forces[late], rtol=0, atol=1e-6 * np.abs(exact.forces).max())
+
+
+def _broken(n=6000, every=16):
+    """Gauges every ``every``-th step with 40 holes of up to 60 steps in the accelerometers (the
+    cycle broken) and a gauge dead for 0.4 s."""
+    Y, R = _mixed(n=n, every=every)
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        j, a = rng.integers(2, 4), rng.integers(0, n - 100)
+        Y[a:a + rng.integers(1, 60), j] = np.nan
+    Y[n // 2:n // 2 + 400, 0] = np.nan
+    return Y, R
+
+
+def test_a_mixed_rate_record_with_holes_stays_with_the_exact_filter():
+    """Holes in the accelerometers break the gauges' cycle; the cached gains alone grew to 1e81 N
+    here.  Through a broken cycle the filter runs the exact covariance recursion."""
+    Y, R = _broken()
+    kw = dict(noise_cov=R, **COV)
+    exact = estimate(s17_truss(), SENSORS, FORCES, Y, DT, steady=False, **kw)
+    fast = estimate(s17_truss(), SENSORS, FORCES, Y, DT, steady=True, **kw)
+    scale = np.abs(exact.forces).max()
+    assert np.abs(fast.forces).max() < 1.01 * scale
+    late = slice(500, None)                                    # after the exact filter's start
+    np.testing.assert_allclose(fast.forces[late], exact.forces[late], rtol=0, atol=0.05 * scale)
+    assert np.sqrt(np.mean((fast.forces[late] - exact.forces[late]) ** 2)) < 0.005 * scale
+
+
+def test_a_mixed_rate_record_with_holes_streamed_and_resumed_is_the_whole():
+    Y, R = _broken()
+    kw = dict(noise_cov=R, steady=True, **COV)
+    whole = estimate(s17_truss(), SENSORS, FORCES, Y, DT, **kw)
+    state, forces, bounds = None, [], [0, 333, 700, 1543, 3100, 3200, 4711, 6000]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        stream = Estimator(s17_truss(), SENSORS, FORCES, DT, **kw)
+        if state is not None:
+            stream.restore(state)
+        forces.append(stream.update(Y[a:b]).forces)
+        state = stream.state()
+    np.testing.assert_allclose(np.vstack(forces), whole.forces, rtol=0, atol=1e-8 * np.abs(whole.forces).max())
 
 
 @pytest.mark.parametrize("every, n, cuts", [(8, 3000, [200, 613, 1999]), (256, 4000, [100, 700, 1000, 2900])])
