@@ -543,7 +543,7 @@ def gapped_filter(A, G, Q, R, Y, seen, x, P, switch_tol, transition=None, loglik
 
 
 def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETCH, full=None, seen_before=None,
-                  carry=None):
+                  carry=None, at_start=True):
     """The steady-state AKF over a stack of records with missing samples: cached gains per pattern
     of observed channels, and the exact covariance recursion through a hole where those would not
     be stable.
@@ -590,6 +590,9 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
     carry : ndarray (B, n, n), optional
         The prior covariance of the last step before the record where that step ran the exact
         recursion through a hole (NaN where it did not): the previous chunk's ``hole_P``.
+    at_start : bool
+        Whether the record (with ``seen_before``) starts at the filter's start; False for a
+        stream's later chunk (whose steps before ``seen_before`` were complete).
 
     Returns
     -------
@@ -612,7 +615,8 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
         G_p, R_p = masked(np.broadcast_to(G[b], (len(patterns),) + G.shape[1:]),
                           np.broadcast_to(R[b], (len(patterns),) + R.shape[1:]), patterns)
         P_carry = None if carry is None or not np.all(np.isfinite(carry[b])) else carry[b]
-        plan = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which, long_stretch, period, h, P_carry)
+        plan = _pattern_gains(A[b], Q[b], G_p, R_p, patterns, P_full[b], which, long_stretch, period, h, P_carry,
+                              at_start)
         if plan.P_last is not None:
             hole_P[b] = plan.P_last
         which = plan.which[h:]
@@ -696,7 +700,8 @@ class _GainPlan:
     P_last: np.ndarray | None
 
 
-def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period=1, h=0, P_carry=None):
+def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period=1, h=0, P_carry=None,
+                   at_start=True):
     """The gains of :func:`steady_gapped` for one record (``h`` steps of history first), a
     :class:`_GainPlan`.
 
@@ -706,7 +711,8 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period
     (:func:`_cycle_covariances`), used once a cycle has come round twice (``period <= MAX_CYCLE``,
     so a stream's last :data:`HISTORY` steps decide as the whole record does).  The steps of a
     hole from :func:`_exact_steps` on run the exact covariance recursion (:func:`_hole_gains`);
-    ``P_carry`` continues the recursion of the step before the record.
+    ``P_carry`` continues the recursion of the step before the record; ``at_start``: the record
+    (with its history) starts at the filter's start.
     """
     n_p = len(G_p)
     pattern, P = list(range(n_p)), [P_full] * n_p
@@ -726,7 +732,8 @@ def _pattern_gains(A, Q, G_p, R_p, patterns, P_full, which, long_stretch, period
         which[k] = len(P) + (k - a) % period
         pattern.extend(cycle.tolist())
         P.extend(P_cycle)
-    exact = _exact_steps(A, G_p, R_p, patterns, P_full, base, which, which >= first_cycle, h, P_carry)
+    exact = _exact_steps(A, G_p, R_p, patterns, P_full, base, which, which >= first_cycle,
+                         (which >= n_p) & (which < first_cycle), h, P_carry, at_start)
     hole = _hole_gains(A, Q, G_p, R_p, base, which, exact, np.array(P), np.array(pattern), P_full, run_start,
                        long_stretch, h, P_carry)
     if hole is None:
@@ -762,35 +769,56 @@ def _own_gains(A, Q, G_p, R_p, patterns, cuts, which, long_stretch, pattern, P):
             which[a + long_stretch:b] = own[p]
 
 
-def _exact_steps(A, G_p, R_p, patterns, P_full, base, which, periodic, h, P_carry):
+def _exact_steps(A, G_p, R_p, patterns, P_full, base, which, periodic, own, h, P_carry, at_start):
     """(h + N,) bool: the steps that run the exact covariance recursion (none before ``h``).
 
-    The other steps of a hole (not complete, not at a cached steady state) run it from the first
-    whose pattern's gain from ``P_full`` is not a stable filter (:func:`_unstable_patterns`), or
-    that lies within :data:`BROKEN_CYCLE` steps after a step with a cycle's periodic gain
-    (``periodic``: a mixed-rate record whose cycle a hole broke -- its complete steps too), to the
-    hole's end; all of a hole the record starts in when ``P_carry`` is given.
+    A hole's steps are those not at a cached steady state that are incomplete, or complete after
+    an incomplete step, or within :data:`BROKEN_CYCLE` steps after a step with a cycle's periodic
+    gain (``periodic``: a mixed-rate record whose cycle a hole broke).  A hole runs the recursion
+    from its first step if it starts the record (``at_start``), follows a step with a pattern's
+    own steady gain (``own``) or one that ran the recursion (``P_carry`` for the step before the
+    record); else from its first step whose pattern's gain from ``P_full`` is not a stable filter
+    (:func:`_unstable_patterns`) or that is in a broken cycle; to the hole's end, and then through
+    up to :data:`SETTLE` steps of the complete layout.
     """
     N = len(base)
+    complete = patterns[base].all(axis=1)
+    after_complete = np.r_[not (at_start and h == 0), complete[:-1]]
     cyclic = np.maximum.accumulate(np.where(periodic, np.arange(N), -N - BROKEN_CYCLE))
     broken = np.arange(N) - np.r_[-N - BROKEN_CYCLE, cyclic[:-1]] <= BROKEN_CYCLE
-    free = (which == base) & (broken | ~patterns[base].all(axis=1))
+    free = (which == base) & (broken | ~complete | ~after_complete)
+    settles = (which == base) & complete & ~free             # steps of the complete layout's steady gain
     exact = np.zeros(N, bool)
     edges = np.flatnonzero(np.diff(np.r_[False, free, False].astype(np.int8)))
     unstable = None
+    carried = P_carry is not None
     for a, b in zip(edges[::2], edges[1::2]):
         if b <= h:
+            if carried:                                  # its settling may go on into the record
+                _settle(exact, settles, b, h)
             continue
         a = max(a, h)
-        if a == h and P_carry is not None:
-            exact[a:b] = True
-            continue
-        if unstable is None:
-            unstable = _unstable_patterns(A, G_p, R_p, P_full)
-        first = np.flatnonzero(unstable[base[a:b]] | broken[a:b])
-        if len(first):
-            exact[a + first[0]:b] = True
+        if (a == h and carried) or (a == 0 and at_start) or (a >= 1 and (exact[a - 1] or own[a - 1])):
+            first = 0
+        else:
+            if unstable is None:
+                unstable = _unstable_patterns(A, G_p, R_p, P_full)
+            found = np.flatnonzero(unstable[base[a:b]] | broken[a:b])
+            if not len(found):
+                continue
+            first = int(found[0])
+        exact[a + first:b] = True
+        _settle(exact, settles, b, h)
     return exact
+
+
+def _settle(exact, settles, b, h):
+    """Mark the steps of the complete layout from ``b`` on (up to :data:`SETTLE`, not before
+    ``h``) as running the exact recursion."""
+    c = b
+    while c < len(settles) and c < b + SETTLE and settles[c]:
+        c += 1
+    exact[max(b, h):c] = True
 
 
 #: whether each pattern's gain from the complete layout's covariance is a stable filter, by the
@@ -799,6 +827,9 @@ _STABLE, _STABLE_LOCK = {}, threading.Lock()
 #: a pattern's gain from the complete layout's covariance is not used step after step when its
 #: closed loop's spectral radius exceeds one by more than this
 STABLE_MARGIN = 1e-9
+#: after a hole that ran the exact recursion, the filter runs it through this many more steps of
+#: the complete layout before it takes the layout's steady gain again
+SETTLE = 16
 
 
 def _unstable_patterns(A, G_p, R_p, P_full):
@@ -1042,7 +1073,7 @@ def steady(f, Y, start=None, loglik=False):
         raise f.riccati_error(exc) from None
 
 
-def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None, carry=None):
+def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None, carry=None, at_start=True):
     """The filter ``f`` with a given constant gain over a stack of records (a stream's chunk once
     its gain is steady or has converged).
 
@@ -1067,6 +1098,8 @@ def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None, carry=None
         As :func:`steady_gapped`.
     carry : ndarray (B, n_a, n_a), optional
         As :func:`steady_gapped` (the previous chunk's ``hole_P``).
+    at_start : bool
+        As :func:`steady_gapped`.
 
     Returns
     -------
@@ -1079,7 +1112,7 @@ def with_gain(f, Y, L, P, start=None, loglik=False, seen_before=None, carry=None
         seen = np.ones(Y.shape, bool)
     if seen is not None:
         return steady_gapped(A, f.G_a, np.broadcast_to(f.Q_a, (B, n, n)), f.R, Y, seen, _start(f, B, start), loglik,
-                             full=(P, L), seen_before=seen_before, carry=carry)
+                             full=(P, L), seen_before=seen_before, carry=carry, at_start=at_start)
     return constant_gain(A, f.G_a, f.R, L, P, Y, _start(f, B, start), loglik)
 
 

@@ -219,7 +219,8 @@ class Estimator:
         if self._switched and (self.steady or not gapped):     # the time-varying filter is exact through a hole
             run = kernels.with_gain(f, Y[None], self._L[None], self._P[None], x[None], loglik=True,
                                     seen_before=None if self._seen_tail is None else self._seen_tail[None],
-                                    carry=None if self._hole_P is None else self._hole_P[None])
+                                    carry=None if self._hole_P is None else self._hole_P[None],
+                                    at_start=self._z is None)
             self._hole_P = (None if run.hole_P is None or not np.all(np.isfinite(run.hole_P[0]))
                             else np.ascontiguousarray(run.hole_P[0]))
         else:
