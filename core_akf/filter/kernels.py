@@ -802,7 +802,7 @@ def _exact_steps(A, G_p, R_p, patterns, P_full, base, which, periodic, own, h, P
             first = 0
         else:
             if unstable is None:
-                unstable = _unstable_patterns(A, G_p, R_p, P_full)
+                unstable = _unstable_patterns(A, G_p, R_p, P_full, np.unique(base[free & ~complete]))
             found = np.flatnonzero(unstable[base[a:b]] | broken[a:b])
             if not len(found):
                 continue
@@ -832,21 +832,22 @@ STABLE_MARGIN = 1e-9
 SETTLE = 16
 
 
-def _unstable_patterns(A, G_p, R_p, P_full):
+def _unstable_patterns(A, G_p, R_p, P_full, only=None):
     """(K,) bool: whether the gain of each pattern (``G_p``, ``R_p`` masked) from ``P_full`` is not
-    a stable filter, ``max |eig((I - L_W G_W) A)| > 1 + STABLE_MARGIN`` (cached by the matrices)."""
+    a stable filter, ``max |eig((I - L_W G_W) A)| > 1 + STABLE_MARGIN`` (cached by the matrices);
+    only the patterns ``only`` (indices) are checked, if given (the others: False)."""
     digest = hashlib.blake2b(digest_size=16)
     for array in (A, P_full):
         digest.update(np.ascontiguousarray(array).tobytes())
     base = digest.copy()
-    keys, out, todo = [], np.zeros(len(G_p), bool), []
-    for i in range(len(G_p)):
+    keys, out, todo = {}, np.zeros(len(G_p), bool), []
+    for i in (range(len(G_p)) if only is None else np.asarray(only).tolist()):
         d = base.copy()
         d.update(np.ascontiguousarray(G_p[i]).tobytes())
         d.update(np.ascontiguousarray(R_p[i]).tobytes())
-        keys.append(d.hexdigest())
+        keys[i] = d.hexdigest()
     with _STABLE_LOCK:
-        for i, key in enumerate(keys):
+        for i, key in keys.items():
             if key in _STABLE:
                 out[i] = _STABLE[key]
             else:
