@@ -625,8 +625,10 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
         L = np.swapaxes(np.linalg.solve(S, G_e @ plan.P), -1, -2)       # P G_W^T S^-1 (S symmetric)
         fixed = len(L)
         if len(plan.hole_pattern):
-            G_e = np.concatenate([G_e, G_p[plan.hole_pattern]])
-            L, S = np.concatenate([L, plan.hole_L]), np.concatenate([S, plan.hole_S])
+            which, order, held = _held_first(which, fixed, len(plan.hole_pattern))
+            fixed += held                                  # a gain held through a long hole runs lifted
+            G_e = np.concatenate([G_e, G_p[plan.hole_pattern[order]]])
+            L, S = np.concatenate([L, plan.hole_L[order]]), np.concatenate([S, plan.hole_S[order]])
         Y0 = np.where(seen[b], Y[b], 0.0)
         switched_filter(A[b], G_e, L, which, Y0, x[b], period, out=states[b], fixed=fixed)
         gains.append((which, S))
@@ -638,6 +640,24 @@ def steady_gapped(A, G, Q, R, Y, seen, x, loglik=False, long_stretch=LONG_STRETC
                 terms[b, rows] = loglik_terms(E0[rows], S[e])
         terms[~seen] = 0.0
     return FilterRun(states, innov, L_full, P_full, True, terms, hole_P)
+
+
+def _held_first(which, fixed, count):
+    """Renumber the ``count`` gains from ``fixed`` on so that those held for :data:`LIFT_FROM`
+    steps or more in a row come first: ``which`` renumbered, the order of the old gains, and how
+    many are held."""
+    cuts = np.r_[0, np.flatnonzero(np.diff(which)) + 1, len(which)]
+    long = (np.diff(cuts) >= LIFT_FROM) & (which[cuts[:-1]] >= fixed)
+    held = np.unique(which[cuts[:-1][long]]) - fixed
+    if not len(held):
+        return which, np.arange(count), 0
+    order = np.r_[held, np.setdiff1d(np.arange(count), held)]
+    new = np.empty(count, np.int64)
+    new[order] = np.arange(count)
+    renumbered = which.copy()
+    hole = which >= fixed
+    renumbered[hole] = fixed + new[which[hole] - fixed]
+    return renumbered, order, len(held)
 
 
 def _patterns(seen):

@@ -162,6 +162,28 @@ def test_a_hole_whose_cached_gain_is_unstable_runs_the_exact_recursion():
     np.testing.assert_allclose(fast.forces[hole], exact.forces[hole], rtol=0, atol=1e-3 * scale)
 
 
+def test_a_long_hole_with_nothing_observed_holds_its_gain_and_a_stream_agrees():
+    """After an unstable pattern, 5 s with nothing observed: the recursion holds its gain after 256
+    steps (lifted, not a step at a time), and a stream across it carries the hole's covariance."""
+    Y, R, _ = _record(8000)
+    Y[600:900, 0] = np.nan
+    Y[900:6000, :] = np.nan
+    kw = dict(noise_cov=R, **COV)
+    exact = estimate(s17_truss(), SENSORS, FORCES, Y, DT, steady=False, **kw)
+    whole = estimate(s17_truss(), SENSORS, FORCES, Y, DT, steady=True, **kw)
+    scale = np.abs(exact.forces).max()
+    assert np.abs(whole.forces).max() < 1.05 * scale
+    np.testing.assert_allclose(whole.forces, exact.forces, rtol=0, atol=0.1 * scale)
+    state, forces = None, []
+    for a, b in [(0, 700), (700, 3000), (3000, 6100), (6100, 8000)]:
+        stream = Estimator(s17_truss(), SENSORS, FORCES, DT, steady=True, **kw)
+        if state is not None:
+            stream.restore(state)
+        forces.append(stream.update(Y[a:b]).forces)
+        state = stream.state()
+    np.testing.assert_allclose(np.vstack(forces), whole.forces, rtol=0, atol=1e-8 * np.abs(whole.forces).max())
+
+
 def test_a_checkpoint_with_a_bad_hole_covariance_is_refused():
     Y, R, _ = _record(400)
     Y[250:400, 0] = np.nan                             # to the end, shorter than a pattern's own gain
