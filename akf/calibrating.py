@@ -152,8 +152,10 @@ def _oma_check(identified, fitted_hz, modes):
         if abs(z) > OMA_SIGMAS:
             warnings.append(f"mode {k}: calibrated at {fitted_hz[k - 1]:.4f} Hz, outside the operational modal "
                             f"analysis' {f:.4f} +- {OMA_SIGMAS:g} x {se:.2g} Hz ({z:+.1f} standard errors): one of the "
-                            "two is wrong -- the calibration when the force prior does not fit the loads, the modal "
-                            "analysis when the loads are not white near the mode (see oma_modes in akf oma)")
+                            "two is wrong -- the calibration when the model's other modes are off (they pull it: calibrate "
+                            "stiffness_factor first, then frequencies on the calibrated job) or the force prior does not "
+                            "fit the loads; the modal analysis when the loads are not white near the mode (see "
+                            "oma_modes in akf oma)")
     return rows, warnings
 
 

@@ -56,13 +56,13 @@ def test_frequency_calibration_starts_from_the_oma_and_reports_the_check(ambient
     for k, r in rows.items():
         assert r["calibrated_hz"] == pytest.approx(fitted_hz[k - 1])
         assert r["z"] == pytest.approx((r["calibrated_hz"] - r["oma_hz"]) / r["oma_std_error_hz"])
-    # the Matérn-1/2 prior does not fit band-limited loads: mode 3 is calibrated about 1.7 % low,
-    # and the modal analysis, within 0.3 % of the truth, names it
+    # the model's higher modes, 2.5 % stiff, pull mode 3 about 1.7 % low (the test below), and the
+    # modal analysis, within 0.3 % of the truth, names it with the advice to fit the stiffness first
     assert fitted_hz[2] / truth[2] - 1 < -0.01
     assert abs(rows[3]["oma_hz"] / truth[2] - 1) < 0.003
     assert abs(rows[3]["z"]) > 3
     named = [w for w in report["warnings"] if w.startswith("mode 3:")]
-    assert named and "one of the two is wrong" in named[0]
+    assert named and "one of the two is wrong" in named[0] and "calibrate stiffness_factor first" in named[0]
 
 
 def test_a_record_too_short_for_modal_analysis_says_why_and_still_calibrates():
@@ -87,3 +87,34 @@ def test_a_start_outside_its_range_or_of_another_parameter_is_refused(ambient):
         calibrate(*args, **kw, start={"frequencies:1": 5.0})
     with pytest.raises(AKFInputError, match="must be a factor"):
         calibrate(*args, **kw, start={"frequencies:1": -1.0})
+
+
+def test_mode_3_is_pulled_low_by_the_uncalibrated_modes_above_it_not_by_the_force_prior(ambient):
+    """Why the calibration misses mode 3 (measured, docs/guide/learning.md): with modes 1-4 at their
+    true frequencies and the model's higher modes 2.5 % stiff, the likelihood of the stepped record
+    peaks with mode 3 about 2 % low, under any force prior; with every mode true it peaks at the
+    truth.  Stepped loads excite mode 21 (904.5 Hz) through the hold's image of their content at
+    1024 - 904.5 = 119.5 Hz, and it aliases back beside mode 3: a model whose mode 21 is elsewhere
+    moves mode 3 instead."""
+    from core_akf.filter import estimate
+    from core_akf.forcemodels import ForceModel
+
+    job, sim = ambient
+    model = job.filter_model()
+    n = model.n
+    truth, given = job.structure.frequencies(n), model.frequencies(n)
+
+    def loglik(k_true, r3, force_model):
+        factors = [truth[k] / given[k] for k in range(k_true)]
+        factors[2] *= r3
+        e = estimate(model.with_frequency_factors(factors), job.sensors, job.forces, sim.measurements, job.dt,
+                     model_error_cov=job.model_error_cov, noise_cov=job.noise_cov(sim), force_model=force_model,
+                     steady=True)
+        return float(np.sum(e.loglik))
+
+    band = ForceModel("butterworth", std=500.0, band=(0.0, 300.0))
+    for prior in (job.force_model, band):
+        assert loglik(4, 0.98, prior) > loglik(4, 1.0, prior) + 1e4        # the tail off: mode 3 pulled 2 % low
+    at = {r: loglik(n, r, job.force_model) for r in (0.98, 0.99, 1.0, 1.01)}
+    assert max(at, key=at.get) == 1.0                                       # every mode true: at the truth
+    assert at[1.0] > at[0.98] + 1e5
