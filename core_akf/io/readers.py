@@ -12,13 +12,15 @@ Layouts read:
 - CSV, Parquet: a time column (default ``time``) and one column per channel.
 - TDMS (npTDMS): every channel of every group (``group/channel``, or ``channel`` where the name is
   unique); the time from the waveform properties ``wf_start_offset`` / ``wf_increment`` or from a
-  channel named like the time column; units from ``unit_string``.
+  channel named like the time column; units from ``unit_string``.  Channels with different
+  ``wf_increment`` are channel sets at their own rates (:meth:`Reader.rate_sets`).
 - UFF 58 (pyuff): one data set per channel, named by its ``id1`` (or ``NODE:DIR`` from the response
   node and direction where ``id1`` is empty or repeats); even abscissa spacing; units from the
   ordinate's unit label.  A UFF file is read whole (the format has no random access).
 - HDF5 (h5py): one 1-D dataset per channel in a group (default the root), a ``time`` dataset or
-  the attributes ``dt`` (or ``wf_increment``) and ``t0`` (or ``wf_start_offset``) on the group;
-  units from a dataset's ``unit`` or ``units`` attribute.
+  the attributes ``dt`` (or ``wf_increment``) and ``t0`` (or ``wf_start_offset``) on the group or,
+  for a channel at a rate of its own, on its dataset; units from a dataset's ``unit`` or ``units``
+  attribute.
 """
 from __future__ import annotations
 
@@ -142,6 +144,29 @@ class Reader(ABC):
         ndarray (k, len(channels))
             Samples in the file's units, ``k <= size``.
         """
+
+    def rate_sets(self) -> list[list[str]]:
+        """The channels grouped by their own time grid (TDMS and HDF5 channels may carry their own
+        time step); one group for a file whose channels share one grid.
+
+        Returns
+        -------
+        list of list of str
+        """
+        return [self.channels()]
+
+    def restrict(self, names: Sequence[str]) -> None:
+        """Read only these channels from now on (one of :meth:`rate_sets`, or a part of one): the
+        file's time grid is then theirs.
+
+        Parameters
+        ----------
+        names : sequence of str
+            Channels of the file.
+        """
+        if set(self.channels()) - set(names):
+            raise AKFInputError(f"{self.path}: a {self.format} file's channels are read together; it cannot read "
+                                f"{sorted(names)} alone")
 
     def _check_channels(self, channels):
         known = self.channels()
@@ -413,6 +438,7 @@ class _SlicedReader(Reader):
 
     _file = None
     _series: dict = {}
+    _only = None                      # the channels read (restrict); None: all
 
     def __del__(self):
         try:
@@ -421,7 +447,38 @@ class _SlicedReader(Reader):
             pass
 
     def channels(self):
-        return [c for c in self._series if c != self.time_column]
+        return [c for c in self._series if c != self.time_column and (self._only is None or c in self._only)]
+
+    def _grid_of(self, name):
+        """A channel's own ``(step, first time)`` where the file gives one per channel (None: the
+        file's grid)."""
+        return None
+
+    def rate_sets(self):
+        if self.time_column in self._series:          # one time channel: one grid
+            return [self.channels()]
+        sets = {}
+        for c in self.channels():
+            sets.setdefault(self._grid_of(c), []).append(c)
+        return list(sets.values())
+
+    def restrict(self, names):
+        unknown = [c for c in names if c not in self._series or c == self.time_column]
+        if unknown:
+            raise AKFInputError(f"{self.path}: no channel(s) {unknown}; the file has {self.channels()}")
+        self._only = set(names)
+        self._timing = None
+
+    def _one_grid(self):
+        """The ``(step, first time)`` the channels read share (None where the file gives none per
+        channel); an error naming the rate sets when they differ."""
+        grids = {self._grid_of(c) for c in self.channels()}
+        if len(grids) > 1:
+            sets = "; ".join(f"{', '.join(cs)} every {self._grid_of(cs[0])[0]:.6g} s" for cs in self.rate_sets())
+            raise AKFInputError(f"{self.path}: its channels have different time grids ({sets}); open it with "
+                                "core_akf.io.open_record (or [measurements] in a job), which reads each rate as a "
+                                "channel set of its own")
+        return grids.pop() if grids else None
 
     def _length(self):
         """The common length of the data channels (a located error if they differ)."""
@@ -429,6 +486,7 @@ class _SlicedReader(Reader):
         if not lengths:
             raise AKFInputError(f"{self.path}: no data channels")
         if len(lengths) > 1:
+            self._one_grid()            # different rates are named as such
             raise AKFInputError(f"{self.path}: channels of different lengths {sorted(lengths)}; a record needs one "
                                 "sample of every channel per time step")
         return lengths.pop()
@@ -510,20 +568,19 @@ class TdmsReader(_SlicedReader):
                 self._timing = self._time_channel_grid(n, data[0].properties.get("wf_increment"),
                                                        f"the wf_increment of channel {data[0].name!r}")
             else:
-                props = data[0].properties
-                if "wf_increment" not in props:
+                grid = self._one_grid()
+                if grid is None or grid[0] is None:
                     raise AKFInputError(f"{self.path}: no time: the channels have no wf_increment property and there "
                                         f"is no channel {self.time_column!r}")
-                for c in data:
-                    if (c.properties.get("wf_increment"), c.properties.get("wf_start_offset", 0.0)) != (
-                            props["wf_increment"], props.get("wf_start_offset", 0.0)):
-                        raise AKFInputError(f"{self.path}: channel {c.name!r} has another time grid (wf_increment, "
-                                            "wf_start_offset) than the others")
-                dt = float(props["wf_increment"])
+                dt = float(grid[0])
                 if not dt > 0:
                     raise AKFInputError(f"{self.path}: wf_increment {dt!r} is not a positive time step")
-                self._timing = Timing(float(props.get("wf_start_offset", 0.0)), dt, int(n))
+                self._timing = Timing(float(grid[1]), dt, int(n))
         return self._timing
+
+    def _grid_of(self, name):
+        props = self._series[name].properties
+        return props.get("wf_increment"), props.get("wf_start_offset", 0.0)
 
 
 #: UFF 58 function types (record 6, field 1) other than a time response
@@ -672,12 +729,26 @@ class Hdf5Reader(_SlicedReader):
             if self.time_column in self._series:
                 self._timing = self._time_channel_grid(n, a.get("dt", a.get("wf_increment")), "the group's attribute dt")
             else:
-                dt = a.get("dt", a.get("wf_increment"))
+                dt, t0 = self._one_grid()
                 if dt is None:
                     raise AKFInputError(f"{self.path}: no time: no dataset {self.time_column!r} and no attribute dt "
-                                        "(or wf_increment) on the group")
-                self._timing = Timing(float(a.get("t0", a.get("wf_start_offset", 0.0))), float(dt), int(n))
+                                        "(or wf_increment) on the group or its datasets")
+                self._timing = Timing(float(t0), float(dt), int(n))
         return self._timing
+
+    def _grid_of(self, name):
+        """A dataset's own attributes ``dt`` (or ``wf_increment``) and ``t0`` (or
+        ``wf_start_offset``), else the group's."""
+        own, group = self._series[name].attrs, self._group.attrs
+
+        def attr(*keys, default=None):
+            for where in (own, group):
+                for key in keys:
+                    if key in where:
+                        return float(where[key])
+            return default
+
+        return attr("dt", "wf_increment"), attr("t0", "wf_start_offset", default=0.0)
 
 
 # ------------------------------------------------------------------------------------ registry

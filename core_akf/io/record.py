@@ -229,8 +229,8 @@ class Record:
         if len(classes) > 1:
             raise AKFInputError("the record's files have different formats (" + ", ".join(sorted(c.format for c in classes))
                                 + "); give files of one format")
-        self._open = lambda p: open_file(p, format, time_column, group)
         self.channels_map = self._channel_map(channels)
+        self._open = lambda p: _reader_of(open_file(p, format, time_column, group), self.channels_map)
         self.units_given = dict(units or {})
         self.gauge_factor, self.bridge = gauge_factor, bridge
         self.invert = list(invert or ())
@@ -622,9 +622,12 @@ def open_record(files: str | os.PathLike | Sequence[str | os.PathLike], sensors:
     sets = {}
     for p in paths:
         reader = open_file(p, kw.get("format"), kw.get("time_column", "time"), kw.get("group"))
-        present = tuple(sorted({sensor_of[c] for c in reader.channels() if c in sensor_of}, key=labels.index))
+        rates = reader.rate_sets()
+        for names in rates:             # a file's channels at rates of their own are sets of their own
+            present = tuple(sorted({sensor_of[c] for c in names if c in sensor_of}, key=labels.index))
+            if present or len(rates) == 1:
+                sets.setdefault(present, []).append(p)
         del reader
-        sets.setdefault(present, []).append(p)
     if len(sets) == 1:
         return Record(paths, sensors, channels=channels, **kw)
     seen = {}
@@ -652,8 +655,17 @@ def open_record(files: str | os.PathLike | Sequence[str | os.PathLike], sensors:
     return MixedRecord(sensors, subs)
 
 
+def _reader_of(reader, channels_map):
+    """``reader`` restricted to the record's channels where its channels come at several rates (a
+    channel set of a :class:`MixedRecord` that shares its file with others)."""
+    if len(reader.rate_sets()) > 1:
+        reader.restrict([c for c in reader.channels() if c in channels_map])
+    return reader
+
+
 class MixedRecord:
-    """A record of channel sets at their own sampling rates, each in files of its own.
+    """A record of channel sets at their own sampling rates, each in files of its own (or in
+    channels of their own time step inside shared TDMS or HDF5 files).
 
     The filter steps at the fastest rate; a slower channel is observed at its own samples and
     missing (NaN) in between -- no resampling, no interpolation.  Every rate must divide into the
