@@ -472,9 +472,12 @@ class _SlicedReader(Reader):
     def _one_grid(self):
         """The ``(step, first time)`` the channels read share (None where the file gives none per
         channel); an error naming the rate sets when they differ."""
+        if self.time_column in self._series:          # one time channel: its grid
+            return None
         grids = {self._grid_of(c) for c in self.channels()}
         if len(grids) > 1:
-            sets = "; ".join(f"{', '.join(cs)} every {self._grid_of(cs[0])[0]:.6g} s" for cs in self.rate_sets())
+            step = lambda c: "no wf_increment" if self._grid_of(c)[0] is None else f"every {self._grid_of(c)[0]:.6g} s"  # noqa: E731
+            sets = "; ".join(f"{', '.join(cs)} {step(cs[0])}" for cs in self.rate_sets())
             raise AKFInputError(f"{self.path}: its channels have different time grids ({sets}); open it with "
                                 "core_akf.io.open_record (or [measurements] in a job), which reads each rate as a "
                                 "channel set of its own")

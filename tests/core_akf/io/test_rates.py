@@ -146,3 +146,20 @@ def test_akf_estimate_on_one_tdms_file_of_two_rates_gives_the_single_rate_filter
     f = ts[ts.quantity == "force"]
     forces = np.column_stack([f[f.channel == c].estimated.to_numpy() for c in FORCES])
     np.testing.assert_allclose(forces, ref.forces, rtol=0, atol=1e-10 * np.abs(ref.forces).max())
+
+
+def test_channels_of_different_lengths_beside_a_time_channel_are_named_not_a_traceback(tmp_path):
+    nptdms = pytest.importorskip("nptdms")
+    from core_akf.io import open_file
+
+    with nptdms.TdmsWriter(tmp_path / "x.tdms") as w:
+        w.write_segment([nptdms.ChannelObject("g", "time", np.arange(10) * 1e-3),
+                         nptdms.ChannelObject("g", "a", np.ones(10), properties={"wf_increment": 1e-3}),
+                         nptdms.ChannelObject("g", "b", np.ones(5))])
+    with pytest.raises(AKFInputError, match=r"channels of different lengths \[5, 10\]"):
+        open_file(tmp_path / "x.tdms").timing()
+    with nptdms.TdmsWriter(tmp_path / "y.tdms") as w:
+        w.write_segment([nptdms.ChannelObject("g", "a", np.ones(10), properties={"wf_increment": 1e-3}),
+                         nptdms.ChannelObject("g", "b", np.ones(5))])
+    with pytest.raises(AKFInputError, match=r"different time grids \(a every 0.001 s; b no wf_increment\)"):
+        open_file(tmp_path / "y.tdms").timing()
