@@ -119,24 +119,27 @@ def _oma_start(job, model, Y):
     (why none, when no modal analysis can run)."""
     import time
 
-    from core_akf.calibration import calibration_modes
+    from core_akf.calibration import REST_FREQUENCIES, calibration_modes
     from core_akf.checks import AKFInputError
     from core_akf.defaults import default
 
     modes = job.calibrate_modes or calibration_modes(model, job.dt)
     t0 = time.perf_counter()
     try:
-        identified = oma_frequencies(job, model, Y, modes)
+        identified = oma_frequencies(job, model, Y, range(1, model.n + 1))
     except AKFInputError as exc:
         return {}, {}, f"no operational modal analysis to start from: {exc}"
-    f_model = model.frequencies(max(modes))
+    f_model = model.frequencies(max(identified, default=1))
     lo, hi = default("calibration_frequency_range")
-    start = {f"frequencies:{k}": f / f_model[k - 1] for k, (f, _) in identified.items()
-             if lo <= f / f_model[k - 1] <= hi}
+    ratio = {k: f / f_model[k - 1] for k, (f, _) in identified.items() if lo <= f / f_model[k - 1] <= hi}
+    start = {f"frequencies:{k}": ratio[k] for k in modes if k in ratio}
+    others = [r for k, r in ratio.items() if k not in modes] or [ratio[k] for k in modes if k in ratio]
+    if others:        # the other modes' factor: the median of the identified ones not listed (else of the listed)
+        start[REST_FREQUENCIES] = float(np.median(others))
     missed = [k for k in modes if f"frequencies:{k}" not in start]
     note = (f"started from the frequencies of an operational modal analysis of the accelerometers "
             f"({time.perf_counter() - t0:.2f} s)" + (f"; modes {missed} were not identified (scanned)" if missed else ""))
-    return start, identified, note
+    return start, {k: v for k, v in identified.items() if k in modes}, note
 
 
 def _oma_check(identified, fitted_hz, modes):
@@ -152,10 +155,10 @@ def _oma_check(identified, fitted_hz, modes):
         if abs(z) > OMA_SIGMAS:
             warnings.append(f"mode {k}: calibrated at {fitted_hz[k - 1]:.4f} Hz, outside the operational modal "
                             f"analysis' {f:.4f} +- {OMA_SIGMAS:g} x {se:.2g} Hz ({z:+.1f} standard errors): one of the "
-                            "two is wrong -- the calibration when the model's other modes are off (they pull it: calibrate "
-                            "stiffness_factor first, then frequencies on the calibrated job) or the force prior does not "
-                            "fit the loads; the modal analysis when the loads are not white near the mode (see "
-                            "oma_modes in akf oma)")
+                            "two is wrong -- the calibration when the force prior cannot take the loads' spectrum near "
+                            "the mode (a force_std or force_timescale held fixed, or another force_model) or the "
+                            "model's mode shapes are off (frequencies keep them); the modal analysis when the loads "
+                            "are not white near the mode (see oma_modes in akf oma)")
     return rows, warnings
 
 
@@ -210,7 +213,7 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
     (``record_steps``: the steps of the whole measured record; None for a simulated one).  A full
     model (no ``[filter] n_modes``) is fitted on its modes below 3x the Nyquist frequency
     (``n_modes="band"`` of :func:`core_akf.calibration.calibrate`), said in ``model_note``."""
-    from core_akf.calibration import calibrate
+    from core_akf.calibration import REST_FREQUENCIES, calibrate
 
     Q, fm = job.model_error_cov, job.force_model
     start, identified, oma_note = _oma_start(job, model, Y) if "frequencies" in job.calibrate else ({}, {}, None)
@@ -232,9 +235,13 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
     if "stiffness_factor" in m:
         report["stiffness_factor"] = job.stiffness_factor * m["stiffness_factor"]
     if "frequencies" in job.calibrate:          # on top of the job's own factors
+        # the rest factor is a stiffness factor of its square; the listed modes' factors are then relative to it
+        rest = m.get(REST_FREQUENCIES, 1.0)
+        if REST_FREQUENCIES in m:
+            report["stiffness_factor"] = job.stiffness_factor * rest ** 2
         fitted_f = fit.values["frequency_factors"]
         given = job.frequency_factors + [1.0] * (len(fitted_f) - len(job.frequency_factors))
-        report["frequency_factors"] = [float(g * (fitted_f[i] if i < len(fitted_f) else 1.0))
+        report["frequency_factors"] = [float(g * (fitted_f[i] / rest if i < len(fitted_f) else 1.0))
                                        for i, g in enumerate(given)]
         report["frequencies_hz"] = fitted[0].frequencies(len(report["frequency_factors"])).tolist()
     if "damping" in m:
@@ -247,11 +254,12 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
         else:
             report["noise_cov"] = [float(v) for v in np.diag(fitted[3])]
     for name in ("force_increment_cov", "model_error_cov", "force_std", "force_timescale", "force_band"):
-        if name in job.calibrate or f"{name}:forces" in job.calibrate:
+        if name in fit.values:          # asked, or fitted with the frequencies
             report[name] = fit.values[name]
     report |= fit.to_dict()
     if oma_note is not None:
-        modes = sorted(int(n.split(":")[1]) for n in fit.multipliers if n.startswith("frequencies:"))
+        modes = sorted(int(n.split(":")[1]) for n in fit.multipliers
+                       if n.startswith("frequencies:") and n != REST_FREQUENCIES)
         rows, warnings = _oma_check(identified, fitted[0].frequencies(max(modes)), modes)
         report["oma"] = {"note": oma_note, "modes": rows}
         report["warnings"] = report["warnings"] + warnings

@@ -98,8 +98,12 @@ def uncertainty_of(job: Job):
     frequency = None if u.frequency_factors is None else calibrated_frequencies(job, u.frequency_factors)
     if u.stiffness_factor is not None:
         factor = u.stiffness_factor
-    else:      # a calibration says how the truth differs from the filter's model: no stiffness factor on top
-        factor = 1.0 if frequency is not None else job.stiffness_factor
+    elif frequency is not None:     # a calibration says how the truth differs from the filter's model: its
+        # stiffness factor (the other modes' common factor, squared) against the job's, and the modes' factors on top
+        factor = job.stiffness_factor / frequency[2]
+        frequency = frequency[:2]
+    else:
+        factor = job.stiffness_factor
     try:
         return Uncertainty.sample(factor, frequency=frequency, samples=u.samples or 8, seeds=u.seeds or 3,
                                   measure=u.measure or "p90", seed=job.spec.simulation.seed or 0)
@@ -108,10 +112,11 @@ def uncertainty_of(job: Job):
 
 
 def calibrated_frequencies(job: Job, path: str):
-    """The per-mode frequency factors of a calibration and the standard errors of their
-    logarithms: ``[filter] frequency_factors`` of the ``calibrated.toml`` at ``path`` (relative to
-    the job file) and the standard errors of the ``calibration.json`` that akf calibrate wrote
-    beside it: the larger of the robust and the observed-information one of each mode.  A mode the
+    """The per-mode frequency factors of a calibration, the standard errors of their logarithms
+    and the calibrated stiffness factor: ``[filter] frequency_factors`` and ``stiffness_factor``
+    (the job's where it has none) of the ``calibrated.toml`` at ``path`` (relative to the job
+    file), and the standard errors of the ``calibration.json`` that akf calibrate wrote beside it:
+    the larger of the robust and the observed-information one of each mode.  A mode the
     calibration did not fit keeps factor 1 with no spread."""
     import json
     import os
@@ -124,7 +129,8 @@ def calibrated_frequencies(job: Job, path: str):
         path = os.path.join(os.path.dirname(os.path.abspath(job.source)), path)
     try:
         with open(path, "rb") as fh:
-            fitted = (tomllib.load(fh).get("filter") or {}).get("frequency_factors")
+            table = tomllib.load(fh).get("filter") or {}
+        fitted, stiffness = table.get("frequency_factors"), table.get("stiffness_factor", job.stiffness_factor)
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise AKFInputError(f"{where}: cannot read {path} as a calibrated job ({type(exc).__name__}: "
                             f"{getattr(exc, 'strerror', None) or exc})") from None
@@ -144,7 +150,9 @@ def calibrated_frequencies(job: Job, path: str):
     if not np.all(np.isfinite(std)):
         raise AKFInputError(f"{where}: the calibration left a frequency's standard error undetermined "
                             f"({report}); the record does not identify it")
-    return np.array(fitted, float), std
+    if not (isinstance(stiffness, (int, float)) and stiffness > 0):
+        raise AKFInputError(f"{where}: {path} has [filter] stiffness_factor = {stiffness!r}; a positive factor is expected")
+    return np.array(fitted, float), std, float(stiffness)
 
 
 def constraints_of(job: Job):

@@ -185,9 +185,10 @@ class Filter(Section):
     calibrate: Annotated[list[Literal[CALIBRATION_KEYS]], Field(min_length=1)] = key(
         "a non-empty list of " + ", ".join(f'\"{k}\"' for k in CALIBRATION_KEYS),
         "learn these from the record by maximum likelihood before estimating: the [filter] keys; frequencies (a "
-        "factor per mode of calibrate_modes); damping (the model's modal damping ratio); noise_cov (one factor per "
-        "sensor kind; noise_cov:<kind> one kind, noise_cov:channels one per channel); the JSON reports the fit, akf "
-        "calibrate writes the job with the fitted values",
+        "factor per mode of calibrate_modes, one common factor on the other modes -- written as stiffness_factor -- "
+        "and a stationary force prior's two parameters unless one is named); damping (the model's modal damping "
+        "ratio); noise_cov (one factor per sensor kind; noise_cov:<kind> one kind, noise_cov:channels one per "
+        "channel); the JSON reports the fit, akf calibrate writes the job with the fitted values",
         used_by=ESTIMATE)
     calibrate_modes: Annotated[list[Count], Field(min_length=1)] = key(
         "a non-empty list of mode numbers (1-based)", "the modes whose frequencies calibrate = [\"frequencies\"] "
@@ -380,8 +381,8 @@ class PlaceUncertainty(Section):
         "factors themselves (default the [filter] stiffness_factor)", used_by=PLACE)
     frequency_factors: PathText = key(
         "a path to a calibrated.toml", "draw per-mode frequency factors of the truth from a calibration (akf calibrate "
-        "with calibrate = [\"frequencies\"]): its fitted factors and the standard errors in the calibration.json "
-        "beside it; relative to the job file", used_by=PLACE)
+        "with calibrate = [\"frequencies\"]): its fitted factors, its stiffness_factor and the standard errors in "
+        "the calibration.json beside it; relative to the job file", used_by=PLACE)
     samples: Count = key("an integer >= 1", "models drawn from the range (default 8)", used_by=PLACE)
     seeds: Count = key("an integer >= 1", "noise draws per model (default 3)", used_by=PLACE)
     measure: Measure = key("\"mean\", \"p90\", \"worst\" or \"cvar90\"",

@@ -19,7 +19,6 @@ Prints a table, then writes ``bench/calibrate_own_model_results.csv``.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import subprocess
@@ -28,6 +27,7 @@ import tempfile
 import time
 
 import numpy as np
+from run_all import write_rows  # noqa: E402  (bench/ is the script's folder)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DT = 1 / 512
@@ -138,10 +138,7 @@ def main(argv=None):
     print(f"stiffness: reduced against full {rel:.2e} (target <= {TARGET_REL:g}: {'met' if rel <= TARGET_REL else 'NOT met'}); "
           f"whole command {wall:.1f} s (target <= {TARGET_S:g} s: {'met' if wall <= TARGET_S else 'NOT met'}); "
           f"full filter {full_s:.1f} s ({full_s / wall:.1f}x)")
-    with open(args.csv, "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_rows(args.csv, rows)
 
 
 if __name__ == "__main__":

@@ -26,11 +26,11 @@ Writes ``bench/coverage_results.csv`` (default) with a row per scenario and para
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import time
 
 import numpy as np
+from run_all import write_rows  # noqa: E402  (bench/ is the script's folder)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 Z90 = 1.6448536269514722
@@ -122,10 +122,7 @@ def main(argv=None):
             rows.append(row)
             print(f"{name:11s} {p:18s} {row['cover_observed']:17.0%} {row['cover_robust']:15.0%} "
                   f"{row['median_ratio']:16.3g} {row['median_abs_z_robust']:18.3g} {seconds:6.2f}", flush=True)
-    with open(args.csv, "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_rows(args.csv, rows)
     print(f"wrote {args.csv}")
 
 

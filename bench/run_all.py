@@ -42,6 +42,14 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
+def write_rows(path, rows):
+    """Write ``rows`` (dicts with the same keys) as a CSV table at ``path``."""
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
 def best_of(fn, repeat=3):
     times, out = [], None
     for _ in range(repeat):

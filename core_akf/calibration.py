@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -58,6 +59,15 @@ PARAMETERS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "force_
 FORCE_PARAMETERS = ("force_std", "force_timescale", "force_band")
 #: central-difference step of the gradient and the curvature, in natural-log units (a 1e-4 relative change)
 LOG_STEP = 1e-4
+#: central-difference step of the curvature (standard errors), in natural-log units
+CURVATURE_STEP = 10 * LOG_STEP
+#: on a record of this many steps or more, the search runs on its first :data:`HEAD_FRACTION` before
+#: the whole (:func:`_maximise`): the grid and most iterations at a fraction of the cost
+HEAD_FROM = 32768
+HEAD_FRACTION = 0.25
+#: the one factor ``frequencies`` fits on the frequencies of every mode it does not list: left at
+#: the model's, the uncalibrated modes pull the listed ones (quasi-static response, aliasing)
+REST_FREQUENCIES = "frequencies:rest"
 #: a Butterworth force model's band is learnt up to this fraction of the Nyquist frequency
 BAND_BELOW_NYQUIST = 0.95
 #: the likelihoods that fit a force prior (``method`` of :func:`calibrate`)
@@ -82,12 +92,14 @@ class CalibrationResult:
     ----------
     values : dict
         The fitted values: ``stiffness_factor`` relative to the structure given;
-        ``frequency_factors``, the factors on the frequencies of modes 1..k (1 for a mode not
-        fitted); ``damping_factor``, the factor on its modal damping ratio; ``noise_cov`` a dict
-        of variances per sensor kind (SI^2) when R was given per kind and learnt per kind, else
-        a list of variances per channel; ``force_increment_cov`` and ``model_error_cov`` levels;
-        ``force_std`` (N) and ``force_timescale`` (s) of a Matérn force model, one per force;
-        ``force_band`` (Hz, ``[f_low, f_high]``, or one per force) of a Butterworth model.
+        ``frequency_factors``, the factors on the frequencies of modes 1..k (the rest factor for a
+        mode not fitted on its own); ``rest_frequency_factor``, the one factor on every mode
+        ``frequencies`` does not list (``frequencies:rest``); ``damping_factor``, the factor on its
+        modal damping ratio; ``noise_cov`` a dict of variances per sensor kind (SI^2) when R was
+        given per kind and learnt per kind, else a list of variances per channel;
+        ``force_increment_cov`` and ``model_error_cov`` levels; ``force_std`` (N) and
+        ``force_timescale`` (s) of a Matérn force model, one per force; ``force_band`` (Hz,
+        ``[f_low, f_high]``, or one per force) of a Butterworth model.
     multipliers : dict
         The fitted factor of each parameter on its starting value (``noise_cov:acc``,
         ``noise_cov:strain:13``, ``frequencies:2``, ...).
@@ -127,6 +139,9 @@ class CalibrationResult:
         Why that likelihood: as asked, or the rule of ``method = "auto"`` with the record's figures.
     filter_modes : int or None
         The modes of the reduced filter the fit ran on (``n_modes``); None: the structure as given.
+    notes : list of str
+        What the fit did beyond the parameters asked: ``frequencies`` under a stationary force
+        prior fits the prior's two parameters with them, unless ``parameters`` names one.
     whittle_loglik : tuple of float or None
         The Whittle log-likelihood of the signal bins before and after its fit (None for
         ``"time"``).  The time-domain ``loglik_after`` may then be below ``loglik_before``: it
@@ -151,6 +166,7 @@ class CalibrationResult:
     method_reason: str = ""
     whittle_loglik: tuple | None = None
     filter_modes: int | None = None
+    notes: list = field(default_factory=list)
 
     def summary(self) -> pd.DataFrame:
         """The fit as a table, as ``akf calibrate`` prints it: a row per parameter (``kind``
@@ -189,7 +205,7 @@ class CalibrationResult:
                 "warnings": list(self.warnings), "evaluations": self.evaluations, "seconds": self.seconds,
                 "method": self.method, "method_reason": self.method_reason,
                 "whittle_loglik": None if self.whittle_loglik is None else list(self.whittle_loglik),
-                "filter_modes": self.filter_modes}
+                "filter_modes": self.filter_modes, "notes": list(self.notes)}
 
     def apply(self, structure: Structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance) -> tuple:
@@ -216,8 +232,7 @@ class CalibrationResult:
         """
         m = self.multipliers
         model = structure if "stiffness_factor" not in m else structure.scaled(m["stiffness_factor"])
-        if frequency_factors(m).size:
-            model = model.with_frequency_factors(frequency_factors(m))
+        model = with_frequencies(model, m)
         if "damping" in m:
             model = model.with_damping(np.asarray(structure.damping, float) * m["damping"])
         R = noise_covariance(sensors, noise_cov)
@@ -250,23 +265,48 @@ def noise_scale(layout: Layout, multipliers: dict) -> np.ndarray:
 
 
 def frequency_factors(multipliers: dict) -> np.ndarray:
-    """The factors on the frequencies of modes 1..k (1 for a mode not fitted).
+    """The factors on the frequencies of modes 1..k (``frequencies:rest``, or 1, for a mode not
+    fitted on its own).
 
     Parameters
     ----------
     multipliers : dict
-        Factors by name, as :attr:`CalibrationResult.multipliers` (``frequencies:<mode>``).
+        Factors by name, as :attr:`CalibrationResult.multipliers` (``frequencies:<mode>``,
+        ``frequencies:rest``).
 
     Returns
     -------
     ndarray (k,)
-        Empty without a ``frequencies:`` entry.
+        Empty without a ``frequencies:<mode>`` entry.
     """
-    fitted = {int(n.split(":")[1]): v for n, v in multipliers.items() if n.startswith("frequencies:")}
-    factors = np.ones(max(fitted, default=0))
+    fitted = {int(n.split(":")[1]): v for n, v in multipliers.items()
+              if n.startswith("frequencies:") and n != REST_FREQUENCIES}
+    factors = np.full(max(fitted, default=0), float(multipliers.get(REST_FREQUENCIES, 1.0)))
     for k, v in fitted.items():
         factors[k - 1] = v
     return factors
+
+
+def with_frequencies(structure: Structure, multipliers: dict) -> Structure:
+    """``structure`` with the fitted frequencies of ``multipliers``: each ``frequencies:<mode>``
+    on its mode and ``frequencies:rest`` on every other mode (a stiffness factor of its square,
+    the listed modes then set on their own).
+
+    Parameters
+    ----------
+    structure : Structure
+    multipliers : dict
+        Factors by name, as :attr:`CalibrationResult.multipliers`.
+
+    Returns
+    -------
+    Structure
+        ``structure`` itself without a ``frequencies:`` entry.
+    """
+    rest = float(multipliers.get(REST_FREQUENCIES, 1.0))
+    model = structure if rest == 1.0 else structure.scaled(rest ** 2)
+    factors = frequency_factors(multipliers)
+    return model if not factors.size or np.all(factors == rest) else model.with_frequency_factors(factors / rest)
 
 
 class _Problem:
@@ -286,6 +326,8 @@ class _Problem:
                 self.names += [f"noise_cov:{s.label}" for s in layout]
             elif name == "frequencies":
                 self.names += [f"frequencies:{k}" for k in self.modes]
+                if base.structure.n > len(self.modes):
+                    self.names.append(REST_FREQUENCIES)
             elif name in tuple(f"{b}:forces" for b in FORCE_PARAMETERS):
                 self.names += [f"{name.split(':')[0]}:{node}:{d}" for node, d in locs]
             else:
@@ -293,13 +335,14 @@ class _Problem:
         self._filters = {}
         self.evaluations = 0
         self.best = -np.inf
+        self._on_head = False
         self.expected = 0                 # the evaluations the fit is expected to take (set by calibrate)
         self.progress = None              # called as progress(evaluations, expected, best log-likelihood)
         self.Y = base.extend(Y)
 
     def model_filter(self, p):
         """The filter of the model parameters in ``p`` (log-factors by name), kept per set."""
-        freq = tuple(round(float(p.get(f"frequencies:{k}", 0.0)), 12) for k in self.modes)
+        freq = tuple(round(float(p.get(f"frequencies:{k}", 0.0)), 12) for k in (*self.modes, "rest"))
         key = (round(float(p.get("stiffness_factor", 0.0)), 12), round(float(p.get("damping", 0.0)), 12), freq)
         if key == (0.0, 0.0, (0.0,) * len(freq)):
             return self.base
@@ -307,8 +350,7 @@ class _Problem:
             structure = self.base.structure
             model = structure if key[0] == 0.0 else structure.scaled(float(np.exp(key[0])))
             if any(freq):
-                model = model.with_frequency_factors(
-                    frequency_factors({f"frequencies:{k}": np.exp(x) for k, x in zip(self.modes, freq)}))
+                model = with_frequencies(model, {f"frequencies:{k}": np.exp(x) for k, x in zip((*self.modes, "rest"), freq)})
             if key[1] != 0.0:
                 model = model.with_damping(np.asarray(structure.damping, float) * np.exp(key[1]))
             self._filters[key] = self.base.with_structure(model)
@@ -360,10 +402,20 @@ class _Problem:
         out = steady_logliks(A, G, Q, R, self.Y, per_step=per_step)
         total = out.sum(axis=1) if per_step else out
         finite = total[np.isfinite(total)]
-        if finite.size:
+        if finite.size and not self._on_head:         # the best of the whole record only
             self.best = max(self.best, float(finite.max()))
         self.report_progress()
         return out
+
+    @contextmanager
+    def on_head(self, fraction):
+        """Within the block, the likelihood is that of the record's first ``fraction``."""
+        Y = self.Y
+        self.Y, self._on_head = Y[:max(1, int(Y.shape[0] * fraction))], True
+        try:
+            yield
+        finally:
+            self.Y, self._on_head = Y, False
 
     def report_progress(self):
         """Tell ``progress`` the evaluations so far, the expected count (never below them) and the
@@ -399,7 +451,9 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         What to learn, a subset of :data:`PARAMETERS`: ``noise_cov`` learns one factor per sensor
         kind of the layout; ``noise_cov:<kind>`` (``noise_cov:acc``) the factor of one kind only,
         ``noise_cov:channels`` one factor per channel; ``frequencies`` a factor per mode of
-        ``modes``; ``force_std`` and ``force_timescale`` the parameters of a Matérn ``force_model``
+        ``modes`` and one on every other mode (``frequencies:rest``), with a stationary force
+        prior's two parameters unless one of them is named (see :attr:`CalibrationResult.notes`);
+        ``force_std`` and ``force_timescale`` the parameters of a Matérn ``force_model``
         (one factor for all forces; ``force_std:forces``, ``force_timescale:forces`` one per force),
         ``force_std`` and ``force_band`` those of a Butterworth one (a factor on both band edges).
     model_error_cov, force_increment_cov, noise_cov
@@ -499,6 +553,11 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
                   steady=True, force_model=force_model, dummy=dummy)
     layout, locs = base.layouts[0], base.locs
     names = _check_parameters(parameters, layout)
+    notes = []
+    if "frequencies" in names and force_model.stationary and not any(n.startswith(FORCE_PARAMETERS) for n in names):
+        names += list(own)
+        notes.append(f"frequencies: the force prior's {own[0]} and {own[1]} were fitted with them (a prior whose "
+                     "spectrum slopes at a mode, unlike the loads', moves that mode's frequency)")
     if Y.shape[1] != len(layout):
         raise AKFInputError(f"measurements have {Y.shape[1]} columns for {len(layout)} sensors")
     force_model.parameters(len(locs))
@@ -550,37 +609,111 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     consistency = [problem.consistency(v) for v in (np.zeros(len(u)), u)]      # two kernel runs
     return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
                              time.perf_counter() - start_time, fitted_force, layout, *consistency, robust, bandwidth,
-                             method, reason, whittle, n_kept)
+                             method, reason, whittle, n_kept, notes)
 
 
 def _maximise(problem, u0, bounds, before, given):
     """The log-factors of ``problem`` (a :class:`_Subset` or a :class:`_Whittle`) that maximise
     its log-likelihood: a grid for what sets a frequency (:func:`_grid_start`) or the ``given``
-    starts, then L-BFGS-B with central differences in one batch; never worse than ``u0``."""
-    from scipy.optimize import minimize
+    starts, then L-BFGS-B with central differences in one batch; never worse than ``u0``.
 
+    On a long record (:data:`HEAD_FROM` steps or more) the grid and the search run on its first
+    :data:`HEAD_FRACTION` first, and the whole record's search starts from there: the same
+    optimum for a fraction of the filters' length."""
     given = {n: v for n, v in given.items() if n in problem.names}
+    n_steps = problem.problem.Y.shape[0] if isinstance(problem, _Subset) else 0
+    if n_steps >= HEAD_FROM:
+        with problem.problem.on_head(HEAD_FRACTION):
+            head_before = float(problem.logliks(u0[None])[0])
+            u_head = _local_search(problem, _start(problem, u0, bounds, head_before, given), bounds, head_before)
+            inside = all(lo + 1e-3 < x < hi - 1e-3 for x, (lo, hi) in zip(u_head, bounds))
+            # the head's information, scaled to the record's length: the metric of the record's search
+            metric = -_hessian(problem, u_head, CURVATURE_STEP) / HEAD_FRACTION if inside else None
+        if float(problem.logliks(u_head[None])[0]) > before:
+            return _local_search(problem, u_head, bounds, before, metric)
+    return _local_search(problem, _start(problem, u0, bounds, before, given), bounds, before)
+
+
+def _start(problem, u0, bounds, before, given):
+    """Where the local search starts: the grid of :func:`_grid_start`, and the ``given`` starts
+    where they do better than the job's values."""
     u0 = _grid_start(problem, u0, bounds, before, set(given))
     for j, name in enumerate(problem.names):
         if name in given:
             u0[j] = np.log(given[name])
     if given and not problem.logliks(u0)[0] > before:       # a start no better than the job's values: not taken
         u0 = _grid_start(problem, np.zeros(len(problem.names)), bounds, before)
+    return u0
 
-    def negative(u):
-        k = len(u)
-        U = np.vstack([u, u + LOG_STEP * np.eye(k), u - LOG_STEP * np.eye(k)])
-        ll = problem.logliks(U)
+
+def _local_search(problem, u0, bounds, before, metric=None):
+    """L-BFGS-B from ``u0`` with central differences in one batch, in units of each parameter's
+    curvature at ``u0`` -- or, given a ``metric`` (k, k) close to the negative Hessian, in its
+    Cholesky coordinates, where the likelihood is nearly round; zeros where it ends no better
+    than ``before``."""
+    from scipy.optimize import minimize
+
+    k = len(u0)
+    try:
+        factor = None if metric is None else np.linalg.cholesky(metric)
+    except np.linalg.LinAlgError:
+        factor = None
+    if factor is not None:
+        return _metric_search(problem, u0, bounds, before, factor)
+
+    def batch(u):
+        """The log-likelihood at ``u`` and its central differences: value, gradient, diagonal curvature."""
+        ll = problem.logliks(np.vstack([u, u + LOG_STEP * np.eye(k), u - LOG_STEP * np.eye(k)]))
+        return (ll[0], (ll[1:k + 1] - ll[k + 1:]) / (2 * LOG_STEP),
+                (ll[1:k + 1] + ll[k + 1:] - 2 * ll[0]) / LOG_STEP ** 2)
+
+    # the search runs in units of each parameter's curvature at the start (about its standard error):
+    # the factors' errors span five decades (a flat mode against the stiffness of every other one),
+    # and unscaled L-BFGS-B crawls along the flat ones
+    ll0, _, curvature = batch(u0)
+    scale = np.sqrt(np.clip(-np.nan_to_num(curvature) if np.isfinite(ll0) else 0.0, 1.0, None))
+
+    def negative(w):
+        ll, grad, _ = batch(u0 + w / scale)
+        if not np.isfinite(ll):
+            return np.inf, np.zeros(k)
+        return -ll, -np.nan_to_num(grad) / scale
+
+    scaled_bounds = [((lo - x) * d, (hi - x) * d) for (lo, hi), x, d in zip(bounds, u0, scale)]
+    fit = minimize(negative, np.zeros(k), jac=True, method="L-BFGS-B", bounds=scaled_bounds,
+                   options={"maxiter": 200, "ftol": 1e-12, "gtol": 1e-4})
+    u = np.clip(u0 + fit.x / scale, *np.transpose(bounds))
+    if not float(problem.logliks(u[None])[0]) >= before:        # never worse than the start
+        return np.zeros(k)
+    return u
+
+
+def _metric_search(problem, u0, bounds, before, factor):
+    """:func:`_local_search` in the coordinates ``w = factor^T (u - u0)`` (``factor`` the Cholesky
+    factor of the metric): unbounded there, the log-factors clipped to ``bounds``."""
+    from scipy.linalg import solve_triangular
+    from scipy.optimize import minimize
+
+    k = len(u0)
+    lo, hi = np.transpose(bounds)
+
+    def point(w):
+        return np.clip(u0 + solve_triangular(factor, w, trans="T", lower=True), lo, hi)
+
+    def negative(w):
+        u = point(w)
+        ll = problem.logliks(np.vstack([u, u + LOG_STEP * np.eye(k), u - LOG_STEP * np.eye(k)]))
         if not np.isfinite(ll[0]):
             return np.inf, np.zeros(k)
-        grad = (ll[1:k + 1] - ll[k + 1:]) / (2 * LOG_STEP)
-        return -ll[0], -np.nan_to_num(grad)
+        grad = np.nan_to_num((ll[1:k + 1] - ll[k + 1:]) / (2 * LOG_STEP))
+        return -ll[0], -solve_triangular(factor, grad, lower=True)      # d/dw = factor^-1 d/du
 
-    fit = minimize(negative, u0, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": 200, "ftol": 1e-12, "gtol": 1e-6})
-    if not float(problem.logliks(fit.x)[0]) >= before:        # never worse than the start
-        return np.zeros(len(fit.x))
-    return fit.x
+    fit = minimize(negative, np.zeros(k), jac=True, method="L-BFGS-B",
+                   options={"maxiter": 200, "ftol": 1e-12, "gtol": 1e-4})
+    u = point(fit.x)
+    if not float(problem.logliks(u[None])[0]) >= before:        # never worse than the start
+        return np.zeros(k)
+    return u
 
 
 class _Subset:
@@ -871,8 +1004,8 @@ def _check_parameters(parameters, layout):
         raise AKFInputError(f"parameters {noise} overlap: noise_cov learns every kind, noise_cov:channels every channel; "
                             "give one of them, or kinds one by one")
     if "stiffness_factor" in names and "frequencies" in names:
-        raise AKFInputError("stiffness_factor and frequencies overlap (a stiffness factor moves every frequency): "
-                            "calibrate one of them")
+        raise AKFInputError("stiffness_factor and frequencies overlap (frequencies fits a common factor on every "
+                            "mode it does not list, which is a stiffness factor): calibrate one of them")
     for base in FORCE_PARAMETERS:
         if base in names and f"{base}:forces" in names:
             raise AKFInputError(f"{base} and {base}:forces overlap ({base} is one factor for every force): give one")
@@ -912,6 +1045,28 @@ def _level(value, name, scaled):
     return value
 
 
+def _hessian(problem, u, h):
+    """The Hessian of the log-likelihood at ``u`` by central differences of step ``h``: one batch
+    of ``2 k^2 + 1`` filters (``u +- 2h e_i`` on the diagonal, ``u +- h e_i +- h e_j`` off it)."""
+    k = len(u)
+    E = np.eye(k) * h
+    points = [u]
+    for i in range(k):
+        points += [u + 2 * E[i], u - 2 * E[i]]
+        for j in range(i + 1, k):
+            points += [u + E[i] + E[j], u + E[i] - E[j], u - E[i] + E[j], u - E[i] - E[j]]
+    ll = problem.logliks(np.array(points))
+    H = np.zeros((k, k))
+    c = 1
+    for i in range(k):
+        H[i, i] = (ll[c] - 2 * ll[0] + ll[c + 1]) / (4 * h * h)
+        c += 2
+        for j in range(i + 1, k):
+            H[i, j] = H[j, i] = (ll[c] - ll[c + 1] - ll[c + 2] + ll[c + 3]) / (4 * h * h)
+            c += 4
+    return H
+
+
 def _curvature(problem, u, bounds, before):
     """Standard errors of the log-factors from the observed information and robust ones (the
     sandwich of the per-step scores), and warnings for a fit on a bound, a parameter the
@@ -926,19 +1081,8 @@ def _curvature(problem, u, bounds, before):
     warnings : list of str
     """
     k = len(u)
-    h = 10 * LOG_STEP
-    E = np.eye(k) * h
-    points = [u]
-    for i in range(k):
-        for j in range(i, k):
-            points += [u + E[i] + E[j], u + E[i] - E[j], u - E[i] + E[j], u - E[i] - E[j]]
-    ll = problem.logliks(np.array(points))
-    H = np.zeros((k, k))
-    c = 1
-    for i in range(k):
-        for j in range(i, k):
-            H[i, j] = H[j, i] = (ll[c] - ll[c + 1] - ll[c + 2] + ll[c + 3]) / (4 * h * h)
-            c += 4
+    h = CURVATURE_STEP
+    H = _hessian(problem, u, h)
     warnings = []
     try:
         cov = np.linalg.inv(-H)
@@ -1012,6 +1156,8 @@ def _values(multipliers, names, noise_cov, model_error_cov, force_increment_cov,
         out["stiffness_factor"] = multipliers["stiffness_factor"]
     if "frequencies" in names:
         out["frequency_factors"] = frequency_factors(multipliers).tolist()
+        if REST_FREQUENCIES in multipliers:
+            out["rest_frequency_factor"] = multipliers[REST_FREQUENCIES]
     if "damping" in names:
         out["damping_factor"] = multipliers["damping"]
     if any(n.startswith("noise_cov") for n in names):

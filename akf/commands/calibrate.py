@@ -73,7 +73,9 @@ def _print_fit(job, report, files):
     print(f"  {report['window']}")
     if "model_note" in report:
         print(f"  {report['model_note']}")
-    if any(p.startswith(("force_std", "force_timescale", "force_band")) for p in job.calibrate):
+    for note in report.get("notes", []):
+        print(f"  {note}")
+    if any(p.startswith(("force_std", "force_timescale", "force_band")) for p in report["multipliers"]):
         print(f"  force prior by the {report['method']} likelihood: {report['method_reason']}")
     print(f"  log-likelihood: {report['loglik_before']:.8g} -> {report['loglik_after']:.8g}")
     if report.get("whittle_loglik"):

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import AKFInputError
-from .likelihood import loglik_terms
+from .likelihood import loglik_terms, loglik_total
 from .recursion import lti_response
 from .riccati import RiccatiError, RiccatiWarning, steady_gain
 from .switched import LIFT_FROM, gain_groups, repeats, switched_filter
@@ -192,7 +192,7 @@ def innovations(A, G, X, Y, x=None):
     -------
     ndarray (B, N, m)
     """
-    E = np.empty_like(Y)
+    E = np.empty(Y.shape)             # B-major even for a broadcast Y
     E[:, 0] = Y[:, 0] if x is None else Y[:, 0] - np.einsum("bij,bj->bi", G, x)
     E[:, 1:] = Y[:, 1:] - X[:, :-1] @ np.swapaxes(G @ A, -1, -2)      # (G A) is only m x n
     return E
@@ -344,11 +344,11 @@ def steady_logliks(A, G, Q, R, Y, per_step=False):
         out[ok] = run.loglik_terms.sum(axis=-1) if per_step else run.loglik
         return out
     predicted = fixed_gain(A, G, L, Ys, outputs=G @ A)           # G A X_k: the next step's predicted channels
-    E = np.empty_like(Ys)
+    E = np.empty(Ys.shape)            # B-major: empty_like would put the broadcast axis innermost
     E[:, 0] = Ys[:, 0]
     E[:, 1:] = Ys[:, 1:] - predicted[:, :-1]
-    terms = loglik_terms(E, innovation_covariance(G, P, R))
-    out[ok] = terms.sum(axis=-1) if per_step else terms.sum(axis=(1, 2))
+    S = innovation_covariance(G, P, R)
+    out[ok] = loglik_terms(E, S).sum(axis=-1) if per_step else loglik_total(E, S)
     return out
 
 

@@ -52,16 +52,59 @@ def loglik_terms(innovations, S):
     True
     """
     E = np.asarray(innovations, float)
-    S = np.asarray(S, float)
-    try:
-        C = np.linalg.cholesky(S)
-    except np.linalg.LinAlgError:
-        raise AKFInputError("the predicted innovation covariance is not positive definite: the likelihood is "
-                            "undefined (check the noise covariance R)") from None
+    C = _cholesky(S)
     log_diag = np.log(np.diagonal(C, axis1=-2, axis2=-1))
-    if S.ndim == E.ndim + 1:                                   # one covariance per step
+    if C.ndim == E.ndim + 1:                                   # one covariance per step
         z = np.linalg.solve(C, E[..., None])[..., 0]
         return -0.5 * (LOG_2PI + 2.0 * log_diag + z ** 2)
     C_inv = np.linalg.inv(C)                                   # constant: z = E C^-T, one product
     z = E @ np.swapaxes(C_inv, -1, -2)
     return -0.5 * (LOG_2PI + 2.0 * log_diag[..., None, :] + z ** 2)
+
+
+def loglik_total(innovations, S):
+    """The log-likelihood of innovations of one constant covariance, summed over steps and channels.
+
+    The sum of :func:`loglik_terms` without forming them: ``-1/2 (N m log 2 pi + N log det S +
+    tr(S^-1 E^T E))``, with ``E^T E`` one (m, m) product per stack entry.
+
+    Parameters
+    ----------
+    innovations : ndarray (..., N, m)
+    S : ndarray (..., m, m)
+        Their predicted covariance, the same for every step.
+
+    Returns
+    -------
+    ndarray (...)
+
+    Raises
+    ------
+    AKFInputError
+        For a covariance that is not positive definite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> E = np.random.default_rng(0).normal(size=(50, 2))
+    >>> S = np.array([[2.0, 0.3], [0.3, 1.0]])
+    >>> bool(np.isclose(loglik_total(E, S), loglik_terms(E, S).sum()))
+    True
+    """
+    E = np.asarray(innovations, float)
+    C = _cholesky(S)
+    N, m = E.shape[-2:]
+    C_inv = np.linalg.inv(C)
+    gram = np.swapaxes(E, -1, -2) @ E                                 # (..., m, m)
+    quad = np.einsum("...ij,...jk,...ik->...", C_inv, gram, C_inv)   # tr(C^-1 E^T E C^-T)
+    log_det = 2.0 * np.log(np.diagonal(C, axis1=-2, axis2=-1)).sum(axis=-1)
+    return -0.5 * (N * m * LOG_2PI + N * log_det + quad)
+
+
+def _cholesky(S):
+    """The Cholesky factor of innovation covariances, or the error that names them."""
+    try:
+        return np.linalg.cholesky(np.asarray(S, float))
+    except np.linalg.LinAlgError:
+        raise AKFInputError("the predicted innovation covariance is not positive definite: the likelihood is "
+                            "undefined (check the noise covariance R)") from None

@@ -8,13 +8,13 @@ from akf.cli import main
 
 
 def test_a_slow_calibration_shows_its_eta_within_the_first_seconds(tmp_path, capsys, monkeypatch):
-    """Each batch of filters slowed by 40 ms (a model 100x larger, as it were): the fit takes
-    seconds (3.6-10 s measured), and the bar on stderr shows an ETA ("elapsed<remaining", with
+    """Each batch of filters slowed by 100 ms (a model 100x larger, as it were): the fit takes
+    seconds (4-6 s measured), and the bar on stderr shows an ETA ("elapsed<remaining", with
     time remaining) stamped within its first 10 s and before the end."""
     original = calibration.steady_logliks
 
     def slow(*args, **kw):
-        time.sleep(0.04)
+        time.sleep(0.1)
         return original(*args, **kw)
     monkeypatch.setattr(calibration, "steady_logliks", slow)
     monkeypatch.delenv("TQDM_DISABLE", raising=False)

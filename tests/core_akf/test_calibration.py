@@ -230,9 +230,53 @@ def test_damping_needs_a_modal_ratio():
                   noise_cov={"strain": 1e-14, "acc": 1e-4})
 
 
+def test_the_search_on_the_records_head_ends_where_the_whole_records_search_does(monkeypatch):
+    """A record of 32768 steps or more is searched on its first quarter first, then on the whole
+    from there in the quarter's Hessian coordinates: the same optimum as the search on the whole
+    record alone (log-likelihood to 1e-3, every factor to 0.05 of its standard error)."""
+    import core_akf.calibration as calibration
+
+    dt, N = 1 / 1024, 32768
+    sensors, forces = ["acc:4:y", "acc:8:y", "acc:12:y", "strain:13"], ["8:y"]
+    loads = band_limited_white_noise(N, dt, 300.0, 0, 100, seed=3)[:, None]
+    sim = simulate(s17_truss(), sensors, forces, loads, dt, relative_noise=0.02, seed=1)
+    kw = dict(parameters=["stiffness_factor", "noise_cov"], model_error_cov=1e-16, force_increment_cov=1e4,
+              noise_cov=np.diag(sim.noise_std ** 2) * 4.0, n_modes=8)
+    heads = []
+    original = calibration._Problem.on_head
+    monkeypatch.setattr(calibration._Problem, "on_head", lambda self, f: heads.append(f) or original(self, f))
+    fast = calibrate(s17_truss().scaled(1.05), sensors, forces, sim.measurements, dt, **kw)
+    assert heads == [calibration.HEAD_FRACTION]
+    monkeypatch.setattr(calibration, "HEAD_FROM", 10 ** 9)
+    plain = calibrate(s17_truss().scaled(1.05), sensors, forces, sim.measurements, dt, **kw)
+    assert heads == [calibration.HEAD_FRACTION]                  # not again
+    assert fast.loglik_after == pytest.approx(plain.loglik_after, abs=1e-3)
+    for name, factor in plain.multipliers.items():
+        assert abs(np.log(fast.multipliers[name] / factor)) < 0.05 * plain.std_errors[name], name
+    assert fast.multipliers["stiffness_factor"] * 1.05 == pytest.approx(1.0, abs=0.02)   # 8 modes kept: 0.991
+
+
+def test_frequencies_fit_a_stationary_prior_with_them_unless_one_of_its_parameters_is_named():
+    dt = 1 / 1024
+    sensors, forces = ["acc:4:y", "acc:8:y", "acc:12:y", "acc:6:x"], ["8:y"]
+    loads = band_limited_white_noise(2048, dt, 300.0, 0, 200, seed=2)[:, None]
+    sim = simulate(s17_truss(), sensors, forces, loads, dt, relative_noise=0.02, seed=0)
+    kw = dict(model_error_cov=1e-16, noise_cov=np.diag(sim.noise_std ** 2), modes=[1, 2], n_modes=12,
+              force_model=ForceModel("matern12", std=300.0, timescale=5e-3))
+    both = calibrate(s17_truss(), sensors, forces, sim.measurements, dt, parameters=["frequencies"], **kw)
+    assert list(both.multipliers) == ["frequencies:1", "frequencies:2", "frequencies:rest", "force_std",
+                                      "force_timescale"]
+    assert both.notes and "force_std and force_timescale were fitted with them" in both.notes[0]
+    assert {"force_std", "force_timescale", "rest_frequency_factor"} <= set(both.values)
+    named = calibrate(s17_truss(), sensors, forces, sim.measurements, dt, parameters=["frequencies", "force_std"], **kw)
+    assert list(named.multipliers) == ["frequencies:1", "frequencies:2", "frequencies:rest", "force_std"]
+    assert named.notes == []
+
+
 def test_frequencies_find_a_local_stiffness_change():
     """Modes 2 and 3 of the true truss are 4 % lower and 3 % higher than the model's (a local change
-    of stiffness): a factor per mode finds them within 0.2 % and the forces of the true model,
+    of stiffness): a factor per mode finds them within 0.2 % (and the other modes' common factor
+    at 1) and the forces of the true model,
     where the best global stiffness factor leaves the forces 3.5 x worse."""
     dt, N = 1 / 4096, 4096
     sensors = ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x", "strain:5", "strain:9", "strain:13", "strain:26"]
@@ -242,7 +286,8 @@ def test_frequencies_find_a_local_stiffness_change():
     sim = simulate(true, sensors, forces, loads, dt, relative_noise=0.02, seed=0)
     levels = dict(model_error_cov=1e-16, force_increment_cov=1e5, noise_cov=np.diag(sim.noise_std ** 2))
     per_mode = calibrate(s17_truss(), sensors, forces, sim.measurements, dt, parameters=["frequencies"], **levels)
-    assert list(per_mode.multipliers) == [f"frequencies:{k}" for k in (1, 2, 3, 4)]
+    assert list(per_mode.multipliers) == [f"frequencies:{k}" for k in (1, 2, 3, 4)] + ["frequencies:rest"]
+    assert per_mode.values["rest_frequency_factor"] == pytest.approx(1.0, abs=2e-3)   # the other modes are right
     np.testing.assert_allclose(per_mode.values["frequency_factors"], [1.0, 0.96, 1.03, 1.0], atol=2e-3)
     assert per_mode.warnings == [] and all(0 < e < 2e-3 for e in per_mode.std_errors.values())
     np.testing.assert_allclose(per_mode.apply(s17_truss(), sensors, **levels)[0].frequencies(4), true.frequencies(4),

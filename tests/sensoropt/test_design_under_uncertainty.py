@@ -371,7 +371,8 @@ def test_truths_carry_the_drawn_frequency_factors():
 
 def test_akf_place_draws_frequencies_from_a_calibration(tmp_path, capsys):
     """akf calibrate (calibrate = ["frequencies"]) writes calibration.json with the standard
-    errors beside calibrated.toml; [place.uncertainty] frequency_factors reads both."""
+    errors beside calibrated.toml; [place.uncertainty] frequency_factors reads both, and the
+    calibrated stiffness factor (the other modes' common factor) against the place job's."""
     from helpers import DAQ
 
     (tmp_path / "rec.csv").write_bytes((DAQ / "record-si.csv").read_bytes())
@@ -390,7 +391,13 @@ def test_akf_place_draws_frequencies_from_a_calibration(tmp_path, capsys):
     import pandas as pd
 
     models = pd.read_csv(tmp_path / "out" / "uncertainty.csv")
-    assert len(models) == 4 and (models["stiffness_factor"] == 1.0).all()
+    # the truth is the calibrated model: its stiffness factor (the other modes' common factor) against the place job's
+    import tomllib
+
+    calibrated = tomllib.loads((tmp_path / "cal" / "calibrated.toml").read_text())["filter"]["stiffness_factor"]
+    placed = tomllib.loads(job.read_text()).get("filter", {}).get("stiffness_factor", 1.0)
+    assert calibrated == pytest.approx(fit["stiffness_factor"]) and abs(calibrated - 1.0) < 0.01
+    assert len(models) == 4 and np.allclose(models["stiffness_factor"], placed / calibrated, rtol=1e-9)
     for k in (1, 2):
         name = f"frequencies:{k}"
         c, se = fit["frequency_factors"][k - 1], max(fit["std_errors"][name], fit["robust_std_errors"][name])
