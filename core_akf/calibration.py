@@ -59,6 +59,9 @@ PARAMETERS = ("stiffness_factor", "frequencies", "damping", "noise_cov", "force_
 FORCE_PARAMETERS = ("force_std", "force_timescale", "force_band")
 #: central-difference step of the gradient and the curvature, in natural-log units (a 1e-4 relative change)
 LOG_STEP = 1e-4
+#: ``model_error_cov`` is searched this many times the decades below its start (once above): a
+#: truth without model error lies at Q -> 0, which the job's Q (1e-16) is 6 decades above on S17
+MODEL_ERROR_DECADES_BELOW = 2
 #: central-difference step of the curvature (standard errors), in natural-log units
 CURVATURE_STEP = 10 * LOG_STEP
 #: on a record of this many steps or more, the search runs on its first :data:`HEAD_FRACTION` before
@@ -838,6 +841,9 @@ def _bounds(problem, force_model, n_steps, stiffness_range, decades):
     width = np.log(10.0) * default("calibration_decades", decades)
     bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else (-width, width)
               for n in problem.names]
+    for j, name in enumerate(problem.names):
+        if name == "model_error_cov":      # no model error at all is a common truth: further down than up
+            bounds[j] = (-MODEL_ERROR_DECADES_BELOW * width, width)
     if not force_model.stationary:
         return bounds
     dt, locs = problem.base.dt, problem.locs
