@@ -651,72 +651,51 @@ def _start(problem, u0, bounds, before, given):
 
 def _local_search(problem, u0, bounds, before, metric=None):
     """L-BFGS-B from ``u0`` with central differences in one batch, in units of each parameter's
-    curvature at ``u0`` -- or, given a ``metric`` (k, k) close to the negative Hessian, in its
-    Cholesky coordinates, where the likelihood is nearly round; zeros where it ends no better
+    curvature at ``u0`` -- or, given a ``metric`` (k, k) close to the negative Hessian, in the
+    coordinates ``w = factor^T (u - u0)`` of its Cholesky factor, where the likelihood is nearly
+    round (unbounded there, the log-factors clipped to ``bounds``); zeros where it ends no better
     than ``before``."""
-    from scipy.optimize import minimize
-
-    k = len(u0)
-    try:
-        factor = None if metric is None else np.linalg.cholesky(metric)
-    except np.linalg.LinAlgError:
-        factor = None
-    if factor is not None:
-        return _metric_search(problem, u0, bounds, before, factor)
-
-    def batch(u):
-        """The log-likelihood at ``u`` and its central differences: value, gradient, diagonal curvature."""
-        ll = problem.logliks(np.vstack([u, u + LOG_STEP * np.eye(k), u - LOG_STEP * np.eye(k)]))
-        return (ll[0], (ll[1:k + 1] - ll[k + 1:]) / (2 * LOG_STEP),
-                (ll[1:k + 1] + ll[k + 1:] - 2 * ll[0]) / LOG_STEP ** 2)
-
-    # the search runs in units of each parameter's curvature at the start (about its standard error):
-    # the factors' errors span five decades (a flat mode against the stiffness of every other one),
-    # and unscaled L-BFGS-B crawls along the flat ones
-    ll0, _, curvature = batch(u0)
-    scale = np.sqrt(np.clip(-np.nan_to_num(curvature) if np.isfinite(ll0) else 0.0, 1.0, None))
-
-    def negative(w):
-        ll, grad, _ = batch(u0 + w / scale)
-        if not np.isfinite(ll):
-            return np.inf, np.zeros(k)
-        return -ll, -np.nan_to_num(grad) / scale
-
-    scaled_bounds = [((lo - x) * d, (hi - x) * d) for (lo, hi), x, d in zip(bounds, u0, scale)]
-    fit = minimize(negative, np.zeros(k), jac=True, method="L-BFGS-B", bounds=scaled_bounds,
-                   options={"maxiter": 200, "ftol": 1e-12, "gtol": 1e-4})
-    u = np.clip(u0 + fit.x / scale, *np.transpose(bounds))
-    if not float(problem.logliks(u[None])[0]) >= before:        # never worse than the start
-        return np.zeros(k)
-    return u
-
-
-def _metric_search(problem, u0, bounds, before, factor):
-    """:func:`_local_search` in the coordinates ``w = factor^T (u - u0)`` (``factor`` the Cholesky
-    factor of the metric): unbounded there, the log-factors clipped to ``bounds``."""
     from scipy.linalg import solve_triangular
     from scipy.optimize import minimize
 
     k = len(u0)
     lo, hi = np.transpose(bounds)
-
-    def point(w):
-        return np.clip(u0 + solve_triangular(factor, w, trans="T", lower=True), lo, hi)
+    first = _differences(problem, u0)
+    try:
+        factor = None if metric is None else np.linalg.cholesky(metric)
+    except np.linalg.LinAlgError:
+        factor = None
+    if factor is None:
+        # each parameter's curvature at the start (about its standard error): the factors' errors span
+        # five decades (a flat mode against the stiffness of every other one), and unscaled L-BFGS-B
+        # crawls along the flat ones
+        scale = np.sqrt(np.clip(-np.nan_to_num(first[2]) if np.isfinite(first[0]) else 0.0, 1.0, None))
+        point, to_w = (lambda w: u0 + w / scale), (lambda g: g / scale)
+        w_bounds = [((a - x) * d, (b - x) * d) for a, b, x, d in zip(lo, hi, u0, scale)]
+    else:
+        point = lambda w: np.clip(u0 + solve_triangular(factor, w, trans="T", lower=True), lo, hi)  # noqa: E731
+        to_w, w_bounds = (lambda g: solve_triangular(factor, g, lower=True)), None     # d/dw = factor^-1 d/du
 
     def negative(w):
-        u = point(w)
-        ll = problem.logliks(np.vstack([u, u + LOG_STEP * np.eye(k), u - LOG_STEP * np.eye(k)]))
-        if not np.isfinite(ll[0]):
+        ll, grad, _ = first if not np.any(w) else _differences(problem, point(w))
+        if not np.isfinite(ll):
             return np.inf, np.zeros(k)
-        grad = np.nan_to_num((ll[1:k + 1] - ll[k + 1:]) / (2 * LOG_STEP))
-        return -ll[0], -solve_triangular(factor, grad, lower=True)      # d/dw = factor^-1 d/du
+        return -ll, -to_w(np.nan_to_num(grad))
 
-    fit = minimize(negative, np.zeros(k), jac=True, method="L-BFGS-B",
+    fit = minimize(negative, np.zeros(k), jac=True, method="L-BFGS-B", bounds=w_bounds,
                    options={"maxiter": 200, "ftol": 1e-12, "gtol": 1e-4})
-    u = point(fit.x)
+    u = np.clip(point(fit.x), lo, hi)
     if not float(problem.logliks(u[None])[0]) >= before:        # never worse than the start
         return np.zeros(k)
     return u
+
+
+def _differences(problem, u):
+    """The log-likelihood at ``u`` and its central differences, one batch of ``2k + 1`` filters:
+    value, gradient and diagonal curvature."""
+    k = len(u)
+    ll = problem.logliks(np.vstack([u, u + LOG_STEP * np.eye(k), u - LOG_STEP * np.eye(k)]))
+    return ll[0], (ll[1:k + 1] - ll[k + 1:]) / (2 * LOG_STEP), (ll[1:k + 1] + ll[k + 1:] - 2 * ll[0]) / LOG_STEP ** 2
 
 
 class _Subset:
