@@ -82,8 +82,6 @@ def signal_bins(Y, noise_var, ratio: float | None = None, segment: int | None = 
     -------
     SignalBins
     """
-    from scipy.signal import welch
-
     Y = np.asarray(Y, float)
     N, m = Y.shape
     ratio = SIGNAL_RATIO if ratio is None else float(ratio)
@@ -91,7 +89,7 @@ def signal_bins(Y, noise_var, ratio: float | None = None, segment: int | None = 
     if segment is None:
         segment = int(2 ** np.floor(np.log2(max(N / 4, 16))))
         segment = min(segment, 4096)
-    freq, P = welch(Y - Y.mean(axis=0), fs=1.0, nperseg=min(segment, N), axis=0, detrend=False)
+    freq, P = welch_density(Y - Y.mean(axis=0), min(segment, N))
     level = P / (2 * noise_var)                              # one-sided density of white noise: 2 sigma^2 per unit
     over = np.max(level, axis=1) >= ratio
     k = np.arange(1, (N - 1) // 2 + 1)                          # 0 < w < pi
@@ -99,6 +97,38 @@ def signal_bins(Y, noise_var, ratio: float | None = None, segment: int | None = 
     keep = np.interp(f_k, freq, over.astype(float)) >= 0.5
     Yf = np.fft.rfft(Y - Y.mean(axis=0), axis=0)[k[keep]]
     return SignalBins(2 * np.pi * f_k[keep], Yf, N, float(keep.mean()) if k.size else 0.0)
+
+
+def welch_density(Y, segment):
+    """Welch's one-sided power spectral density of the columns of ``Y``, per unit of frequency in
+    cycles per step: periodic Hann windows of ``segment`` steps overlapping by half, no detrending,
+    the segments' periodograms averaged -- ``scipy.signal.welch(Y, nperseg=segment, axis=0,
+    detrend=False)``, without importing :mod:`scipy.signal` (0.8 s, a tenth of a calibration).
+
+    Parameters
+    ----------
+    Y : ndarray (N, m)
+    segment : int
+        Steps per segment, at most N.
+
+    Returns
+    -------
+    freq : ndarray (segment // 2 + 1,)
+        Cycles per step.
+    P : ndarray (segment // 2 + 1, m)
+        Units of ``Y`` squared per cycle per step.
+    """
+    Y = np.asarray(Y, float)
+    segment = int(segment)
+    window = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(segment) / segment)
+    hop = segment - segment // 2
+    starts = np.arange(0, Y.shape[0] - segment + 1, hop)
+    P = np.zeros((segment // 2 + 1, Y.shape[1]))
+    for s in starts:
+        P += np.abs(np.fft.rfft(Y[s:s + segment] * window[:, None], axis=0)) ** 2
+    P /= len(starts) * np.sum(window ** 2)
+    P[1:segment // 2 + (segment % 2)] *= 2                  # one-sided: all but 0 and (even segment) Nyquist
+    return np.fft.rfftfreq(segment), P
 
 
 def stationary(A_a, nx) -> bool:

@@ -253,6 +253,39 @@ def test_damping_needs_a_modal_ratio():
                   noise_cov={"strain": 1e-14, "acc": 1e-4})
 
 
+class _Cubic:
+    """A log-likelihood of known derivatives, one term per step: ``t_n(u) = -(a_n . u)^2 / 2 +
+    (b . u)^3 / 6``; it counts the points it is asked for."""
+
+    def __init__(self, k, n_steps=50, seed=0):
+        rng = np.random.default_rng(seed)
+        self.a, self.b, self.points = rng.normal(size=(n_steps, k)), rng.normal(size=k), 0
+
+    def logliks(self, U, per_step=False):
+        U = np.atleast_2d(U)
+        self.points += len(U)
+        terms = -0.5 * (U @ self.a.T) ** 2 + (U @ self.b)[:, None] ** 3 / 6 / len(self.a)
+        return terms if per_step else terms.sum(axis=1)
+
+    def hessian(self, u):
+        return -self.a.T @ self.a + np.outer(self.b, self.b) * (self.b @ u)
+
+
+@pytest.mark.parametrize("k", [1, 2, 5])
+def test_the_curvatures_hessian_and_scores_come_from_k2_plus_k_plus_1_filters(k):
+    """The standard errors' Hessian shares its axis points with the robust errors' scores: k^2 + k + 1
+    filters (the four-point formula and separate scores took 2k^2 + 2k + 1), exact to O(h^2)."""
+    from core_akf.calibration import _hessian
+
+    problem, u, h = _Cubic(k), np.linspace(-0.3, 0.4, k), 1e-3
+    H, terms = _hessian(problem, u, h, per_step=True)
+    assert problem.points == k * k + k + 1
+    np.testing.assert_allclose(H, problem.hessian(u), rtol=1e-6, atol=1e-6 * np.abs(problem.hessian(u)).max())
+    E = h * np.eye(k)
+    np.testing.assert_allclose(terms, problem.logliks(np.vstack([u + E, u - E]), per_step=True), rtol=0, atol=0)
+    np.testing.assert_allclose(_hessian(problem, u, h), H, rtol=1e-12)
+
+
 def test_the_search_on_the_records_head_ends_where_the_whole_records_search_does(monkeypatch):
     """A record of 32768 steps or more is searched on its first quarter first, then on the whole
     from there in the quarter's Hessian coordinates: the same optimum as the search on the whole
