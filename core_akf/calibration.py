@@ -71,8 +71,8 @@ HEAD_FRACTION = 0.25
 #: the search's gradient tolerance in units of the curvature (about per standard error): the search
 #: of a record's head, which only starts the whole record's, and the whole record's search in the
 #: head's metric, where the likelihood is nearly round, stop at 0.01 of a standard error from the
-#: optimum (the ambient S17 fit: 105 filters fewer, the factors unchanged to 0.003 of their errors);
-#: a plain search keeps :data:`GTOL`
+#: optimum (the ambient S17 fit: 105 filters fewer, every factor moved by less than 0.01 of its
+#: robust error); a plain search keeps :data:`GTOL`
 ROUGH_GTOL = 1e-2
 #: the plain search's gradient tolerance, per unit of each parameter's curvature
 GTOL = 1e-4
