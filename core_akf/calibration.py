@@ -327,8 +327,11 @@ class _Problem:
     """The log-likelihood as a function of the log-factors ``u`` of the chosen parameters: an
     optimiser over :meth:`Filter.with_structure` and :meth:`Filter.with_levels` of one filter."""
 
-    def __init__(self, base, Y, names, modes=()):
+    def __init__(self, base, Y, names, modes=(), residual=None):
         self.base, self.modes = base, tuple(modes)
+        # a reduced filter's dropped modes' noise (m, m), in base's R: the response to the model
+        # error, so it scales with Q's factor, not with the channels' noise factors
+        self.residual = residual
         layout, locs = base.layouts[0], base.locs
         self.layout, self.locs = layout, locs
         self.kinds = sorted({s.kind for s in layout})
@@ -376,9 +379,14 @@ class _Problem:
         """The :class:`~core_akf.filter.Filter` of the log-factors ``u``."""
         p = dict(zip(self.names, u))
         std, scale_t = self.force_factors(p)
-        return self.model_filter(p).with_levels(
-            q=np.exp(p.get("model_error_cov", 0.0)), s=np.exp(p.get("force_increment_cov", 0.0)) * std ** 2,
-            r=noise_scale(self.layout, {n: np.exp(x) for n, x in p.items()}), timescale=scale_t)
+        q, r = np.exp(p.get("model_error_cov", 0.0)), noise_scale(self.layout, {n: np.exp(x) for n, x in p.items()})
+        f = self.model_filter(p).with_levels(q=q, s=np.exp(p.get("force_increment_cov", 0.0)) * std ** 2, r=r,
+                                             timescale=scale_t)
+        if self.residual is not None and (q != 1.0 or np.any(r != 1.0)):
+            m = len(self.residual)
+            f.R = np.array(f.R, float)                 # R r r^T scaled the dropped modes' noise too: q instead
+            f.R[..., :m, :m] += (q - np.outer(r, r)) * self.residual
+        return f
 
     def matrices(self, u):
         """``(A_a, G_a, Q_a, R)`` of the log-factors ``u``."""
@@ -510,7 +518,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         modes' response to the model error added to R
         (:meth:`~core_akf.filter.model.FilterModel.residual_noise`), as placement does: an int,
         or ``"band"`` for the modes below 3x the Nyquist frequency
-        (:func:`core_akf.defaults.band_modes`).  The factors found apply to ``structure`` as given
+        (:func:`core_akf.defaults.band_modes`).  That added noise scales with the factor on
+        ``model_error_cov`` when Q is learnt, not with the channels' noise factors.  The factors found apply to ``structure`` as given
         (:meth:`CalibrationResult.apply`).  Default: the structure as given.  A model with many
         modes far above the record's band fits several times faster (a 147-DOF 3-D truss at 512 Hz:
         117 modes, 3x faster, the stiffness factor within 2e-6 of the full model's).
@@ -582,7 +591,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     if not force_model.stationary:
         _level(force_model.increment_cov, "force_increment_cov", "force_increment_cov" in names)
     modes = _check_modes(filter_structure, dt, modes) if "frequencies" in names else ()
-    problem = _Problem(base, Y, names, modes)
+    problem = _Problem(base, Y, names, modes, residual)
     problem.progress = progress
     if Y.shape[0] < 10 * (len(problem.names) + 1):
         raise AKFInputError(f"a record of {Y.shape[0]} steps is too short to identify {len(problem.names)} parameter(s)")
