@@ -520,9 +520,10 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         or ``"band"`` for the modes below 3x the Nyquist frequency
         (:func:`core_akf.defaults.band_modes`).  That added noise scales with the factor on
         ``model_error_cov`` when Q is learnt, not with the channels' noise factors.  The factors
-        found apply to ``structure`` as given (:meth:`CalibrationResult.apply`).  Default: the structure as given.  A model with many
-        modes far above the record's band fits several times faster (a 147-DOF 3-D truss at 512 Hz:
-        117 modes, 3x faster, the stiffness factor within 2e-6 of the full model's).
+        found apply to ``structure`` as given (:meth:`CalibrationResult.apply`).  Default: the
+        structure as given.  A model with many modes far above the record's band fits several
+        times faster (a 147-DOF 3-D truss at 512 Hz: 117 modes, 3x faster, the stiffness factor
+        within 2e-6 of the full model's).
 
     Returns
     -------
