@@ -93,6 +93,14 @@ GRID_REFINEMENTS = 2
 #: a parameter whose log-likelihood changes by less than this over its whole search range is not
 #: identifiable from the record
 FLAT = 1e-3
+#: the factors (decades either side of 1) at which :func:`_held_levels` tries a held covariance level
+HELD_GRID = (-4.0, -3.0, -2.0, -1.0, 0.0, 1.0, 2.0)
+#: a held level whose best factor raises the log-likelihood by more than this (half the 0.1 %
+#: quantile of chi-squared with one degree of freedom) does not fit the record
+HELD_LOGLIK = 5.4
+#: a fitted parameter that learning a held level would move by more than this many robust
+#: standard errors is named in a warning
+HELD_MOVE = 2.0
 #: a log-factor whose standard error exceeds this (the factor uncertain to more than e-fold) is
 #: named as poorly identified by the record
 POORLY_IDENTIFIED = 1.0
@@ -160,6 +168,13 @@ class CalibrationResult:
         The Whittle log-likelihood of the signal bins before and after its fit (None for
         ``"time"``).  The time-domain ``loglik_after`` may then be below ``loglik_before``: it
         also weighs the bins without signal, which the Whittle fit leaves out on purpose.
+    held_levels : dict
+        The covariance levels the fit held (``model_error_cov``, ``force_increment_cov``,
+        ``noise_cov:<kind>``) that do not fit the record: by level, ``loglik_gain`` (how much the
+        log-likelihood rises at its best factor, the fitted parameters held), ``best_factor`` and
+        ``moves``, the change in robust standard errors that learning the level as well would
+        make to each fitted parameter (one Newton step).  A move beyond :data:`HELD_MOVE` is a
+        warning naming the parameter: its value leans on the held level.
     """
 
     values: dict
@@ -181,6 +196,7 @@ class CalibrationResult:
     whittle_loglik: tuple | None = None
     filter_modes: int | None = None
     notes: list = field(default_factory=list)
+    held_levels: dict = field(default_factory=dict)
 
     def summary(self) -> pd.DataFrame:
         """The fit as a table, as ``akf calibrate`` prints it: a row per parameter (``kind``
@@ -219,7 +235,7 @@ class CalibrationResult:
                 "warnings": list(self.warnings), "evaluations": self.evaluations, "seconds": self.seconds,
                 "method": self.method, "method_reason": self.method_reason,
                 "whittle_loglik": None if self.whittle_loglik is None else list(self.whittle_loglik),
-                "filter_modes": self.filter_modes, "notes": list(self.notes)}
+                "filter_modes": self.filter_modes, "notes": list(self.notes), "held_levels": dict(self.held_levels)}
 
     def apply(self, structure: Structure, sensors: Layout, model_error_cov: Covariance, force_increment_cov: Covariance,
               noise_cov: NoiseCovariance) -> tuple:
@@ -608,7 +624,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     spectral = [j for j, n in enumerate(problem.names) if method == "whittle" and n.startswith(FORCE_PARAMETERS)]
     rest = [j for j in range(len(problem.names)) if j not in spectral]
     u = np.zeros(len(problem.names))
-    errors, robust, bandwidth, warnings, whittle = {}, {}, 0.0, [], None
+    errors, robust, bandwidth, warnings, whittle, held = {}, {}, 0.0, [], None, {}
     for part in ("whittle", "time"):
         free = spectral if part == "whittle" else rest
         if not free:
@@ -620,10 +636,13 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         u[free] = v
         if part == "whittle":
             whittle = (at_start, float(view.logliks(v)[0]))
-        e, r, bandwidth, w = _curvature(view, v, [bounds[j] for j in free], at_start)
+        e, r, bandwidth, w, H = _curvature(view, v, [bounds[j] for j in free], at_start)
         errors |= e
         robust |= r
         warnings += w
+        if part == "time":         # the levels the fit held: do they fit, and what would learning them move?
+            held = _held_levels(problem, Y, u, free, H, r, [bounds[j] for j in free], force_model)
+            warnings += _held_warnings(held)
     after = float(problem.logliks(u)[0])
     errors = {n: errors[n] for n in problem.names}
     robust = {n: robust[n] for n in problem.names}
@@ -633,7 +652,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     consistency = [problem.consistency(v) for v in (np.zeros(len(u)), u)]      # two kernel runs
     return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
                              time.perf_counter() - start_time, fitted_force, layout, *consistency, robust, bandwidth,
-                             method, reason, whittle, n_kept, notes)
+                             method, reason, whittle, n_kept, notes, held)
 
 
 def _maximise(problem, u0, bounds, before, given):
@@ -1094,6 +1113,8 @@ def _curvature(problem, u, bounds, before):
     bandwidth : float
         The scores' HAC bandwidth (steps).
     warnings : list of str
+    H : ndarray (k, k)
+        The Hessian of the log-likelihood in the log-factors.
     """
     k = len(u)
     h = CURVATURE_STEP
@@ -1132,7 +1153,79 @@ def _curvature(problem, u, bounds, before):
                         + ", ".join(f"{r:.2g}x ({n})" for n, r in off) + " the observed-information ones; use the robust "
                         "ones. Possible causes: a force prior whose spectrum is not the loads' (force_model), a model "
                         "error the filter does not allow for (model_error_cov), non-Gaussian noise (outliers, spikes)")
-    return errors, dict(zip(problem.names, map(float, robust))), bandwidth, warnings
+    return errors, dict(zip(problem.names, map(float, robust))), bandwidth, warnings, H
+
+
+def _held_levels(problem, Y, u, free, H, robust, bounds, force_model):
+    """Whether each covariance level the fit held (Q, S, a sensor kind's R) fits the record, and
+    what learning it as well would do to the fitted parameters.
+
+    For each held level: the record's log-likelihood over its factor (:data:`HELD_GRID`, the
+    fitted parameters held).  Where the best factor raises it by more than :data:`HELD_LOGLIK` (a
+    likelihood-ratio test at 0.1 %), one Newton step of the fitted parameters ``free`` from there,
+    ``-H'^-1 g``: ``g`` the gradient there and ``H'`` the fit's Hessian ``H`` with each diagonal
+    taken there (the correlations kept), ``2 len(free)`` filters.  That is the change learning the
+    level would make (the *expected parameter change* of a score test; the S17 fits: -2.8
+    robust errors predicted for the stiffness factor, -2.81 found by the fit that learns Q).
+    Parameters on a search bound or without a robust error are held in the step.
+
+    Returns
+    -------
+    dict
+        By held level that does not fit: ``loglik_gain``, ``best_factor`` and ``moves`` (each
+        fitted parameter's change in robust standard errors).
+    """
+    names = [problem.names[j] for j in free]
+    held = [] if "model_error_cov" in problem.names or not np.any(problem.base.model_error_cov) else ["model_error_cov"]
+    if not force_model.stationary and "force_increment_cov" not in problem.names:
+        held.append("force_increment_cov")
+    learnt = {n.split(":", 1)[1] for n in problem.names if n.startswith("noise_cov:")}
+    held += [f"noise_cov:{k}" for k in problem.kinds
+             if k not in learnt and not learnt & {s.label for s in problem.layout if s.kind == k}]
+    errors = np.array([robust[n] for n in names])
+    step = [i for i, j in enumerate(free) if np.isfinite(errors[i])
+            and bounds[i][0] + 1e-3 < u[j] < bounds[i][1] - 1e-3]
+    out = {}
+    grid = np.log(10.0) * np.asarray(HELD_GRID, float)
+    for level in held if step else ():
+        wider = _Problem(problem.base, Y, [*problem.names, level], problem.modes, problem.residual)
+        wider._filters = problem._filters                 # the model's filters are the same
+        U = np.tile(np.append(u, 0.0), (len(grid), 1))
+        U[:, -1] = grid
+        ll = np.nan_to_num(wider.logliks(U), nan=-np.inf)
+        best = int(np.argmax(ll))
+        gain = float(ll[best] - ll[int(np.argmin(np.abs(grid)))])
+        if gain > HELD_LOGLIK:
+            E = np.zeros((len(step), len(U[0])))
+            E[np.arange(len(step)), [free[i] for i in step]] = LOG_STEP
+            ends = wider.logliks(np.vstack([U[best] + E, U[best] - E]))
+            up, down = ends[:len(step)], ends[len(step):]
+            g = (up - down) / (2 * LOG_STEP)
+            sub = H[np.ix_(step, step)]
+            d = np.sqrt(np.clip((up + down - 2 * ll[best]) / LOG_STEP ** 2 / np.diag(sub), 1e-6, None))
+            try:
+                move = -np.linalg.solve(sub * np.outer(d, d), g) / errors[step]
+            except np.linalg.LinAlgError:
+                move = np.full(len(step), np.nan)
+            out[level] = {"loglik_gain": gain, "best_factor": float(np.exp(grid[best])),
+                          "moves": {names[i]: float(z) for i, z in zip(step, move)}}
+        problem.evaluations += wider.evaluations
+        problem.report_progress()
+    return out
+
+
+def _held_warnings(held):
+    """The warning of each held level of :func:`_held_levels` that moves a fitted parameter by more
+    than :data:`HELD_MOVE` robust standard errors."""
+    warnings = []
+    for level, found in held.items():
+        moved = [(n, z) for n, z in found["moves"].items() if np.isfinite(z) and abs(z) > HELD_MOVE]
+        if moved:
+            warnings.append(f"{level} was held at the job's value, and the record favours another (the log-likelihood "
+                            f"rises by {found['loglik_gain']:.3g} at {found['best_factor']:.2g}x it): learning it as "
+                            "well would move " + ", ".join(f"{n} by {z:+.1f}" for n, z in moved)
+                            + f" robust standard errors; add \"{level}\" to calibrate")
+    return warnings
 
 
 def _robust(problem, terms, h, H):

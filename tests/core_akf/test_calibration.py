@@ -66,7 +66,10 @@ def test_the_core_fit_on_a_record_of_ones_own():
     fit = calibrate(s17_truss().scaled(0.92), sensors, ["8:y"], sim.measurements, 1e-3, parameters=["stiffness_factor"],
                     model_error_cov=1e-16, force_increment_cov=1e3, noise_cov=np.diag(sim.noise_std ** 2))
     assert 0.92 * fit.values["stiffness_factor"] == pytest.approx(1.0, abs=0.003)
-    assert fit.warnings == [] and 0 < fit.std_errors["stiffness_factor"] < 0.003
+    assert 0 < fit.std_errors["stiffness_factor"] < 0.003
+    # the record has no model error: Q = 1e-16 is more than it favours, and the stiffness leans on it
+    [held] = fit.warnings
+    assert held.startswith("model_error_cov was held at the job's value") and "stiffness_factor by -2." in held
     # the fit's own summary; its consistency equals the estimates' diagnostics before and after
     table = fit.summary()
     params = table[table["kind"] == "parameter"]
@@ -81,6 +84,36 @@ def test_the_core_fit_on_a_record_of_ones_own():
         got = dict(zip(table[table["kind"] == "consistency"]["name"], table[table["kind"] == "consistency"][column]))
         assert got == pytest.approx(expected, rel=1e-6)
     assert max(fit.consistency_after.values()) < 1.5 < max(fit.consistency_before.values())
+
+
+def test_a_held_level_the_record_does_not_favour_is_named_with_what_learning_it_would_move():
+    """The record of the core fit has no model error, and the fit holds Q at 1e-16: the check of
+    the held levels finds the record favours Q 100x lower and predicts that learning Q would move
+    the stiffness factor by -2.8 robust standard errors.  The fit that learns Q moves it by that
+    (within 0.3), to within one robust error of the truth, where the fit that held Q left it 2.9
+    away; it names no held level then.  A Q the record does not contradict (1e-20) is not named."""
+    sensors = ["strain:13", "strain:26", "acc:8:y"]
+    loads = band_limited_white_noise(3000, 1e-3, 200.0, 0.0, 50.0, seed=3)[:, None]
+    sim = simulate(s17_truss(), sensors, ["8:y"], loads, 1e-3, relative_noise=0.02, seed=1)
+    kw = dict(force_increment_cov=1e3, noise_cov=np.diag(sim.noise_std ** 2))
+    model = s17_truss().scaled(0.92)
+    held = calibrate(model, sensors, ["8:y"], sim.measurements, 1e-3, parameters=["stiffness_factor"],
+                     model_error_cov=1e-16, **kw)
+    learnt = calibrate(model, sensors, ["8:y"], sim.measurements, 1e-3,
+                       parameters=["stiffness_factor", "model_error_cov"], model_error_cov=1e-16, **kw)
+    found = held.held_levels["model_error_cov"]
+    assert found["best_factor"] == pytest.approx(0.01) and found["loglik_gain"] > 100
+    error = held.robust_std_errors["stiffness_factor"]
+    moved = np.log(learnt.multipliers["stiffness_factor"] / held.multipliers["stiffness_factor"]) / error
+    assert found["moves"]["stiffness_factor"] == pytest.approx(moved, abs=0.3) and moved < -2
+    assert abs(np.log(0.92 * held.multipliers["stiffness_factor"])) > 2 * error
+    assert abs(np.log(0.92 * learnt.multipliers["stiffness_factor"])) < learnt.robust_std_errors["stiffness_factor"]
+    assert [w for w in held.warnings if w.startswith("model_error_cov")] and "model_error_cov" not in learnt.held_levels
+    assert not any("was held" in w for w in learnt.warnings)
+    assert held.to_dict()["held_levels"] == held.held_levels
+    small = calibrate(model, sensors, ["8:y"], sim.measurements, 1e-3, parameters=["stiffness_factor"],
+                      model_error_cov=1e-20, **kw)
+    assert small.warnings == []
 
 
 BAD_CALIBRATIONS = {
@@ -345,7 +378,10 @@ def test_frequencies_find_a_local_stiffness_change():
     assert list(per_mode.multipliers) == [f"frequencies:{k}" for k in (1, 2, 3, 4)] + ["frequencies:rest"]
     assert per_mode.values["rest_frequency_factor"] == pytest.approx(1.0, abs=2e-3)   # the other modes are right
     np.testing.assert_allclose(per_mode.values["frequency_factors"], [1.0, 0.96, 1.03, 1.0], atol=2e-3)
-    assert per_mode.warnings == [] and all(0 < e < 2e-3 for e in per_mode.std_errors.values())
+    assert all(0 < e < 2e-3 for e in per_mode.std_errors.values())
+    # Q = 1e-16 on a record without model error: the rest factor leans on it, the modes do not
+    [held] = per_mode.warnings
+    assert held.startswith("model_error_cov was held") and "frequencies:rest by +2." in held and "frequencies:1" not in held
     np.testing.assert_allclose(per_mode.apply(s17_truss(), sensors, **levels)[0].frequencies(4), true.frequencies(4),
                                rtol=2e-3)
     overall = calibrate(s17_truss(), sensors, forces, sim.measurements, dt, parameters=["stiffness_factor"], **levels)
@@ -402,7 +438,8 @@ def test_noise_of_one_channel_is_learnt_on_its_own():
     assert list(m) == [f"noise_cov:{s}" for s in data["sensors"]]
     assert 50 < m["noise_cov:strain:13"] < 200
     assert all(0.8 < v < 1.25 for k, v in m.items() if k.startswith("noise_cov:strain") and k != "noise_cov:strain:13")
-    assert [w.split(" ")[0] for w in c["warnings"]] == ["noise_cov:acc:6:x"]
+    # and the accelerometers' factors lean on the job's Q (1e-16), which the record does not favour
+    assert [w.split(" ")[0] for w in c["warnings"]] == ["noise_cov:acc:6:x", "model_error_cov"]
     assert c["noise_cov"][7] == pytest.approx(variances[7] * m["noise_cov:strain:13"])
     data["filter"]["calibrate"] = ["noise_cov:acc"]
     c = estimate_job(Job.from_dict(data, "estimate")).metrics["calibration"]
