@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg
+import scipy.signal
 
 from core_akf import estimate, simulate
 from core_akf.calibration import AUTO_SIGNAL_FRACTION, calibrate
@@ -19,7 +20,7 @@ from core_akf.filter.model import Filter
 from core_akf.forcemodels import ForceModel
 from core_akf.loads import band_limited_white_noise
 from core_akf.models import s17_truss
-from core_akf.whittle import output_spectrum, signal_bins, stationary, welch_density, whittle_terms
+from core_akf.whittle import TAPER, output_spectrum, signal_bins, stationary, tukey, welch_density, whittle_terms
 
 ACC = ["acc:2:y", "acc:3:y", "acc:4:y", "acc:5:y", "acc:6:y", "acc:7:y", "acc:8:y", "acc:10:y", "acc:12:y", "acc:6:x"]
 FORCES = ["6:y", "12:y"]
@@ -80,14 +81,24 @@ def test_signal_bins_are_where_the_record_stands_above_its_noise():
     bins = signal_bins(Y, [1.0, 1.0])
     hz = bins.frequencies / DT
     assert bins.omega.size > 0 and np.all(np.abs(hz - 100.0) < 10.0)
-    np.testing.assert_allclose(bins.coefficients, np.fft.rfft(Y - Y.mean(axis=0), axis=0)[np.round(hz * N * DT).astype(int)])
+    window = scipy.signal.windows.tukey(N, TAPER)
+    tapered = np.fft.rfft((Y - Y.mean(axis=0)) * window[:, None], axis=0) * np.sqrt(N / np.sum(window ** 2))
+    np.testing.assert_allclose(bins.coefficients, tapered[np.round(hz * N * DT).astype(int)])
+    # the taper's scaling keeps |y_k|^2 / N the spectrum: 1 for unit white noise
+    assert np.mean(np.abs(everything.coefficients) ** 2) / N == pytest.approx(1.0, abs=0.03)
 
 
-def _band_record(hold="zero"):
+@pytest.mark.parametrize("N", [1, 2, 5, 100, 101, 8192])
+@pytest.mark.parametrize("fraction", [0.0, 0.2, 0.5, 1.0])
+def test_tukey_is_scipys(N, fraction):
+    np.testing.assert_allclose(tukey(N, fraction), scipy.signal.windows.tukey(N, fraction), atol=1e-14)
+
+
+def _band_record(hold="zero", seed=0):
     """Issue 34's case: two band-limited loads (0-120 Hz, 600 and 425 N RMS), ten accelerometers."""
-    loads = np.column_stack([band_limited_white_noise(N, DT, r, 0, 120, seed=21 + j)
+    loads = np.column_stack([band_limited_white_noise(N, DT, r, 0, 120, seed=21 + j + 10 * seed)
                              for j, r in enumerate((600.0, 425.0))])
-    sim = simulate(s17_truss(), ACC, FORCES, loads, DT, relative_noise=0.02, seed=0, load_hold=hold)
+    sim = simulate(s17_truss(), ACC, FORCES, loads, DT, relative_noise=0.02, seed=seed, load_hold=hold)
     return loads, sim, np.diag(sim.noise_std ** 2)
 
 
@@ -133,6 +144,26 @@ def test_band_limited_loads_are_fitted_by_the_whittle_likelihood_by_default():
     assert np.max(_smoothed_errors(sim, R, loads, timed.force_model)[0]) > 0.5
     # both errors from the Whittle fit's own curvature: finite, the robust ones wider under the wrong prior
     assert all(np.isfinite(fit.std_errors[n]) and fit.robust_std_errors[n] > fit.std_errors[n] for n in fit.multipliers)
+
+
+@pytest.mark.parametrize("seed", [0, 2, 3])
+def test_continuous_band_limited_loads_are_fitted_as_well_as_their_true_spectrum_allows(seed):
+    """Continuous loads (``load_hold = "linear"``) from 500 N and 2 ms: the default Whittle fit's
+    smoothed forces are within 0.35 of the loads' RMS and within 12 % of the error of the filter
+    given the loads' true spectrum (a Butterworth prior of their band and RMS: what no prior can
+    beat).  Before the periodogram was tapered, the leakage of the record's ends into its lowest
+    bins took seed 3 to 30x the loads' std and a 42 ms time scale, its forces 7-11x the RMS off
+    (seed 2: 0.51 for force 2, seed 0: 0.38)."""
+    loads, sim, R = _band_record("linear", seed)
+    fit = calibrate(s17_truss(), ACC, FORCES, sim.measurements, DT, parameters=["force_std", "force_timescale"],
+                    model_error_cov=1e-16, noise_cov=R, force_model=ForceModel("matern32", std=500.0, timescale=2e-3,
+                                                                              hold="linear"))
+    assert fit.method == "whittle" and not any("bound" in w for w in fit.warnings)
+    error, _ = _smoothed_errors(sim, R, loads, fit.force_model)
+    rms = np.sqrt(np.mean(loads ** 2, axis=0))
+    best, _ = _smoothed_errors(sim, R, loads, ForceModel("butterworth", std=rms.tolist(), band=[0.0, 120.0],
+                                                           band_order=8, hold="linear"))
+    assert np.all(error <= 0.35) and np.all(error <= 1.12 * best)
 
 
 def test_the_whittle_fit_holds_the_force_prior_while_the_time_domain_fits_the_rest():
