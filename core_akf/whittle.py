@@ -112,6 +112,13 @@ def tukey(N, fraction):
     """A Tukey (tapered cosine) window of ``N`` points with ``fraction`` of them in its two cosine
     ends (``scipy.signal.windows.tukey(N, fraction)``; 0 is the rectangle, 1 the Hann window).
 
+    Parameters
+    ----------
+    N : int
+        Points.
+    fraction : float
+        The share of the points in the cosine ends, 0 to 1.
+
     Returns
     -------
     ndarray (N,)
