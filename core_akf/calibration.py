@@ -132,7 +132,9 @@ class CalibrationResult:
     loglik_before, loglik_after : float
         The record's log-likelihood with the starting and the fitted values.
     warnings : list of str
-        A fit on a search bound, a flat likelihood (a parameter the record cannot identify).
+        A fit on a search bound, a flat likelihood (a parameter the record cannot identify), robust
+        errors far from the observed ones, a fitted parameter that leans on a held level
+        (:attr:`held_levels`).
     evaluations : int
         Filters run.
     seconds : float

@@ -8,7 +8,8 @@ Whittle likelihood (Whittle 1953) is the same Gaussian likelihood written bin by
 
     l_W = - sum_k [ log det S(w_k) + y_k^H S(w_k)^-1 y_k / N ]
 
-with ``y_k`` the discrete Fourier transform of the record (N steps) at ``w_k = 2 pi k / N`` and
+with ``y_k`` the discrete Fourier transform of the record (N steps, tapered by a Tukey window of
+:data:`TAPER` and rescaled to its power) at ``w_k = 2 pi k / N`` and
 ``S(w) = H(w) Q H(w)^H + R`` the model's output spectrum per sample, ``H(w) = G (e^{iw} I - A)^-1``.
 Summed over every bin it equals the time-domain likelihood for a long record; summed over the
 *signal bins* only -- the bins where a Welch estimate of the record stands :data:`SIGNAL_RATIO`
