@@ -56,6 +56,10 @@ class OMAResult:
     notes: list
 
 
+#: samples per stretch of the Hankel matrix's sum (its products stay a few MB)
+HANKEL_CHUNK = 4096
+
+
 def hankel(Y: np.ndarray, block_rows: int) -> np.ndarray:
     """The block Hankel matrix of output covariances of SSI-cov.
 
@@ -75,9 +79,13 @@ def hankel(Y: np.ndarray, block_rows: int) -> np.ndarray:
     Y = np.asarray(Y, float).T                  # (l, N)
     br = int(block_rows)
     M = Y.shape[1] - 2 * br + 1
-    future = np.vstack([Y[:, br + i: br + i + M] for i in range(br)])
-    past = np.vstack([Y[:, br - 1 - j: br - 1 - j + M] for j in range(br)])
-    return future @ past.T / M
+    H = np.zeros((br * Y.shape[0], br * Y.shape[0]))
+    for k in range(0, M, HANKEL_CHUNK):         # over stretches of samples: small arrays, reused memory
+        c = min(HANKEL_CHUNK, M - k)
+        future = np.vstack([Y[:, k + br + i: k + br + i + c] for i in range(br)])
+        past = np.vstack([Y[:, k + br - 1 - j: k + br - 1 - j + c] for j in range(br)])
+        H += future @ past.T
+    return H / M
 
 
 def ssi_cov(Y: np.ndarray, dt: float, *, channels: list[str] | None = None, block_rows: int | None = None,

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..checks import AKFInputError
 from .likelihood import loglik_terms, loglik_total
-from .recursion import lti_response
+from .recursion import lti_response, solver_threads, stack_pieces
 from .riccati import RiccatiError, RiccatiWarning, steady_gain
 from .switched import LIFT_FROM, gain_groups, repeats, switched_filter
 
@@ -338,17 +338,19 @@ def steady_logliks(A, G, Q, R, Y, per_step=False):
         A, G, Q, R = A[ok], G[ok], Q[ok], R[ok]
         P, L = steady_gain(A, G, Q, R)
     Ys = np.broadcast_to(Y, (ok.size,) + Y.shape)
-    seen = observed(Ys)
+    seen = observed(Y[None])
     if seen is not None:                               # missing samples: the filter of each pattern
+        seen = np.broadcast_to(seen, Ys.shape)
         run = steady_gapped(A, G, Q, R, Ys, seen, np.zeros(A.shape[:-1]), loglik=True, full=(P, L))
         out[ok] = run.loglik_terms.sum(axis=-1) if per_step else run.loglik
         return out
-    predicted = fixed_gain(A, G, L, Ys, outputs=G @ A)           # G A X_k: the next step's predicted channels
-    E = np.empty(Ys.shape)            # B-major: empty_like would put the broadcast axis innermost
-    E[:, 0] = Ys[:, 0]
-    E[:, 1:] = Ys[:, 1:] - predicted[:, :-1]
     S = innovation_covariance(G, P, R)
-    out[ok] = loglik_terms(E, S).sum(axis=-1) if per_step else loglik_total(E, S)
+    for i in stack_pieces(ok.size, 8 * Y.size, multiple=solver_threads()):   # a long record: piece by piece
+        predicted = fixed_gain(A[i], G[i], L[i], Ys[i], outputs=G[i] @ A[i])   # G A X_k: the next step's channels
+        E = np.empty(predicted.shape)
+        E[:, 0] = Y[0]
+        E[:, 1:] = Y[1:] - predicted[:, :-1]
+        out[ok[i]] = loglik_terms(E, S[i]).sum(axis=-1) if per_step else loglik_total(E, S[i])
     return out
 
 

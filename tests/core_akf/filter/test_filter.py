@@ -216,6 +216,34 @@ def test_lifted_recursion_gives_the_same_bits_on_any_number_of_threads(monkeypat
     assert np.array_equal(np.stack(alone), results[0][1])
 
 
+def test_a_stack_run_piece_by_piece_gives_the_same_bits_as_in_one_piece(monkeypatch):
+    """A long record's stack runs in pieces of ``_PIECE_BYTES`` (fresh pages cost more than the
+    arithmetic): the lifted outputs and the steady log-likelihoods, totals and per step, are the
+    same bits in pieces of one or two systems as in one piece, on 1 or 2 threads."""
+    from core_akf.filter.kernels import steady_logliks
+
+    rng = np.random.default_rng(11)
+    B, N, n, m = 7, 900, 8, 3
+    F = rng.normal(size=(B, n, n))
+    F *= 0.95 / np.max(np.abs(np.linalg.eigvals(F)), axis=1)[:, None, None]
+    L, Y, x0, H = rng.normal(size=(B, n, m)), rng.normal(size=(B, N, m)), rng.normal(size=(B, n)), rng.normal(size=(2, n))
+    G = rng.normal(size=(B, m, n))
+    Q = np.repeat(np.eye(n)[None] * 0.1, B, 0)
+    R = np.repeat(np.eye(m)[None], B, 0)
+    runs = []
+    for piece in (2 ** 40, 8 * N * 8, 1):          # one piece, about one system, one system each
+        monkeypatch.setattr(recursion, "_PIECE_BYTES", piece)
+        for threads in ("1", "2"):
+            monkeypatch.setenv("AKF_NUM_THREADS", threads)
+            runs.append((recursion.lti_response(F, L, Y, x0, H), recursion.lti_response(F, L, Y, x0),
+                         steady_logliks(F, G, Q, R, Y[0]), steady_logliks(F, G, Q, R, Y[0], per_step=True)))
+    assert len(recursion.stack_pieces(B, 8 * N * 8)) > 1
+    for run in runs[1:]:
+        for got, want in zip(run, runs[0]):
+            assert np.array_equal(got, want)
+    assert np.allclose(runs[0][3].sum(axis=1), runs[0][2], rtol=1e-12)
+
+
 def test_time_varying_gain_switch_is_exact_on_s17():
     """The switch to the converged gain changes nothing measurable (S17 case 4, 8192 steps)."""
     ss = state_space(s17_truss().scaled(1.05), ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x",
