@@ -220,7 +220,7 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
     with _CalibrationBar() as bar:
         fit = calibrate(model, sensors, forces, Y, job.dt, parameters=job.calibrate, model_error_cov=Q,
                         force_model=fm, noise_cov=noise_cov, modes=job.calibrate_modes, dummy=job.dummy, start=start,
-                        progress=bar.update, method=job.calibrate_method,
+                        progress=bar.update, method=job.calibrate_method, held=job.calibrate_held,
                         n_modes="band" if job.n_modes is None else None)
     fitted = list(fit.apply(model, sensors, Q, fm.increment_cov, noise_cov))
     fitted[2] = fit.force_model if fm.stationary else replace(fm, increment_cov=fitted[2])
@@ -247,7 +247,7 @@ def calibrate_job(job, model, sensors, forces, Y, noise_cov, record_steps=None):
     if "damping" in m:
         ratio = np.asarray(fitted[0].damping, float)
         report["damping"] = float(ratio) if ratio.ndim == 0 else ratio.tolist()
-    if any(p.startswith("noise_cov") for p in job.calibrate):
+    if any(p.startswith("noise_cov") for p in m):            # asked, or a held level learnt as well
         given = job.spec.filter.noise_cov
         if isinstance(given, dict) and "noise_cov" in fit.values and isinstance(fit.values["noise_cov"], dict):
             report["noise_cov"] = fit.values["noise_cov"]

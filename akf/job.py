@@ -174,6 +174,9 @@ class Job:
     calibrate_method : str
         The likelihood that learns a stationary force prior (``method`` of
         :func:`core_akf.calibration.calibrate`): "auto", "time" or "whittle".
+    calibrate_held : str
+        What calibration does with a held covariance level the record rejects (``held`` of
+        :func:`core_akf.calibration.calibrate`): "learn" or "warn".
     force_model : ForceModel
         The forces' prior (``[filter] force_model``, ``force_std``, ``force_timescale``; the
         random walk of :attr:`force_increment_cov` by default).
@@ -206,6 +209,7 @@ class Job:
             raise AKFInputError("[filter] smooth_lag is the lag of the smoother: set smooth = true as well, or remove it")
         self.calibrate_window = f.calibrate_window
         self.calibrate_method = f.calibrate_method or "auto"
+        self.calibrate_held = f.calibrate_held or "warn"
         self.force_model = self._force_model(f)
         self.dummy = None if f.dummy is None else DummyMeasurements(f.dummy.sensors, f.dummy.variance)
         section = {"place": spec.place, "locate": spec.locate}.get(command)

@@ -215,6 +215,13 @@ class Filter(Section):
         "record's periodogram over the frequency bins standing 10x above the noise floor; the other parameters by "
         "the time-domain likelihood after it), auto (whittle for a Matérn prior when at most half the bins hold signal, else time); "
         "the JSON's calibration says which ran and why", default_text="auto", used_by=ESTIMATE)
+    calibrate_held: Literal["learn", "warn"] = key(
+        '"learn" or "warn"', "a covariance level the fit holds (model_error_cov, the random walk's "
+        "force_increment_cov, the noise of a sensor kind not calibrated) that the record rejects (the log-likelihood "
+        "rises by more than 5.4 at another value) and that a fitted parameter leans on (learning it would move that "
+        "parameter by more than 2 robust standard errors): learn fits again with it learnt as well (about as many "
+        "filters again) and says so in the JSON's calibration notes; warn keeps the job's value and names the "
+        "parameter in a warning", default_text="warn", used_by=ESTIMATE)
 
 
 class LoadComponent(BaseModel):

@@ -101,6 +101,8 @@ HELD_LOGLIK = 5.4
 #: a fitted parameter that learning a held level would move by more than this many robust
 #: standard errors is named in a warning
 HELD_MOVE = 2.0
+#: what :func:`calibrate` does with a held level the record rejects and a fitted parameter leans on
+HELD_POLICIES = ("learn", "warn")
 #: a log-factor whose standard error exceeds this (the factor uncertain to more than e-fold) is
 #: named as poorly identified by the record
 POORLY_IDENTIFIED = 1.0
@@ -471,7 +473,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
               decades: float | None = None, modes: Sequence[int] | None = None,
               force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None,
               start: dict | None = None, progress: Callable[[int, int, float], None] | None = None,
-              method: str = "auto", n_modes: int | str | None = None) -> CalibrationResult:
+              method: str = "auto", n_modes: int | str | None = None, held: str = "warn") -> CalibrationResult:
     """Fit the filter's model and covariances to a record by maximum likelihood.
 
     Parameters
@@ -542,6 +544,15 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         structure as given.  A model with many modes far above the record's band fits several
         times faster (a 147-DOF 3-D truss at 512 Hz: 117 modes, 3x faster, the stiffness factor
         within 2e-6 of the full model's).
+    held : {"learn", "warn"}
+        What to do with a covariance level the fit held (``model_error_cov``, the random walk's
+        ``force_increment_cov``, the noise of a sensor kind not learnt) that the record rejects
+        and on which a fitted parameter leans (:attr:`CalibrationResult.held_levels`: its best
+        factor raises the log-likelihood by more than :data:`HELD_LOGLIK`, and learning it would
+        move a fitted parameter by more than :data:`HELD_MOVE` robust standard errors):
+        ``"learn"`` fits again with those levels learnt as well, from the first fit's values
+        (said in :attr:`CalibrationResult.notes`; the refit costs about as many filters again);
+        ``"warn"`` (default) keeps them and names the parameters in a warning.
 
     Returns
     -------
@@ -572,10 +583,30 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     >>> round(1.05 * fit.values["stiffness_factor"], 2), fit.loglik_after > fit.loglik_before
     (1.0, True)
     """
+    return _calibrate(structure, sensors, forces, measurements, dt, parameters=parameters,
+                      model_error_cov=model_error_cov, force_increment_cov=force_increment_cov, noise_cov=noise_cov,
+                      stiffness_range=stiffness_range, decades=decades, modes=modes, force_model=force_model,
+                      dummy=dummy, start=start, progress=progress, method=method, n_modes=n_modes, held=held)
+
+
+def _calibrate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,  # noqa: C901
+              parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance | None = None,
+              noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
+              decades: float | None = None, modes: Sequence[int] | None = None,
+              force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None,
+              start: dict | None = None, progress: Callable[[int, int, float], None] | None = None,
+              method: str = "auto", n_modes: int | str | None = None, held: str = "warn",
+                information: tuple | None = None) -> CalibrationResult:
+    """:func:`calibrate`; ``information`` ``(names, -H)``: the observed information of an earlier
+    fit of some of the parameters, whose optimum ``start`` holds -- the refit that learns a held
+    level as well searches the whole record from there in that metric (no grid, no head)."""
     start_time = time.perf_counter()
+    if held not in HELD_POLICIES:
+        raise AKFInputError(f"held must be one of {list(HELD_POLICIES)}, got {held!r}")
     Y = as_measurements(measurements, "measurements", ndim=2)
     force_model = as_force_model(force_model, force_increment_cov)
     asked = [str(n) for n in ([parameters] if isinstance(parameters, str) else parameters)]
+    asked_method, asked_modes = method, modes
     own = ("force_std", "force_band") if force_model.kind == "butterworth" else ("force_std", "force_timescale")
     if force_model.stationary and "force_increment_cov" in asked:
         raise AKFInputError(f"force_increment_cov is the random walk's S; the {force_model.kind} force model learns "
@@ -626,7 +657,7 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     spectral = [j for j, n in enumerate(problem.names) if method == "whittle" and n.startswith(FORCE_PARAMETERS)]
     rest = [j for j in range(len(problem.names)) if j not in spectral]
     u = np.zeros(len(problem.names))
-    errors, robust, bandwidth, warnings, whittle, held = {}, {}, 0.0, [], None, {}
+    errors, robust, bandwidth, warnings, whittle, held_found = {}, {}, 0.0, [], None, {}
     for part in ("whittle", "time"):
         free = spectral if part == "whittle" else rest
         if not free:
@@ -634,7 +665,8 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         view = _Whittle(problem, bins, u, free) if part == "whittle" else _Subset(problem, u, free)
         v0 = np.zeros(len(free))
         at_start = before if part == "time" and not spectral else float(view.logliks(v0)[0])
-        v = _maximise(view, v0, [bounds[j] for j in free], at_start, given)
+        metric = None if part == "whittle" else _refit_metric(view, information, given, [bounds[j] for j in free])
+        v = _maximise(view, v0, [bounds[j] for j in free], at_start, given, metric)
         u[free] = v
         if part == "whittle":
             whittle = (at_start, float(view.logliks(v)[0]))
@@ -643,8 +675,31 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
         robust |= r
         warnings += w
         if part == "time":         # the levels the fit held: do they fit, and what would learning them move?
-            held = _held_levels(problem, Y, u, free, H, r, [bounds[j] for j in free], force_model)
-            warnings += _held_warnings(held)
+            rejected = _held_levels(problem, Y, u, free, H, e, r, [bounds[j] for j in free], force_model)
+            learn = list(_leaning(rejected)) if held == "learn" else []
+            if learn:                  # fit again with them learnt, from here
+                first = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
+                width = default("calibration_decades", decades)
+                for level in learn:
+                    below = MODEL_ERROR_DECADES_BELOW * width if level == "model_error_cov" else width
+                    first[level] = float(np.clip(rejected[level]["best_factor"], 10 ** (0.999 * -below),
+                                                 10 ** (0.999 * width)))
+                offset, best = problem.evaluations, problem.best
+                fit = _calibrate(structure, sensors, forces, measurements, dt, parameters=[*asked, *learn],
+                                model_error_cov=model_error_cov, force_increment_cov=None,
+                                noise_cov=noise_cov, stiffness_range=stiffness_range, decades=decades,
+                                modes=asked_modes, force_model=force_model, dummy=dummy, start=first,
+                                progress=None if progress is None else _carried(progress, offset, best),
+                                method=asked_method, n_modes=n_modes, held=held,
+                                information=([problem.names[j] for j in free], -H))
+                fit.notes = [*notes, *_learnt_notes(rejected, learn),
+                             *(n for n in fit.notes if n not in notes)]
+                fit.held_levels = {**{lv: {**rejected[lv], "learnt": True} for lv in learn}, **fit.held_levels}
+                fit.evaluations += offset
+                fit.seconds = time.perf_counter() - start_time
+                return fit
+            held_found = rejected
+            warnings += _held_warnings(rejected)
     after = float(problem.logliks(u)[0])
     errors = {n: errors[n] for n in problem.names}
     robust = {n: robust[n] for n in problem.names}
@@ -654,18 +709,22 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
     consistency = [problem.consistency(v) for v in (np.zeros(len(u)), u)]      # two kernel runs
     return CalibrationResult(values, multipliers, errors, before, after, warnings, problem.evaluations,
                              time.perf_counter() - start_time, fitted_force, layout, *consistency, robust, bandwidth,
-                             method, reason, whittle, n_kept, notes, held)
+                             method, reason, whittle, n_kept, notes, held_found)
 
 
-def _maximise(problem, u0, bounds, before, given):
+def _maximise(problem, u0, bounds, before, given, metric=None):
     """The log-factors of ``problem`` (a :class:`_Subset` or a :class:`_Whittle`) that maximise
     its log-likelihood: a grid for what sets a frequency (:func:`_grid_start`) or the ``given``
     starts, then L-BFGS-B with central differences in one batch; never worse than ``u0``.
 
     On a long record (:data:`HEAD_FROM` steps or more) the grid and the search run on its first
     :data:`HEAD_FRACTION` first, and the whole record's search starts from there: the same
-    optimum for a fraction of the filters' length."""
+    optimum for a fraction of the filters' length.  Given a ``metric`` (a refit from an earlier
+    optimum, :func:`_refit_metric`), the whole record is searched from the ``given`` starts in it."""
     given = {n: v for n, v in given.items() if n in problem.names}
+    if metric is not None:
+        u = np.array([np.log(given[n]) if n in given else x for n, x in zip(problem.names, u0)])
+        return _local_search(problem, u, bounds, before, metric, gtol=ROUGH_GTOL)
     n_steps = problem.problem.Y.shape[0] if isinstance(problem, _Subset) else 0
     if n_steps >= HEAD_FROM:
         with problem.problem.on_head(HEAD_FRACTION):
@@ -678,6 +737,33 @@ def _maximise(problem, u0, bounds, before, given):
         if float(problem.logliks(u_head[None])[0]) > before:
             return _local_search(problem, u_head, bounds, before, metric, gtol=ROUGH_GTOL)
     return _local_search(problem, _start(problem, u0, bounds, before, given), bounds, before)
+
+
+def _refit_metric(problem, information, given, bounds):
+    """The metric of a refit's search (:func:`_maximise`): the earlier fit's information
+    ``(names, -H)`` for its parameters, and for each new one its curvature at the start (two
+    filters each), no correlation with the others; None without ``information``, where a
+    parameter has no start, or where the metric is not positive definite."""
+    if information is None or any(n not in given for n in problem.names):
+        return None
+    names, info = information
+    k = len(problem.names)
+    u = np.array([np.log(given[n]) for n in problem.names])
+    new = [i for i, n in enumerate(problem.names) if n not in names]
+    M = np.zeros((k, k))
+    old = [i for i in range(k) if i not in new]
+    at = [names.index(problem.names[i]) for i in old]
+    M[np.ix_(old, old)] = info[np.ix_(at, at)]
+    if new:
+        E = np.zeros((len(new), k))
+        E[np.arange(len(new)), new] = LOG_STEP
+        ll = problem.logliks(np.vstack([u, np.clip(u + E, *np.array(bounds).T), np.clip(u - E, *np.array(bounds).T)]))
+        M[new, new] = -(ll[1:len(new) + 1] + ll[len(new) + 1:] - 2 * ll[0]) / LOG_STEP ** 2
+    try:
+        np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        return None
+    return M
 
 
 def _start(problem, u0, bounds, before, given):
@@ -1158,7 +1244,7 @@ def _curvature(problem, u, bounds, before):
     return errors, dict(zip(problem.names, map(float, robust))), bandwidth, warnings, H
 
 
-def _held_levels(problem, Y, u, free, H, robust, bounds, force_model):
+def _held_levels(problem, Y, u, free, H, observed, robust, bounds, force_model):
     """Whether each covariance level the fit held (Q, S, a sensor kind's R) fits the record, and
     what learning it as well would do to the fitted parameters.
 
@@ -1169,7 +1255,8 @@ def _held_levels(problem, Y, u, free, H, robust, bounds, force_model):
     taken there (the correlations kept), ``2 len(free)`` filters.  That is the change learning the
     level would make (the *expected parameter change* of a score test; the S17 fits: -2.8
     robust errors predicted for the stiffness factor, -2.81 found by the fit that learns Q).
-    Parameters on a search bound or without a robust error are held in the step.
+    Parameters on a search bound, without a robust error or poorly identified (a flat likelihood,
+    a standard error above :data:`POORLY_IDENTIFIED`) are held in the step.
 
     Returns
     -------
@@ -1185,7 +1272,8 @@ def _held_levels(problem, Y, u, free, H, robust, bounds, force_model):
     held += [f"noise_cov:{k}" for k in problem.kinds
              if k not in learnt and not learnt & {s.label for s in problem.layout if s.kind == k}]
     errors = np.array([robust[n] for n in names])
-    step = [i for i, j in enumerate(free) if np.isfinite(errors[i])
+    step = [i for i, j in enumerate(free) if np.isfinite(errors[i]) and H[i, i] < -FLAT
+            and np.isfinite(observed[names[i]]) and observed[names[i]] <= POORLY_IDENTIFIED
             and bounds[i][0] + 1e-3 < u[j] < bounds[i][1] - 1e-3]
     out = {}
     grid = np.log(10.0) * np.asarray(HELD_GRID, float)
@@ -1216,17 +1304,42 @@ def _held_levels(problem, Y, u, free, H, robust, bounds, force_model):
     return out
 
 
+def _leaning(held):
+    """By held level of :func:`_held_levels`, the fitted parameters it would move by more than
+    :data:`HELD_MOVE` robust standard errors, ``[(name, move), ...]`` (the levels that move none
+    left out)."""
+    out = {}
+    for level, found in held.items():
+        moved = [(n, z) for n, z in found["moves"].items() if np.isfinite(z) and abs(z) > HELD_MOVE]
+        if moved:
+            out[level] = moved
+    return out
+
+
+def _carried(progress, offset, best):
+    """A refit's progress callback: its filters counted after the ``offset`` of the first fit."""
+    return lambda e, x, b: progress(e + offset, x + offset, max(b, best))
+
+
+def _learnt_notes(held, learnt):
+    """The note of each level of ``learnt`` that :func:`calibrate` learnt as well (``held="learn"``)."""
+    leaning = _leaning(held)
+    return [f"{level} was learnt as well: the record rejects the job's value (the log-likelihood rises by "
+            f"{held[level]['loglik_gain']:.3g} at {held[level]['best_factor']:.2g}x it), and holding it would have "
+            "moved " + ", ".join(f"{n} by {z:+.1f}" for n, z in leaning[level]) + " robust standard errors "
+            "(calibrate_held = \"learn\")" for level in learnt]
+
+
 def _held_warnings(held):
     """The warning of each held level of :func:`_held_levels` that moves a fitted parameter by more
     than :data:`HELD_MOVE` robust standard errors."""
     warnings = []
-    for level, found in held.items():
-        moved = [(n, z) for n, z in found["moves"].items() if np.isfinite(z) and abs(z) > HELD_MOVE]
-        if moved:
-            warnings.append(f"{level} was held at the job's value, and the record favours another (the log-likelihood "
-                            f"rises by {found['loglik_gain']:.3g} at {found['best_factor']:.2g}x it): learning it as "
-                            "well would move " + ", ".join(f"{n} by {z:+.1f}" for n, z in moved)
-                            + f" robust standard errors; add \"{level}\" to calibrate")
+    for level, moved in _leaning(held).items():
+        found = held[level]
+        warnings.append(f"{level} was held at the job's value, and the record favours another (the log-likelihood "
+                        f"rises by {found['loglik_gain']:.3g} at {found['best_factor']:.2g}x it): learning it as "
+                        "well would move " + ", ".join(f"{n} by {z:+.1f}" for n, z in moved)
+                        + f" robust standard errors; add \"{level}\" to calibrate")
     return warnings
 
 

@@ -121,7 +121,7 @@ WRITTEN = ("stiffness_factor", "frequency_factors", "noise_cov", "force_incremen
 
 def write_calibrated(source, report, path):
     """Write the job file ``source`` with the fitted ``[filter]`` values of ``report`` (and without
-    ``calibrate``, ``calibrate_window``, ``calibrate_modes`` and ``calibrate_method``) to ``path``.
+    ``calibrate``, ``calibrate_window``, ``calibrate_modes``, ``calibrate_method`` and ``calibrate_held``) to ``path``.
 
     Comments and layout are kept (tomlkit), a replaced value keeps its comment (its unit), and
     the relative data paths (the record, a model's files) are rewritten to point from ``path``'s
@@ -139,11 +139,11 @@ def write_calibrated(source, report, path):
     doc = tomlkit.parse(text)
     expected = tomllib.loads(text)
     fitted = {key: report[key] for key in WRITTEN if key in report}
-    for key in ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method"):
+    for key in ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method", "calibrate_held"):
         expected.get("filter", {}).pop(key, None)
     expected.setdefault("filter", {}).update(fitted)
     table = _plain_table(doc, "filter")
-    for key in ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method"):
+    for key in ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method", "calibrate_held"):
         if key in table:
             del table[key]
     for key, value in fitted.items():

@@ -274,6 +274,15 @@ def stack_pieces(size, system_bytes, multiple=1):
     least ``multiple``): big stacks of long records run piece by piece, so that their arrays are
     reused memory instead of fresh pages (the kernel's page faults cost more than the arithmetic).
 
+    Parameters
+    ----------
+    size : int
+        Problems in the stack.
+    system_bytes : int
+        Bytes of one problem's per-step array.
+    multiple : int
+        Each piece holds a multiple of this many problems (the threads that split it).
+
     Returns
     -------
     list of slice

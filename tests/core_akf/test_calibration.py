@@ -111,6 +111,20 @@ def test_a_held_level_the_record_does_not_favour_is_named_with_what_learning_it_
     assert [w for w in held.warnings if w.startswith("model_error_cov")] and "model_error_cov" not in learnt.held_levels
     assert not any("was held" in w for w in learnt.warnings)
     assert held.to_dict()["held_levels"] == held.held_levels
+    # held="learn": the fit learns such a level as well, from its first optimum (no grid, no head)
+    auto = calibrate(model, sensors, ["8:y"], sim.measurements, 1e-3, parameters=["stiffness_factor"],
+                     model_error_cov=1e-16, held="learn", **kw)
+    assert list(auto.multipliers) == ["stiffness_factor", "model_error_cov"] and not auto.warnings
+    for name in auto.multipliers:        # the optimum of the fit asked for Q
+        assert np.log(auto.multipliers[name] / learnt.multipliers[name]) == pytest.approx(
+            0, abs=0.1 * learnt.robust_std_errors[name])
+    assert auto.held_levels["model_error_cov"] == {**found, "learnt": True}
+    [note] = [n for n in auto.notes if n.startswith("model_error_cov was learnt as well")]
+    assert "stiffness_factor by -2." in note
+    assert auto.evaluations > held.evaluations and auto.loglik_before == held.loglik_before
+    with pytest.raises(AKFInputError, match="held must be one of"):
+        calibrate(model, sensors, ["8:y"], sim.measurements, 1e-3, parameters=["stiffness_factor"],
+                  model_error_cov=1e-16, held="ignore", **kw)
     small = calibrate(model, sensors, ["8:y"], sim.measurements, 1e-3, parameters=["stiffness_factor"],
                       model_error_cov=1e-20, **kw)
     assert small.warnings == []
@@ -441,6 +455,12 @@ def test_noise_of_one_channel_is_learnt_on_its_own():
     # and the accelerometers' factors lean on the job's Q (1e-16), which the record does not favour
     assert [w.split(" ")[0] for w in c["warnings"]] == ["noise_cov:acc:6:x", "model_error_cov"]
     assert c["noise_cov"][7] == pytest.approx(variances[7] * m["noise_cov:strain:13"])
+    data["filter"]["calibrate_held"] = "learn"           # Q learnt as well: the accelerometers' factors near 1
+    learnt = estimate_job(Job.from_dict(data, "estimate")).metrics["calibration"]
+    assert list(learnt["multipliers"]) == [f"noise_cov:{s}" for s in data["sensors"]] + ["model_error_cov"]
+    assert learnt["held_levels"]["model_error_cov"]["learnt"] is True and learnt["model_error_cov"] < 1e-18
+    assert all(0.8 < v < 1.25 for k, v in learnt["multipliers"].items() if k.startswith("noise_cov:acc"))
+    del data["filter"]["calibrate_held"]
     data["filter"]["calibrate"] = ["noise_cov:acc"]
     c = estimate_job(Job.from_dict(data, "estimate")).metrics["calibration"]
     assert list(c["multipliers"]) == ["noise_cov:acc"]
