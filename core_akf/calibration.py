@@ -590,13 +590,13 @@ def calibrate(structure: Structure, sensors: Layout, forces: Forces, measurement
 
 
 def _calibrate(structure: Structure, sensors: Layout, forces: Forces, measurements: Measurements, dt: float, *,  # noqa: C901
-              parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance | None = None,
-              noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
-              decades: float | None = None, modes: Sequence[int] | None = None,
-              force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None,
-              start: dict | None = None, progress: Callable[[int, int, float], None] | None = None,
-              method: str = "auto", n_modes: int | str | None = None, held: str = "warn",
-                information: tuple | None = None) -> CalibrationResult:
+               parameters: list[str], model_error_cov: Covariance, force_increment_cov: Covariance | None = None,
+               noise_cov: NoiseCovariance, stiffness_range: tuple[float, float] | None = None,
+               decades: float | None = None, modes: Sequence[int] | None = None,
+               force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None,
+               start: dict | None = None, progress: Callable[[int, int, float], None] | None = None,
+               method: str = "auto", n_modes: int | str | None = None, held: str = "warn",
+               information: tuple | None = None) -> CalibrationResult:
     """:func:`calibrate`; ``information`` ``(names, -H)``: the observed information of an earlier
     fit of some of the parameters, whose optimum ``start`` holds -- the refit that learns a held
     level as well searches the whole record from there in that metric (no grid, no head)."""
@@ -757,7 +757,8 @@ def _refit_metric(problem, information, given, bounds):
     if new:
         E = np.zeros((len(new), k))
         E[np.arange(len(new)), new] = LOG_STEP
-        ll = problem.logliks(np.vstack([u, np.clip(u + E, *np.array(bounds).T), np.clip(u - E, *np.array(bounds).T)]))
+        lo, hi = np.array(bounds).T
+        ll = problem.logliks(np.vstack([u, np.clip(u + E, lo, hi), np.clip(u - E, lo, hi)]))
         M[new, new] = -(ll[1:len(new) + 1] + ll[len(new) + 1:] - 2 * ll[0]) / LOG_STEP ** 2
     try:
         np.linalg.cholesky(M)

@@ -119,6 +119,10 @@ WRITTEN = ("stiffness_factor", "frequency_factors", "noise_cov", "force_incremen
            "force_timescale", "force_band")
 
 
+#: the [filter] keys that say how to calibrate: the calibrated job leaves them out
+RUN_KEYS = ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method", "calibrate_held")
+
+
 def write_calibrated(source, report, path):
     """Write the job file ``source`` with the fitted ``[filter]`` values of ``report`` (and without
     ``calibrate``, ``calibrate_window``, ``calibrate_modes``, ``calibrate_method`` and ``calibrate_held``) to ``path``.
@@ -139,11 +143,11 @@ def write_calibrated(source, report, path):
     doc = tomlkit.parse(text)
     expected = tomllib.loads(text)
     fitted = {key: report[key] for key in WRITTEN if key in report}
-    for key in ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method", "calibrate_held"):
+    for key in RUN_KEYS:
         expected.get("filter", {}).pop(key, None)
     expected.setdefault("filter", {}).update(fitted)
     table = _plain_table(doc, "filter")
-    for key in ("calibrate", "calibrate_window", "calibrate_modes", "calibrate_method", "calibrate_held"):
+    for key in RUN_KEYS:
         if key in table:
             del table[key]
     for key, value in fitted.items():
