@@ -42,7 +42,7 @@ Z90 = 1.6448536269514722
 ACC = ["acc:4:y", "acc:6:y", "acc:8:y", "acc:12:y", "acc:6:x"]
 
 
-def _case4(seed, random_walk, model_error_cov=None, learn_q=False):
+def _case4(seed, random_walk, model_error_cov=None, learn_q=False, held="warn"):
     from akf.calibrating import calibrate_job
     from akf.examples import example_job
     from akf.job import Job
@@ -56,6 +56,7 @@ def _case4(seed, random_walk, model_error_cov=None, learn_q=False):
     data["filter"]["calibrate"] = ["stiffness_factor", "noise_cov"] + (["model_error_cov"] if learn_q else [])
     if model_error_cov is not None:
         data["filter"]["model_error_cov"] = model_error_cov
+    data["filter"]["calibrate_held"] = held
     job = Job.from_dict(data, "estimate")
     if random_walk:
         from core_akf import simulate
@@ -100,6 +101,7 @@ def _acc_only(seed, matern, butterworth=False):
 SCENARIOS = {"case4": lambda s: _case4(s, False), "case4-rw": lambda s: _case4(s, True),
              "case4-q": lambda s: _case4(s, False, 1e-22),
              "case4-learn-q": lambda s: _case4(s, False, learn_q=True),
+             "case4-held-learn": lambda s: _case4(s, False, held="learn"),
              "acc-matern": lambda s: _acc_only(s, True), "acc-band": lambda s: _acc_only(s, False),
              "acc-band-bw": lambda s: _acc_only(s, False, butterworth=True)}
 

@@ -32,7 +32,10 @@ _GRAVITY = {"g": "gravity", "G": "gravity", "mg": "milligravity", "ug": "microgr
 #: strain as DAQ systems and gauge catalogues abbreviate it (compared case-blind)
 _STRAIN_NAMES = {"ue": "microstrain", "µe": "microstrain", "μe": "microstrain", "ustrain": "microstrain",
                  "µstrain": "microstrain", "me": "millistrain", "mstrain": "millistrain", "e": "strain",
-                 "ε": "strain", "eps": "strain"}
+                 "ε": "strain", "eps": "strain", "uɛ": "microstrain", "µɛ": "microstrain", "μɛ": "microstrain",
+                 "ɛ": "strain"}     # ɛ: the Latin epsilon some catalogues print for ε
+#: a unit's power written as digits after its name, as DAQ systems label channels ("m/s2", "m s-2")
+_BARE_POWER = re.compile(r"(?<=[A-Za-zµμ])(-?\d+)(?![\d.])")
 
 
 @lru_cache(maxsize=1)
@@ -121,7 +124,7 @@ def conversion(unit: str, kind: str, channel: str, gauge_factor: float | None = 
 
     ureg = registry()
     try:
-        parsed = ureg.parse_units(text)
+        parsed = _parse(ureg, text)
     except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, AttributeError, TypeError,
             ValueError, AssertionError) as exc:
         raise AKFInputError(f"channel {channel!r}: unknown unit {unit!r} ({exc}); give a unit such as "
@@ -152,6 +155,25 @@ def conversion(unit: str, kind: str, channel: str, gauge_factor: float | None = 
         raise AKFInputError(f"channel {channel!r}: unit {unit!r} is not a unit of {kind} (SI {SI_UNITS[kind]}); "
                             f"give a unit such as {_examples(kind)}") from None
     return Conversion(str(unit), float(scale))
+
+
+def _parse(ureg, text):
+    """pint's units of ``text``; where pint does not know it, again with a power written as bare
+    digits after a unit's name read as that power (``m/s2`` as ``m/s^2``, ``m s-2`` as ``m s^-2``)."""
+    import pint
+
+    try:
+        return ureg.parse_units(text)
+    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, AttributeError, TypeError,
+            ValueError, AssertionError):
+        powered = _BARE_POWER.sub(r"^\1", text)
+        if powered == text:
+            raise
+        try:
+            return ureg.parse_units(powered)
+        except Exception:  # noqa: BLE001 -- the unit as written is what the message names
+            pass
+        raise
 
 
 def _has_dimension(parsed, unit, whole=False):

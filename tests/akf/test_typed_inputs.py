@@ -55,7 +55,8 @@ def test_strain_units_that_are_not_strain(unit, gauge_factor, message):
         conversion(unit, "strain", "SG1", gauge_factor=gauge_factor)
 
 
-@pytest.mark.parametrize("unit, scale", [("uE", 1e-6), ("µE", 1e-6), ("ue", 1e-6), ("με", 1e-6), ("mm/m", 1e-3)])
+@pytest.mark.parametrize("unit, scale", [("uE", 1e-6), ("µE", 1e-6), ("ue", 1e-6), ("με", 1e-6), ("mm/m", 1e-3),
+                                         ("µɛ", 1e-6), ("uɛ", 1e-6)])
 def test_common_strain_abbreviations(unit, scale):
     from core_akf.io.units import conversion
 
@@ -67,6 +68,22 @@ def test_gravity_as_daq_systems_write_it(unit):
     from core_akf.io.units import conversion
 
     assert conversion(unit, "acc", "ACC1")(np.array([1.0]))[0] == pytest.approx(9.80665)
+
+
+@pytest.mark.parametrize("unit, kind, scale", [("m/s2", "acc", 1.0), ("mm/s2", "acc", 1e-3), ("m s-2", "acc", 1.0),
+                                               ("cm/s2", "acc", 1e-2), ("m/sec2", "acc", 1.0), ("ft/s2", "acc", 0.3048)])
+def test_a_power_written_as_bare_digits_as_daq_systems_label_channels(unit, kind, scale):
+    from core_akf.io.units import conversion
+
+    assert conversion(unit, kind, "ACC1")(np.array([2.0]))[0] == pytest.approx(2 * scale)
+
+
+@pytest.mark.parametrize("unit, message", [("m/s3", "'m/s3' is not a unit of acc"), ("xyz2", "unknown unit 'xyz2'")])
+def test_bare_digits_that_make_no_acceleration_are_still_named(unit, message):
+    from core_akf.io.units import conversion
+
+    with pytest.raises(ValueError, match=message):
+        conversion(unit, "acc", "ACC1")
 
 
 def test_v_per_v_is_a_bridge_output():
