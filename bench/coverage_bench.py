@@ -18,6 +18,8 @@ by more than ``HELD_MOVE`` robust errors) and where it is covered or so named.  
    model, so ``noise_cov:acc`` fits a value the truth does not have.
 4. ``case4-learn-q``: case 4 with ``model_error_cov`` learnt as well (from the job's 1e-16; it
    goes below 1e-19, its search reaching six decades down).
+   ``case4-held-learn``: case 4 with ``calibrate_held = "learn"``: the levels the record rejects
+   and a fitted parameter leans on (here Q and the random walk's S) learnt in a refit.
 5. ``acc-matern``: five accelerometers, two loads drawn from a Matérn-3/2 process (500 N, 4 ms),
    ``force_std`` and ``force_timescale`` from 250 N and 8 ms.
 6. ``acc-band``: the same job with band-limited loads (600 and 425 N RMS, 0-120 Hz) under the same
