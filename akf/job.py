@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import copy
 import os
+import warnings
 from collections.abc import Mapping
 from functools import cached_property
 
@@ -190,6 +191,8 @@ class Job:
 
     def __init__(self, spec: JobSpec, command: str, source: str | None = None, structure=None):
         self.spec, self.command, self.source = spec, command, source
+        #: the record's length was set from outside the job (--duration): loads it leaves out are meant
+        self.duration_overridden = False
         self.name = str(spec.name or (os.path.splitext(os.path.basename(source))[0] if source else command))
         self.description = spec.description or ""
         self.dt = float(spec.dt) if spec.dt is not None else None
@@ -296,7 +299,9 @@ class Job:
         source = None if source is None else os.fspath(source)
         if source is not None:
             resolve_paths(data, os.path.dirname(os.path.abspath(source)))
-        return cls(parse_job(data, command, source=source), command, source)
+        job = cls(parse_job(data, command, source=source), command, source)
+        job.duration_overridden = "simulation.duration" in (overrides or {})
+        return job
 
     def to_dict(self) -> dict:
         """The job as written (the keys set, after renames and path resolution): a dict for TOML or JSON."""
@@ -440,7 +445,8 @@ class Job:
         n_steps = int(round(sim.duration / self.dt)) if n_steps is None else n_steps
         specs = [{"components": [c.model_dump(exclude_unset=True) for c in load.components]}
                  for load in (sim.loads or [])]
-        return build_loads(specs, n_steps, self.dt, len(self.spec.forces))
+        return build_loads(specs, n_steps, self.dt, len(self.spec.forces),
+                           warn_after_end=not self.duration_overridden)      # not for a record cut short on purpose
 
     def simulate(self, per_step=None):
         """Simulate the measurements of ``[simulation]``: the true structure, its sensors, the forces
@@ -602,8 +608,10 @@ def build_structure(spec):
         raise AKFInputError(f"bad arguments for structure model {name!r}: {exc}") from None
 
 
-def build_loads(load_specs, n_steps, dt, n_forces):
-    """Load histories (N, n_p) from one ``{"components": [...]}`` spec per force location."""
+def build_loads(load_specs, n_steps, dt, n_forces, warn_after_end=True):
+    """Load histories (N, n_p) from one ``{"components": [...]}`` spec per force location;
+    ``warn_after_end``: a :class:`LoadWarning` for a load that starts after the record's end (not
+    for a record cut short on purpose)."""
     if len(load_specs) != n_forces:
         raise AKFInputError(f"simulation.loads has {len(load_specs)} entries for {n_forces} force locations")
     t = L.time_grid(n_steps, dt)
@@ -614,10 +622,43 @@ def build_loads(load_specs, n_steps, dt, n_forces):
             if kind not in _LOADS:
                 raise AKFInputError(f"unknown load type {kind!r}; use one of {sorted(_LOADS)}")
             try:
-                out[:, j] += _LOADS[kind](t, dt, c, c.get("seed"))
+                part = _LOADS[kind](t, dt, c, c.get("seed"))
             except KeyError as exc:
                 raise AKFInputError(f"load {kind!r} for force {j + 1} needs parameter {exc}") from None
+            except AKFInputError as exc:
+                raise AKFInputError(f"simulation.loads[{j}] (force {j + 1}), the {kind!r} load: {exc}") from None
+            _check_load_part(part, kind, c, j, n_steps, dt, warn_after_end)
+            out[:, j] += part
     return out
+
+
+class LoadWarning(UserWarning):
+    """A simulated load that the record does not hold (it starts after the record's end)."""
+
+
+#: the key that sets each load type's size: a component whose size is not zero must not vanish
+_LOAD_SIZE = {"band_noise": "rms", "white_noise": "std", "pulse": "peak", "ramp": "peak", "half_sine": "peak",
+              "sine": "amplitude", "constant": "value"}
+
+
+def _check_load_part(part, kind, c, j, n_steps, dt, warn_after_end):
+    """A load component that the record's samples miss is named, not simulated as zero or as an
+    alias: one that falls between two samples or a sine at or above the Nyquist frequency is an
+    error, one that starts after the record's end (a record cut short) a :class:`LoadWarning`."""
+    where = f"simulation.loads[{j}] (force {j + 1}): the {kind!r} load"
+    if kind == "sine" and c["frequency"] >= 0.5 / dt:
+        raise AKFInputError(f"{where} at {c['frequency']:g} Hz is at or above the Nyquist frequency ({0.5 / dt:g} Hz): "
+                            "its samples would be an alias of a lower frequency")
+    if c.get(_LOAD_SIZE[kind], 0) != 0 and not np.any(part):
+        end = (n_steps - 1) * dt
+        if c.get("start", -np.inf) > end:         # a time typed in ms, or a record cut short (--duration)
+            if warn_after_end:
+                warnings.warn(f"{where} starts at {c['start']:g} s, after the record's end ({end:.6g} s): it is zero "
+                              "throughout (times are in s)", LoadWarning, stacklevel=2)
+            return
+        raise AKFInputError(f"{where} is zero at every sample of the record (0 to {(n_steps - 1) * dt:.6g} s, every "
+                            f"{dt:.6g} s): its start, end or duration lie outside the record or between two samples "
+                            "(times are in s)")
 
 
 #: unit suffixes accepted in absolute noise levels: key -> (sensor kind, factor to SI)

@@ -213,9 +213,13 @@ def band_limited_white_noise(n_steps: int, dt: float, rms: float, f_low: float =
     f_high = nyq if f_high is None else f_high
     if not 0 <= f_low < f_high <= nyq + 1e-12:
         raise AKFInputError(f"need 0 <= f_low < f_high <= Nyquist ({nyq:g} Hz); got {f_low}, {f_high}")
+    f = np.fft.rfftfreq(n_steps, dt)
+    if not np.any((f > 0) & (f >= f_low) & (f <= f_high)):
+        raise AKFInputError(f"the band {f_low:g}-{f_high:g} Hz holds no frequency of a record of {n_steps} steps: its "
+                            f"frequencies are {1 / (n_steps * dt):.4g} Hz apart (1 / its length); widen the band or "
+                            "lengthen the record")
     rng = _rng(seed)
     spec = rng.normal(size=n_steps // 2 + 1) + 1j * rng.normal(size=n_steps // 2 + 1)
-    f = np.fft.rfftfreq(n_steps, dt)
     spec[(f < f_low) | (f > f_high)] = 0.0
     x = np.fft.irfft(spec, n_steps)
     s = np.sqrt(np.mean(x ** 2))

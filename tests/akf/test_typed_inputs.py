@@ -136,3 +136,53 @@ def test_diversity_of_a_large_population_is_sampled():
     pop = [enc.random_layout(rng) for _ in range(DIVERSITY_SAMPLE + 300)]
     assert enc.diversity(pop) == pytest.approx(enc.diversity([pop[i] for i in np.linspace(
         0, len(pop) - 1, DIVERSITY_SAMPLE).astype(int)]))
+
+
+@pytest.mark.parametrize("force, key, value, message", [
+    (1, "duration", 1e-4, "the 'pulse' load is zero at every sample"),                   # between two samples
+    (3, "start", 5.0, "ramp end"),                                                       # after its end
+    (0, "f_high", 0.1, "the band 0-0.1 Hz holds no frequency of a record of 8192 steps"),
+])
+def test_a_load_the_record_s_samples_miss_is_named_by_its_force(force, key, value, message):
+    from akf.examples import example_job
+    from akf.job import Job
+
+    data = example_job("s17-case4")
+    component = data["simulation"]["loads"][force]["components"][-1]
+    assert key in component or key == "f_high"
+    component[key] = value
+    with pytest.raises(ValueError, match=rf"simulation\.loads\[{force}\] \(force {force + 1}\)") as err:
+        Job.from_dict(data, "estimate").simulate()
+    assert message in str(err.value)
+
+
+def test_a_load_after_the_record_s_end_is_a_named_warning(tmp_path, capsys):
+    from akf.examples import example_job
+    from akf.job import Job, LoadWarning
+
+    data = example_job("s17-case4")
+    data["simulation"]["loads"][1]["components"][0]["start"] = 500.0          # ms typed for s
+    with pytest.warns(LoadWarning, match=r"simulation\.loads\[1\] \(force 2\): the 'pulse' load starts at 500 s, after"):
+        loads = Job.from_dict(data, "estimate").loads()
+    assert not np.any(loads[:, 1] > 1000)                 # the 5 kN pulse is not there
+    # a record cut short on purpose (--duration) leaves the pulse at 0.5 s out without a word
+    assert main(["estimate", "--example", "s17-case4", "--duration", "0.05", "--no-plot", "--out",
+                 str(tmp_path / "o")]) == 0
+    assert "after the record's end" not in capsys.readouterr().err
+    data["simulation"]["duration"] = 0.6                       # the job's own length: the other loads start within it
+    with pytest.warns(LoadWarning, match=r"the 'pulse' load starts at 500 s, after the record's end \(0.5998\d* s\)"):
+        Job.from_dict(data, "estimate").simulate()
+
+
+def test_a_sine_load_at_or_above_nyquist_is_refused_and_one_below_runs():
+    from akf.examples import example_job
+    from akf.job import Job
+
+    data = example_job("s17-case4")
+    sine = {"type": "sine", "frequency": 2048.0, "amplitude": 100.0}
+    data["simulation"]["loads"][0]["components"] = [sine]
+    with pytest.raises(ValueError, match="at or above the Nyquist frequency"):
+        Job.from_dict(data, "estimate").simulate()
+    sine["frequency"] = 100.0
+    loads = Job.from_dict(data, "estimate").loads()
+    assert np.max(np.abs(loads[:, 0])) == pytest.approx(100.0, rel=1e-3)
