@@ -300,6 +300,7 @@ class CsvReader(Reader):
                                       missing=False))
             t = np.concatenate(parts) if parts else np.empty(0)
             self._timing = check_time_grid(t, self.path)
+            check_row_widths(self.path, len(self._header()))
         return self._timing
 
     def chunks(self, channels, size):
@@ -308,6 +309,69 @@ class CsvReader(Reader):
         for frame in self._read(list(channels), size):
             yield np.column_stack([_numeric(frame[c], self.path, c, row) for c in channels])
             row += len(frame)
+
+
+#: bytes of a CSV file read at a time when the widths of its rows are checked
+WIDTH_BLOCK = 1 << 24
+
+
+def check_row_widths(path, width):
+    """Refuse a CSV file whose data rows do not each have the header's ``width`` fields.
+
+    pandas reads such a row without a word when it picks columns: an extra field (a decimal comma,
+    a separator too many) is dropped and the row's later cells shift to other channels; a torn or
+    short row gives missing samples.  Blank lines are skipped, as pandas skips them.
+
+    Parameters
+    ----------
+    path : str
+        The CSV file (comma-separated, a header row).
+    width : int
+        The header's fields.
+
+    Raises
+    ------
+    AKFInputError
+        Naming the first data row of another width (1-based, as the other record messages count).
+    """
+    row, tail = 0, b""
+    with open(path, "rb") as fh:
+        fh.readline()                                   # the header
+        while True:
+            block = fh.read(WIDTH_BLOCK)
+            data = tail + block
+            end = len(data) if not block else data.rfind(b"\n") + 1
+            lines, tail = data[:end], data[end:]
+            if lines and not lines.endswith(b"\n"):
+                lines += b"\n"
+            fields = _fields_per_line(lines)
+            bad = np.flatnonzero(fields != width)
+            if bad.size:
+                r = row + int(bad[0]) + 1
+                raise AKFInputError(f"{path}: data row {r} has {fields[bad[0]]} fields where the header names {width}: a "
+                                    "broken or torn row (a decimal comma, a separator too many or too few); a missing "
+                                    "sample is an empty cell between two commas")
+            row += fields.size
+            if not block:
+                return
+
+
+def _fields_per_line(lines):
+    """The fields of each non-blank line of ``lines`` (bytes ending in a newline): commas + 1, or
+    the csv module's count where a quote may hide a comma."""
+    if b'"' in lines:
+        import csv
+        import io
+
+        rows = csv.reader(io.StringIO(lines.decode("utf-8", errors="replace"), newline=""))
+        return np.array([len(r) for r in rows if r], int)
+    a = np.frombuffer(lines, np.uint8)
+    newline = np.flatnonzero(a == 10)
+    start = np.r_[0, newline[:-1] + 1]
+    commas = np.r_[0, np.cumsum(a == 44)]
+    count = commas[newline] - commas[start]
+    length = newline - start - (a[np.maximum(newline - 1, 0)] == 13)
+    return (count + 1)[length > 0]
 
 
 def _check_unique_columns(names, path):

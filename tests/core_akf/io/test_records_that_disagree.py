@@ -57,3 +57,37 @@ def test_uff58_frequency_response_is_not_a_time_record(tmp_path):
     pyuff.UFF(str(tmp_path / "frf.uff")).write_sets(sets, mode="overwrite")
     with pytest.raises(ValueError, match="is a frequency response function \\(FRF\\), not a time response"):
         read_channels(tmp_path / "frf.uff")
+
+
+def _csv_rows(n=200):
+    return ["time,acc:4:y,acc:6:y"] + [f"{k / 1e3},{np.sin(k / 7):.6f},{np.cos(k / 5):.6f}" for k in range(n)]
+
+
+@pytest.mark.parametrize("broken, row, fields", [
+    (lambda rows: rows.__setitem__(120, "{},{}".format(*rows[120].split(",", 1)).replace(
+        ",0.", ",0,").replace(",-0.", ",-0,")), 120, 5),                               # decimal commas
+    (lambda rows: rows.__setitem__(60, rows[60] + ",7"), 60, 4),                      # a separator too many
+    (lambda rows: rows.__setitem__(200, rows[200][:6]), 200, 2),                       # a row torn at the end
+    (lambda rows: rows.__setitem__(33, rows[33].rsplit(",", 1)[0]), 33, 2)])          # a cell and its comma lost
+def test_a_csv_row_of_another_width_is_named_not_shifted_into_other_channels(tmp_path, broken, row, fields):
+    # pandas drops an extra field without a word when it picks columns, and the row's later cells
+    # land in other channels; a short row became missing samples
+    rows = _csv_rows()
+    broken(rows)
+    (tmp_path / "r.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(ValueError, match=f"data row {row} has {fields} fields where the header names 3"):
+        read_channels(tmp_path / "r.csv")
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n"])
+def test_csv_rows_with_empty_cells_quotes_blank_lines_and_no_final_newline_are_read(tmp_path, newline, monkeypatch):
+    from core_akf.io import readers
+
+    monkeypatch.setattr(readers, "WIDTH_BLOCK", 256)            # rows cut across the blocks the check reads
+    rows = _csv_rows()
+    rows[0] = '"time","acc:4:y","acc:6:y"'
+    rows[50] = rows[50].rsplit(",", 1)[0] + ","                 # a missing sample: an empty cell
+    rows.insert(90, "")                                        # a blank line, skipped as pandas skips it
+    (tmp_path / "r.csv").write_text(newline.join(rows))
+    t, Y = read_channels(tmp_path / "r.csv")[:2]
+    assert Y.shape == (200, 2) and np.isnan(Y[49, 1]) and np.isfinite(np.delete(Y, 49, axis=0)).all()
