@@ -656,7 +656,7 @@ def _check_load_part(part, kind, c, j, n_steps, dt, warn_after_end):
                 warnings.warn(f"{where} starts at {c['start']:g} s, after the record's end ({end:.6g} s): it is zero "
                               "throughout (times are in s)", LoadWarning, stacklevel=2)
             return
-        raise AKFInputError(f"{where} is zero at every sample of the record (0 to {(n_steps - 1) * dt:.6g} s, every "
+        raise AKFInputError(f"{where} is zero at every sample of the record (0 to {end:.6g} s, every "
                             f"{dt:.6g} s): its start, end or duration lie outside the record or between two samples "
                             "(times are in s)")
 

@@ -160,12 +160,9 @@ def conversion(unit: str, kind: str, channel: str, gauge_factor: float | None = 
 def _parse(ureg, text):
     """pint's units of ``text``; where pint does not know it, again with a power written as bare
     digits after a unit's name read as that power (``m/s2`` as ``m/s^2``, ``m s-2`` as ``m s^-2``)."""
-    import pint
-
     try:
         return ureg.parse_units(text)
-    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, AttributeError, TypeError,
-            ValueError, AssertionError):
+    except Exception:  # noqa: BLE001 -- the caller tells pint's errors apart; the first one is raised
         powered = _BARE_POWER.sub(r"^\1", text)
         if powered == text:
             raise
