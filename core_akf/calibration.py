@@ -676,14 +676,13 @@ def _calibrate(structure: Structure, sensors: Layout, forces: Forces, measuremen
         warnings += w
         if part == "time":         # the levels the fit held: do they fit, and what would learning them move?
             rejected = _held_levels(problem, Y, u, free, H, e, r, [bounds[j] for j in free], force_model)
-            learn = list(_leaning(rejected)) if held == "learn" else []
+            leaning = _leaning(rejected) if held == "learn" else {}
+            learn = list(leaning)
             if learn:                  # fit again with them learnt, from here
                 first = {n: float(np.exp(x)) for n, x in zip(problem.names, u)}
-                width = default("calibration_decades", decades)
-                for level in learn:
-                    below = MODEL_ERROR_DECADES_BELOW * width if level == "model_error_cov" else width
-                    first[level] = float(np.clip(rejected[level]["best_factor"], 10 ** (0.999 * -below),
-                                                 10 ** (0.999 * width)))
+                for level in learn:            # its best factor, inside the refit's search range
+                    lo, hi = _level_bounds(level, decades)
+                    first[level] = float(np.clip(rejected[level]["best_factor"], np.exp(0.999 * lo), np.exp(0.999 * hi)))
                 offset, best = problem.evaluations, problem.best
                 fit = _calibrate(structure, sensors, forces, measurements, dt, parameters=[*asked, *learn],
                                 model_error_cov=model_error_cov, force_increment_cov=None,
@@ -692,7 +691,7 @@ def _calibrate(structure: Structure, sensors: Layout, forces: Forces, measuremen
                                 progress=None if progress is None else _carried(progress, offset, best),
                                 method=asked_method, n_modes=n_modes, held=held,
                                 information=([problem.names[j] for j in free], -H))
-                fit.notes = [*notes, *_learnt_notes(rejected, learn),
+                fit.notes = [*notes, *_learnt_notes(rejected, leaning),
                              *(n for n in fit.notes if n not in notes)]
                 fit.held_levels = {**{lv: {**rejected[lv], "learnt": True} for lv in learn}, **fit.held_levels}
                 fit.evaluations += offset
@@ -941,6 +940,14 @@ def _reduced(structure, sensors, forces, dt, n_modes, force_model, model_error_c
     return fm.structure, fm.residual_noise(layout, float(np.max(model_error_cov))), k
 
 
+def _level_bounds(name, decades):
+    """The search interval of a covariance level's log-factor: the decades either side of it, and
+    for ``model_error_cov`` :data:`MODEL_ERROR_DECADES_BELOW` times as many below (no model error at
+    all is a common truth)."""
+    width = np.log(10.0) * default("calibration_decades", decades)
+    return (-MODEL_ERROR_DECADES_BELOW * width if name == "model_error_cov" else -width), width
+
+
 def _bounds(problem, force_model, n_steps, stiffness_range, decades):
     """The search interval of every log-factor: the ranges of the model's factors, the decades of
     the covariances (half of them for a std), and for a time scale what the record resolves."""
@@ -948,11 +955,8 @@ def _bounds(problem, force_model, n_steps, stiffness_range, decades):
               "damping": default("calibration_damping_range"),
               "frequencies": default("calibration_frequency_range")}
     width = np.log(10.0) * default("calibration_decades", decades)
-    bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else (-width, width)
+    bounds = [tuple(np.log(ranges[n.split(":")[0]])) if n.split(":")[0] in ranges else _level_bounds(n, decades)
               for n in problem.names]
-    for j, name in enumerate(problem.names):
-        if name == "model_error_cov":      # no model error at all is a common truth: further down than up
-            bounds[j] = (-MODEL_ERROR_DECADES_BELOW * width, width)
     if not force_model.stationary:
         return bounds
     dt, locs = problem.base.dt, problem.locs
@@ -1322,13 +1326,13 @@ def _carried(progress, offset, best):
     return lambda e, x, b: progress(e + offset, x + offset, max(b, best))
 
 
-def _learnt_notes(held, learnt):
-    """The note of each level of ``learnt`` that :func:`calibrate` learnt as well (``held="learn"``)."""
-    leaning = _leaning(held)
+def _learnt_notes(held, leaning):
+    """The note of each level of ``leaning`` (:func:`_leaning` of ``held``) that :func:`calibrate`
+    learnt as well (``held="learn"``)."""
     return [f"{level} was learnt as well: the record rejects the job's value (the log-likelihood rises by "
             f"{held[level]['loglik_gain']:.3g} at {held[level]['best_factor']:.2g}x it), and holding it would have "
-            "moved " + ", ".join(f"{n} by {z:+.1f}" for n, z in leaning[level]) + " robust standard errors "
-            "(calibrate_held = \"learn\")" for level in learnt]
+            "moved " + ", ".join(f"{n} by {z:+.1f}" for n, z in moved) + " robust standard errors "
+            "(calibrate_held = \"learn\")" for level, moved in leaning.items()]
 
 
 def _held_warnings(held):
