@@ -24,6 +24,7 @@ Layouts read:
 """
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import re
@@ -61,6 +62,20 @@ class Timing:
     def end(self):
         """Time of the step after the last one (s): where the next file of a record starts."""
         return self.start + self.n_steps * self.dt
+
+
+@contextlib.contextmanager
+def file_damage_named(path):
+    """Turn what a format library raises on a damaged file (a bad checksum or signature, a read
+    past the end) into an error naming the file: for the reads that open and index a file."""
+    try:
+        yield
+    except AKFInputError:
+        raise
+    except (OSError, RuntimeError, KeyError, EOFError, UnicodeDecodeError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc).strip("'\"")
+        raise AKFInputError(f"{path}: the file cannot be read ({type(exc).__name__}: {why[:200]}); is it damaged or "
+                            "cut short?") from None
 
 
 class MissingExtraError(AKFInputError):
@@ -209,7 +224,7 @@ def check_time_grid(t, path, dt=None, offset=0):
         For a time that repeats or goes back, or a stamp off the uniform grid (a gap or jitter)
         by more than :data:`TIME_GRID_RTOL` of a step.
     """
-    t = np.asarray(t, float)
+    t, origin = time_in_seconds(t, path)
     if t.size < 1:
         raise AKFInputError(f"{path}: 0 data rows; a record needs at least two time steps")
     if not np.all(np.isfinite(t)):
@@ -239,7 +254,101 @@ def check_time_grid(t, path, dt=None, offset=0):
             dev = off[r]
         raise AKFInputError(f"{path}: data row {offset + r + 1} (t = {t[r]:.9g} s) is {dev:.3g} s ({dev / dt:.3g} "
                             f"steps) off the uniform grid t0 + k dt (dt = {dt:.9g} s): a gap or jitter there")
-    return Timing(float(t[0]), float(dt), int(t.size))
+    return Timing(origin + float(t[0]), float(dt), int(t.size))
+
+
+def time_in_seconds(t, path):
+    """Time stamps as seconds from an origin: numbers as they are (origin 0); date-times
+    (``datetime64``, as TDMS and Parquet store time stamps) and durations (``timedelta64``) as
+    seconds after the first stamp, counted in whole nanoseconds so that the steps keep their
+    precision, with the first stamp's seconds since 1970 (or 0 for a duration) as the origin.
+
+    Parameters
+    ----------
+    t : array_like (N,)
+        Time stamps.
+    path : str
+        The file, for messages.
+
+    Returns
+    -------
+    seconds : ndarray (N,) of float
+        Seconds after the origin (NaN for a missing stamp).
+    origin : float
+        The origin (s).
+    """
+    t = np.asarray(t)
+    if t.dtype.kind in "mM":
+        ns = t.astype(f"{t.dtype.kind}8[ns]")
+        valid = ~np.isnat(ns)
+        seconds = np.full(t.shape, np.nan)
+        if not valid.any():
+            return seconds, 0.0
+        first = ns[valid][0]
+        seconds[valid] = (ns[valid] - first).astype("int64") * 1e-9
+        return seconds, (float(first.astype("int64")) * 1e-9 if t.dtype.kind == "M" else 0.0)
+    try:
+        return np.asarray(t, float), 0.0
+    except (TypeError, ValueError):
+        raise AKFInputError(f"{path}: the time stamps are not numbers or date-times (they hold {t.dtype} values, "
+                            "such as text)") from None
+
+
+def grid_number(value, path, what):
+    """A time-grid number a file states (a step or a first time, s) as a float, or an error naming
+    it: one finite real number, not text, an array or NaN.
+
+    Parameters
+    ----------
+    value : object
+        What the file holds (a property or an attribute).
+    path : str
+        The file, for messages.
+    what : str
+        Which property or attribute it is, for messages.
+
+    Returns
+    -------
+    float
+    """
+    v = value.decode(errors="replace") if isinstance(value, bytes) else value
+    try:
+        arr = np.asarray(v)
+        number = float(arr.reshape(())) if arr.size == 1 and arr.dtype.kind in "iuf" else None
+    except (TypeError, ValueError, OverflowError):
+        number = None
+    if number is None or not np.isfinite(number):
+        shown = repr(v) if number is not None or np.asarray(v).size == 1 else f"an array of {np.asarray(v).size} values"
+        raise AKFInputError(f"{path}: {what} is {shown[:60]}, not a finite number of seconds")
+    return number
+
+
+def uniform_grid(path, start, dt, n, where):
+    """The :class:`Timing` of a grid a file states (first time ``start`` s, step ``dt`` s, ``n``
+    steps), or an error naming where it is stated: the step positive, and the first time small
+    enough that its steps can be told apart in double precision.
+
+    Parameters
+    ----------
+    path : str
+        The file, for messages.
+    start, dt : float
+        The first time and the step (s).
+    n : int
+        Steps.
+    where : str
+        Where the file states the grid (its properties or attributes), for messages.
+
+    Returns
+    -------
+    Timing
+    """
+    if not dt > 0:
+        raise AKFInputError(f"{path}: {where}: the time step {dt!r} s is not positive")
+    if abs(start) * np.finfo(float).eps > TIME_GRID_RTOL * dt:
+        raise AKFInputError(f"{path}: {where}: the first time {start:.6g} s is so large that steps of {dt:.6g} s "
+                            "after it cannot be told apart in double precision (is it in another unit?)")
+    return Timing(float(start), float(dt), int(n))
 
 
 # ------------------------------------------------------------------------------------- tables
@@ -433,6 +542,32 @@ def _found(columns):
             "table with a header row?)")
 
 
+def _samples(values, path, name, row0):
+    """A channel's values as floats: true/false values (a digital line) and infinite values refused
+    by name; a ``TypeError``/``ValueError`` for values that are not numbers (the caller names them).
+
+    Parameters
+    ----------
+    values : array_like (k,)
+        The channel's values as the format library gives them.
+    path, name : str
+        The file and the channel, for messages.
+    row0 : int
+        The data row of ``values[0]``, for messages.
+
+    Returns
+    -------
+    ndarray (k,) of float
+    """
+    values = np.asarray(values)
+    if values.dtype == bool:
+        raise AKFInputError(f"{path}: channel {name!r} holds true/false values (a digital line or a flag), not "
+                            "measurements")
+    values = np.asarray(values, float)
+    _refuse_infinite(values, path, name, row0)
+    return values
+
+
 def _refuse_infinite(values, path, name, row0):
     """A located error for an infinite sample (a missing one is NaN, not inf)."""
     bad = np.flatnonzero(np.isinf(values))
@@ -472,7 +607,7 @@ class ParquetReader(Reader):
     def timing(self):
         if self._timing is None:
             t = self._file.read(columns=[self.time_column]).column(0).to_numpy(zero_copy_only=False)
-            self._timing = check_time_grid(np.asarray(t, float), self.path)
+            self._timing = check_time_grid(t, self.path)
         return self._timing
 
     def chunks(self, channels, size):
@@ -483,12 +618,13 @@ class ParquetReader(Reader):
             for i, c in enumerate(channels):
                 values = batch.column(i).to_numpy(zero_copy_only=False)
                 try:
-                    values = np.asarray(values, float)          # a null is NaN: a missing sample
+                    values = _samples(values, self.path, c, row)          # a null is NaN: a missing sample
+                except AKFInputError:
+                    raise
                 except (TypeError, ValueError):
                     import pandas as pd
 
                     values = _numeric(pd.Series(values), self.path, c, row)     # text: located
-                _refuse_infinite(values, self.path, c, row)
                 columns.append(values)
             block = np.column_stack(columns)
             row += block.shape[0]
@@ -566,7 +702,8 @@ class _SlicedReader(Reader):
             raise AKFInputError(f"{self.path}: the time channel {self.time_column!r} has {len(t)} samples but the data "
                                 f"channels have {n}; a record needs one time stamp per sample")
         timing = check_time_grid(t[:], self.path)
-        if stated_dt is not None and abs(float(stated_dt) - timing.dt) > TIME_GRID_RTOL * timing.dt:
+        stated_dt = None if stated_dt is None else grid_number(stated_dt, self.path, where)
+        if stated_dt is not None and abs(stated_dt - timing.dt) > TIME_GRID_RTOL * timing.dt:
             raise AKFInputError(f"{self.path}: the time channel {self.time_column!r} steps by {timing.dt:.9g} s but "
                                 f"{where} says {float(stated_dt):.9g} s; which one is right?")
         return timing
@@ -579,16 +716,17 @@ class _SlicedReader(Reader):
             columns = []
             for c in channels:
                 try:
-                    values = np.asarray(self._series[c][start:stop], float)
+                    values = _samples(self._series[c][start:stop], self.path, c, start)
+                except AKFInputError:
+                    raise
                 except (TypeError, ValueError):
                     raise AKFInputError(f"{self.path}: channel {c!r} does not hold numbers (it holds "
                                         f"{np.asarray(self._series[c][start:start + 1]).dtype} values)") from None
-                except (OSError, MemoryError, OverflowError) as exc:
+                except (OSError, MemoryError, OverflowError, RuntimeError, KeyError, EOFError) as exc:
                     raise AKFInputError(f"{self.path}: samples {start}..{stop - 1} of channel {c!r} cannot be read "
                                         f"({type(exc).__name__}: {getattr(exc, 'strerror', None) or exc}): the file's "
                                         f"index claims {self.timing().n_steps} samples; is it damaged or cut "
                                         "short?") from None
-                _refuse_infinite(values, self.path, c, start)
                 columns.append(values)
             yield np.column_stack(columns)
 
@@ -639,15 +777,15 @@ class TdmsReader(_SlicedReader):
                 if grid is None or grid[0] is None:
                     raise AKFInputError(f"{self.path}: no time: the channels have no wf_increment property and there "
                                         f"is no channel {self.time_column!r}")
-                dt = float(grid[0])
-                if not dt > 0:
-                    raise AKFInputError(f"{self.path}: wf_increment {dt!r} is not a positive time step")
-                self._timing = Timing(float(grid[1]), dt, int(n))
+                self._timing = uniform_grid(self.path, grid[1], grid[0], n,
+                                            "the channels' wf_start_offset and wf_increment")
         return self._timing
 
     def _grid_of(self, name):
         props = self._series[name].properties
-        return props.get("wf_increment"), props.get("wf_start_offset", 0.0)
+        dt = props.get("wf_increment")
+        return (None if dt is None else grid_number(dt, self.path, f"channel {name!r}: wf_increment"),
+                grid_number(props.get("wf_start_offset", 0.0), self.path, f"channel {name!r}: wf_start_offset"))
 
 
 #: UFF 58 function types (record 6, field 1) other than a time response
@@ -714,18 +852,18 @@ class Uff58Reader(Reader):
                 if not is_unset(s.get("ordinate_axis_units_lab"))}
 
     def timing(self):
-        grids = {(float(s["abscissa_min"]), float(s["abscissa_inc"]), int(len(s["data"]))) for s in self._sets.values()}
+        grids = {(grid_number(s["abscissa_min"], self.path, f"data set {c!r}: abscissa minimum"),
+                  grid_number(s["abscissa_inc"], self.path, f"data set {c!r}: abscissa increment"), int(len(s["data"])))
+                 for c, s in self._sets.items()}
         if len(grids) > 1:
             raise AKFInputError(f"{self.path}: the data sets have different time grids (start, step, length): "
                                 f"{sorted(grids)}")
         start, dt, n = grids.pop()
-        if not dt > 0:
-            raise AKFInputError(f"{self.path}: abscissa increment {dt!r} is not a positive time step")
-        return Timing(start, dt, n)
+        return uniform_grid(self.path, start, dt, n, "the data sets' abscissa minimum and increment")
 
     def chunks(self, channels, size):
         self._check_channels(channels)
-        data = np.column_stack([np.asarray(self._sets[c]["data"], dtype=float) for c in channels])
+        data = np.column_stack([_samples(self._sets[c]["data"], self.path, c, 0) for c in channels])
         for start in range(0, data.shape[0], size):
             yield data[start:start + size]
 
@@ -747,12 +885,13 @@ class Hdf5Reader(_SlicedReader):
             self._file = self.lib.File(self.path, "r")
         except Exception as exc:  # noqa: BLE001 -- h5py raises OSError subclasses of its own
             raise AKFInputError(f"{self.path}: not a readable HDF5 file ({type(exc).__name__}: {exc})") from None
-        try:
+        with file_damage_named(self.path):
+            if group and group not in self._file:
+                raise AKFInputError(f"{self.path}: no group {group!r}; the file has {list(self._file)}")
             self._group = self._file[group] if group else self._file
-        except KeyError:
-            raise AKFInputError(f"{self.path}: no group {group!r}; the file has {list(self._file)}") from None
-        self._series = {k: v for k, v in self._group.items() if isinstance(v, self.lib.Dataset) and v.ndim == 1}
-        self._skipped = [f"{k} {v.shape}" for k, v in self._group.items() if isinstance(v, self.lib.Dataset) and v.ndim != 1]
+            items = list(self._group.items())
+        self._series = {k: v for k, v in items if isinstance(v, self.lib.Dataset) and v.ndim == 1}
+        self._skipped = [f"{k} {v.shape}" for k, v in items if isinstance(v, self.lib.Dataset) and v.ndim != 1]
         self._timing = None
 
     def _length(self):
@@ -781,15 +920,20 @@ class Hdf5Reader(_SlicedReader):
 
     def units(self):
         out = {}
-        for name, ds in self._series.items():
-            for key in ("unit", "units", "unit_string"):
-                if key in ds.attrs and name != self.time_column:
-                    v = ds.attrs[key]
-                    out[name] = v.decode() if isinstance(v, bytes) else str(v)
-                    break
+        with file_damage_named(self.path):
+            for name, ds in self._series.items():
+                for key in ("unit", "units", "unit_string"):
+                    if key in ds.attrs and name != self.time_column:
+                        v = ds.attrs[key]
+                        out[name] = v.decode(errors="replace") if isinstance(v, bytes) else str(v)
+                        break
         return out
 
     def timing(self):
+        with file_damage_named(self.path):
+            return self._timing_of_file()
+
+    def _timing_of_file(self):
         if self._timing is None:
             n = self._length()
             a = self._group.attrs
@@ -800,7 +944,7 @@ class Hdf5Reader(_SlicedReader):
                 if dt is None:
                     raise AKFInputError(f"{self.path}: no time: no dataset {self.time_column!r} and no attribute dt "
                                         "(or wf_increment) on the group or its datasets")
-                self._timing = Timing(float(t0), float(dt), int(n))
+                self._timing = uniform_grid(self.path, t0, dt, n, "the attributes dt and t0")
         return self._timing
 
     def _grid_of(self, name):
@@ -809,10 +953,10 @@ class Hdf5Reader(_SlicedReader):
         own, group = self._series[name].attrs, self._group.attrs
 
         def attr(*keys, default=None):
-            for where in (own, group):
+            for where, whose in ((own, f"dataset {name!r}"), (group, "the group")):
                 for key in keys:
                     if key in where:
-                        return float(where[key])
+                        return grid_number(where[key], self.path, f"attribute {key} of {whose}")
             return default
 
         return attr("dt", "wf_increment"), attr("t0", "wf_start_offset", default=0.0)

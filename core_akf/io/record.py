@@ -22,13 +22,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import AKFInputError, FloatArray, Layout, Time
-from ..sensors import as_layout
+from ..sensors import UNITS, as_layout
 from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
 from .units import conversion, is_bridge_unit, is_unset
 
 #: a strain channel whose RMS exceeds this (m/m) is not in SI units: 1 % is five times the yield
 #: strain of structural steel, far beyond the elastic range every model here assumes
 MAX_PLAUSIBLE_STRAIN = 0.01
+#: no sensor of a kind reads beyond this, in SI (strain m/m, acc m/s^2, vel m/s, disp m or rad): a
+#: sample beyond it is a corrupt value or an overflow code (some DAQs write 9.9e37), not a measurement;
+#: 1 m/m is 100 % strain, 1e6 m/s^2 about 100 000 g (the range of shock accelerometers)
+MAX_READABLE = {"strain": 1.0, "acc": 1e6, "vel": 1e4, "disp": 1e4}
+_SENSOR_NAMES = {"strain": "a strain gauge", "acc": "an accelerometer", "vel": "a velocity sensor",
+                 "disp": "a displacement sensor"}
 #: a channel exactly constant over a chunk this long is disconnected or saturated
 _CONSTANT_MIN_STEPS = 16
 
@@ -411,7 +417,9 @@ class Record:
                     block, drop = block[drop:], max(drop - block.shape[0], 0)
                     if not block.shape[0]:
                         continue
-                yield step, _si(block, sources)
+                Y = _si(block, sources)
+                self._check_readable(step, Y)
+                yield step, Y
                 step += block.shape[0]
             del reader
 
@@ -466,6 +474,30 @@ class Record:
             Y = Y - offsets
             self._check_chunk(step, Y)
             yield step, Y
+
+    def _check_readable(self, step, Y):
+        """Refuse samples beyond what a sensor of the channel's kind reads (:data:`MAX_READABLE`),
+        naming the first: a corrupt value or an overflow code, or the whole channel in another unit."""
+        limits = np.array([MAX_READABLE[s.kind] for s in self.layout])
+        with np.errstate(invalid="ignore"):
+            beyond = np.abs(Y) > limits                 # NaN (missing) is not beyond
+        if not beyond.any():
+            return
+        j = int(np.flatnonzero(beyond.any(axis=0))[0])
+        rows = np.flatnonzero(beyond[:, j])
+        observed = int(np.count_nonzero(~np.isnan(Y[:, j])))
+        kind, unit = self.layout[j].kind, UNITS[self.layout[j].kind]
+        where = (f"{rows.size} of {observed} samples of steps {step}..{step + len(Y) - 1}, the first "
+                 f"{Y[rows[0], j]:.4g} {unit} at step {step + rows[0]} (t = {self.start + (step + rows[0]) * self.dt:.6g} s)")
+        if rows.size * 2 > observed:            # most of the channel: its unit (strain: the RMS check tells)
+            if kind == "strain":
+                return
+            raise AKFInputError(f"channel {self._named(j)}: {where} are beyond what {_SENSOR_NAMES[kind]} reads "
+                                f"(|x| > {MAX_READABLE[kind]:g} {unit}); is the channel's unit right?")
+        raise AKFInputError(f"channel {self._named(j)}: {where} are beyond what {_SENSOR_NAMES[kind]} reads "
+                            f"(|x| > {MAX_READABLE[kind]:g} {unit}): corrupt values or a data-acquisition "
+                            "system's overflow code, not measurements; mark them missing (NaN or an empty cell) in "
+                            "the file")
 
     def _check_chunk(self, step, Y):
         where = f"{os.path.basename(self.files[0])}{' ...' if len(self.files) > 1 else ''}, steps {step}..{step + len(Y) - 1}"

@@ -15,6 +15,8 @@ import re
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numpy as np
+
 from ..checks import AKFInputError
 from ..sensors import UNITS
 
@@ -34,6 +36,9 @@ _STRAIN_NAMES = {"ue": "microstrain", "µe": "microstrain", "μe": "microstrain"
                  "µstrain": "microstrain", "me": "millistrain", "mstrain": "millistrain", "e": "strain",
                  "ε": "strain", "eps": "strain", "uɛ": "microstrain", "µɛ": "microstrain", "μɛ": "microstrain",
                  "ɛ": "strain"}     # ɛ: the Latin epsilon some catalogues print for ε
+#: pint's dimensionless units that no sensor reads in: counts of raw values, and logarithmic levels
+#: (matched at the end of a name, so that prefixed ones such as "kilobyte" and "decibel" are caught)
+_NOT_PHYSICAL = ("count", "bit", "byte", "baud", "bel", "neper", "octave", "decade")
 #: a unit's power written as digits after its name, as DAQ systems label channels ("m/s2", "m s-2")
 _BARE_POWER = re.compile(r"(?<=[A-Za-zµμ])(-?\d+)(?![\d.])")
 
@@ -75,7 +80,8 @@ class Conversion:
     gauge_factor: float | None = None
 
     def __call__(self, raw):
-        r = raw * self.scale
+        with np.errstate(over="ignore"):        # a value beyond reach is named by the record's check
+            r = raw * self.scale
         if self.bridge is None:
             return r
         if self.bridge == "quarter":
@@ -129,6 +135,12 @@ def conversion(unit: str, kind: str, channel: str, gauge_factor: float | None = 
             ValueError, AssertionError) as exc:
         raise AKFInputError(f"channel {channel!r}: unknown unit {unit!r} ({exc}); give a unit such as "
                             f"{_examples(kind)}") from None
+    raw = [str(u) for u in parsed._units if str(u).endswith(_NOT_PHYSICAL)]
+    if raw:
+        what = ("a logarithmic level" if raw[0].endswith(("bel", "neper", "octave", "decade"))
+                else "a count of raw values (ADC counts, bits or bytes)")
+        raise AKFInputError(f"channel {channel!r}: {unit!r} is {what}, not a unit of {kind}; give the unit the "
+                            f"channel's values are scaled in, such as {_examples(kind)}")
     if kind == "strain" and _has_dimension(parsed, "V") and not _has_dimension(parsed, "", whole=True):
         raise AKFInputError(f"channel {channel!r} is a voltage in {unit!r}, not a bridge ratio: give it in mV/V (the "
                             "bridge output divided by its excitation voltage) with a gauge_factor, or in microstrain")
