@@ -110,6 +110,28 @@ TIMESCALE_BELOW_DT = 1e3
 MAX_TIMESCALE = 1e8
 
 
+#: a factor on the model's stiffness (or on a mode's frequency, squared) beyond this either way
+#: makes another structure, not a calibration of this one: a typing slip (1e-12 ended in "the
+#: innovation covariance is not positive definite", 1e12 in a failed steady-state gain)
+MAX_STIFFNESS_FACTOR = 100.0
+
+
+def check_stiffness_factors(stiffness, frequencies=(), key="[filter] stiffness_factor"):
+    """``stiffness_factor`` (one or a list) and ``frequency_factors`` checked to within
+    :data:`MAX_STIFFNESS_FACTOR` of 1 (frequency factors squared), named by their key."""
+    for value in np.atleast_1d(np.asarray(stiffness, float)):
+        if not 1 / MAX_STIFFNESS_FACTOR <= value <= MAX_STIFFNESS_FACTOR:
+            raise AKFInputError(f"{key} = {value:.4g} multiplies the model's stiffness (1.05: 5 % "
+                                f"stiffer) and every frequency by its square root ({np.sqrt(value):.3g}x): a model "
+                                f"that far off is another structure; give a factor between {1 / MAX_STIFFNESS_FACTOR:g} "
+                                f"and {MAX_STIFFNESS_FACTOR:g}")
+    for k, value in enumerate(np.atleast_1d(np.asarray(frequencies, float)), start=1):
+        if not 1 / MAX_STIFFNESS_FACTOR <= value ** 2 <= MAX_STIFFNESS_FACTOR:
+            raise AKFInputError(f"[filter] frequency_factors[{k - 1}] = {value:.4g} multiplies mode {k}'s frequency: a "
+                                "mode that far off is another structure; give a factor between "
+                                f"{MAX_STIFFNESS_FACTOR ** -0.5:g} and {MAX_STIFFNESS_FACTOR ** 0.5:g}")
+
+
 def check_force_prior(std, timescale, dt):
     """A Matérn prior's ``force_std`` (N) and ``force_timescale`` (s), checked against what a
     record can resolve: a time scale between ``dt / 1000`` and ~3 years, a standard deviation up
@@ -204,6 +226,7 @@ class Job:
         self.steady = f.steady
         self.allow_undetectable = bool(f.allow_undetectable)
         self.frequency_factors = list(f.frequency_factors or [])
+        check_stiffness_factors(self.stiffness_factor, self.frequency_factors)
         self.calibrate = list(f.calibrate or [])
         self.calibrate_modes = f.calibrate_modes
         self.smooth = bool(f.smooth)

@@ -6,7 +6,7 @@ from core_akf.defaults import default
 from sensoropt.problem import PlacementProblem
 
 from .examples import TH_CASE2, load_example
-from .job import Job
+from .job import Job, check_stiffness_factors
 
 
 def example_problem(name, n_sensors=None):
@@ -98,6 +98,7 @@ def uncertainty_of(job: Job):
     frequency = None if u.frequency_factors is None else calibrated_frequencies(job, u.frequency_factors)
     if u.stiffness_factor is not None:
         factor = u.stiffness_factor
+        check_stiffness_factors(factor, key="[place.uncertainty] stiffness_factor")
     elif frequency is not None:     # a calibration says how the truth differs from the filter's model: its
         # stiffness factor (the other modes' common factor, squared) against the job's, and the modes' factors on top
         factor = job.stiffness_factor / frequency[2]

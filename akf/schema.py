@@ -129,7 +129,7 @@ class Filter(Section):
     """``[filter]``: the filter's model and covariances."""
 
     stiffness_factor: Positive = key(
-        "a positive number", "the filter's stiffness relative to the true structure (1.05: 5 % stiffer)",
+        "a number between 0.01 and 100", "the filter's stiffness relative to the true structure (1.05: 5 % stiffer)",
         used_by=("estimate", "place"), registry="stiffness_factor / placement_stiffness_factor")
     n_modes: Count = key("an integer >= 1", "keep this many modes (with static correction) in the filter's model; "
                          "default the full model (the key was reduce_modes)", used_by=ESTIMATE)
@@ -179,7 +179,7 @@ class Filter(Section):
                                              "run even if the PBH detectability test fails (the estimate drifts)",
                                              used_by=ESTIMATE)
     frequency_factors: Annotated[list[Positive], Field(min_length=1)] = key(
-        "a non-empty list of positive numbers", "factors on the filter model's natural frequencies of modes 1, 2, "
+        "a non-empty list of numbers between 0.1 and 10", "factors on the filter model's natural frequencies of modes 1, 2, "
         "... (mode shapes kept; the other modes keep theirs): a local stiffness change that a global factor cannot "
         "express; akf calibrate writes it from calibrate = [\"frequencies\"]", used_by=ESTIMATE)
     calibrate: Annotated[list[Literal[CALIBRATION_KEYS]], Field(min_length=1)] = key(

@@ -73,9 +73,20 @@ def file_damage_named(path):
     except AKFInputError:
         raise
     except (OSError, RuntimeError, KeyError, EOFError, UnicodeDecodeError) as exc:
-        why = getattr(exc, "strerror", None) or str(exc).strip("'\"")
-        raise AKFInputError(f"{path}: the file cannot be read ({type(exc).__name__}: {why[:200]}); is it damaged or "
-                            "cut short?") from None
+        raise AKFInputError(f"{path}: the file cannot be read ({library_error(exc)}); is it damaged or cut "
+                            "short?") from None
+
+
+#: bytes a library quotes from a file (npTDMS: "does not start with b'TDSm', but with b'root'")
+_QUOTED_BYTES = re.compile(r"""\bb(['"]).*?(?<!\\)\1""")
+
+
+def library_error(exc):
+    """What a format library said about a file, for a message: its error type and text, cut to 200
+    characters, with any bytes it quotes from the file left out (a message never quotes a file's
+    content)."""
+    text = _QUOTED_BYTES.sub("(bytes of the file)", getattr(exc, "strerror", None) or str(exc))
+    return f"{type(exc).__name__}: {text.strip(chr(39) + chr(34))[:200]}"
 
 
 class MissingExtraError(AKFInputError):
@@ -373,7 +384,7 @@ class CsvReader(Reader):
             raise AKFInputError(f"{self.path}: the file is empty; expected a header row and one row per time "
                                 "step") from None
         except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-            raise AKFInputError(f"{self.path}: not a readable CSV file ({exc})") from None
+            raise AKFInputError(f"{self.path}: not a readable CSV file ({library_error(exc)})") from None
         _check_unique_columns(self._header(), self.path)
         if time_column not in self._columns:
             sep = next((c for c in ";\t|" if len(self._columns) == 1 and c in self._columns[0]), None)
@@ -399,14 +410,13 @@ class CsvReader(Reader):
         try:
             yield from pd.read_csv(self.path, usecols=columns, chunksize=size, dtype=str)
         except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
-            raise AKFInputError(f"{self.path}: not a readable CSV file ({exc})") from None
+            raise AKFInputError(f"{self.path}: not a readable CSV file ({library_error(exc)})") from None
 
     def timing(self):
         if self._timing is None:
             parts = []
             for frame in self._read([self.time_column], 1 << 20):
-                parts.append(_numeric(frame[self.time_column], self.path, self.time_column, sum(map(len, parts)),
-                                      missing=False))
+                parts.append(_time_stamps(frame[self.time_column], self.path, self.time_column, sum(map(len, parts))))
             t = np.concatenate(parts) if parts else np.empty(0)
             self._timing = check_time_grid(t, self.path)
             check_row_widths(self.path, len(self._header()))
@@ -516,6 +526,21 @@ def _numeric(column, path, name, row0, missing=True):
     return values
 
 
+def _time_stamps(column, path, name, row0):
+    """A CSV time column as seconds, or as date-times where every cell is an ISO 8601 date-time
+    (``2026-12-05T10:00:00.000244``; a time zone is taken to UTC, none means UTC); a located error
+    for anything else, as :func:`_numeric` names it."""
+    import pandas as pd
+
+    try:
+        return _numeric(column, path, name, row0, missing=False)
+    except AKFInputError:
+        stamps = pd.to_datetime(column, format="ISO8601", utc=True, errors="coerce")
+        if stamps.isna().any() or not len(stamps):
+            raise
+        return stamps.dt.tz_localize(None).to_numpy("datetime64[ns]")
+
+
 #: a number followed by text: a unit written into the cells
 _NUMBER_THEN_TEXT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[^\d\s.,;+-]")
 #: how a column name may look to be quoted in a message (a file that is no table is not quoted)
@@ -594,7 +619,7 @@ class ParquetReader(Reader):
         try:
             self._file = pq.ParquetFile(self.path)
         except Exception as exc:  # noqa: BLE001 -- pyarrow raises its own error types
-            raise AKFInputError(f"{self.path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
+            raise AKFInputError(f"{self.path}: not a readable Parquet file ({library_error(exc)})") from None
         self._columns = [c for c in self._file.schema_arrow.names if not c.startswith("__index_level")]
         _check_unique_columns(self._columns, self.path)
         if time_column not in self._columns:
@@ -748,7 +773,7 @@ class TdmsReader(_SlicedReader):
         try:
             self._file = self.lib.TdmsFile.open(self.path)
         except Exception as exc:  # noqa: BLE001 -- npTDMS raises its own error types
-            raise AKFInputError(f"{self.path}: not a readable TDMS file ({type(exc).__name__}: {exc})") from None
+            raise AKFInputError(f"{self.path}: not a readable TDMS file ({library_error(exc)})") from None
         groups = self._file.groups()
         if group is not None:
             groups = [g for g in groups if g.name == group]
@@ -818,7 +843,7 @@ class Uff58Reader(Reader):
             types = list(uff.get_set_types())
             sets = uff.read_sets([i for i, t in enumerate(types) if int(t) == 58]) if 58 in types else []
         except Exception as exc:  # noqa: BLE001 -- pyuff raises bare Exceptions
-            raise AKFInputError(f"{self.path}: not a readable UFF file ({type(exc).__name__}: {exc})") from None
+            raise AKFInputError(f"{self.path}: not a readable UFF file ({library_error(exc)})") from None
         sets = [sets] if isinstance(sets, dict) else list(sets)
         if not sets:
             raise AKFInputError(f"{self.path}: no data set of type 58 (function at nodal DOF)")
@@ -884,7 +909,7 @@ class Hdf5Reader(_SlicedReader):
         try:
             self._file = self.lib.File(self.path, "r")
         except Exception as exc:  # noqa: BLE001 -- h5py raises OSError subclasses of its own
-            raise AKFInputError(f"{self.path}: not a readable HDF5 file ({type(exc).__name__}: {exc})") from None
+            raise AKFInputError(f"{self.path}: not a readable HDF5 file ({library_error(exc)})") from None
         with file_damage_named(self.path):
             if group and group not in self._file:
                 raise AKFInputError(f"{self.path}: no group {group!r}; the file has {list(self._file)}")

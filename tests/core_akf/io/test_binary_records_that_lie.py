@@ -163,8 +163,9 @@ def test_a_unit_that_counts_raw_values_or_a_level_is_no_strain(unit, what):
 
 
 def test_date_time_stamps_are_read_as_seconds(tmp_path):
-    """TDMS and Parquet store time stamps as date-times: the grid is read from them, to the
-    nanosecond, starting at the first stamp's seconds since 1970."""
+    """TDMS and Parquet store time stamps as date-times, and CSV exports write them as ISO 8601 text:
+    the grid is read from them, starting at the first stamp's seconds since 1970 (they were refused
+    as text, or ended in an internal error)."""
     frame = _samples()
     t_ref, Y_ref = _read_csv(tmp_path, frame)
     start = np.datetime64("2026-12-05T10:00:00", "ns")
@@ -172,8 +173,9 @@ def test_date_time_stamps_are_read_as_seconds(tmp_path):
     _tdms(tmp_path / "r.tdms", frame, props={}, time=stamps)
     dated = frame.assign(time=stamps)
     dated.to_parquet(tmp_path / "r.parquet")
+    dated.assign(time=pd.Series(stamps).dt.strftime("%Y-%m-%dT%H:%M:%S.%f+00:00")).to_csv(tmp_path / "r.csv", index=False)
     epoch = (start - np.datetime64("1970-01-01", "ns")) / np.timedelta64(1, "s")
-    for path in (tmp_path / "r.tdms", tmp_path / "r.parquet"):
+    for path in (tmp_path / "r.tdms", tmp_path / "r.parquet", tmp_path / "r.csv"):
         record = Record(path, list(CHANNELS.values()), channels=CHANNELS, units=UNITS)
         t, Y = record.read()
         assert record.dt == pytest.approx(DT, rel=1e-5)        # the libraries give the stamps in µs
@@ -188,3 +190,16 @@ def test_date_time_stamps_are_read_as_seconds(tmp_path):
 def _read_csv(tmp_path, frame):
     frame.to_csv(tmp_path / "ref.csv", index=False)
     return _read(tmp_path / "ref.csv")
+
+
+@pytest.mark.parametrize("ext", ["tdms", "h5", "uff", "parquet", "csv"])
+def test_a_text_file_in_a_binary_format_s_name_is_named_not_quoted(tmp_path, ext):
+    """npTDMS said "Segment does not start with b'TDSm', but with b'root'" of a system file named
+    .tdms, and the message passed that on."""
+    path = tmp_path / f"passwd.{ext}"
+    path.write_bytes(b"root:x:0:0:root:/root:/bin/bash\n\xff\xfesecret-token:x:1:1\n")
+    with pytest.raises(AKFInputError) as info:
+        _read(path)
+    text = str(info.value).replace(str(path), "")
+    assert str(path) in str(info.value)
+    assert "root" not in text and "secret" not in text, text

@@ -62,10 +62,23 @@ def test_n_modes_that_is_not_a_number_of_modes(n_modes):
         two_dof(n_modes=n_modes)
 
 
-def test_a_stiffness_factor_that_overflows(tmp_path, capsys):
+@pytest.mark.parametrize("factor", ["1e308", "1e12", "1e-12", "0.005"])
+def test_a_stiffness_factor_that_makes_another_structure_is_named(tmp_path, capsys, factor):
+    """1e308 overflowed the stiffness matrix; 1e-12 ended in "the innovation covariance is not
+    positive definite (check the noise covariance R)", 1e12 in a failed steady-state gain."""
     job = tmp_path / "j.toml"
     text = open(os.path.join(ROOT, "akf", "examples", "jobs", "s17-case4.toml")).read()
-    job.write_text(text.replace("stiffness_factor = 1.05", "stiffness_factor = 1e308"))
-    assert "1e308" in job.read_text()
+    job.write_text(text.replace("stiffness_factor = 1.05", f"stiffness_factor = {factor}"))
+    assert factor in job.read_text()
     assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
-    assert "stiffness_factor 1e+308 makes the stiffness matrix overflow" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"[filter] stiffness_factor = {float(factor):.4g} multiplies the model's stiffness" in err
+    assert "give a factor between 0.01 and 100" in err
+
+
+def test_a_frequency_factor_that_makes_another_structure_is_named(tmp_path, capsys):
+    job = tmp_path / "j.toml"
+    text = open(os.path.join(ROOT, "akf", "examples", "jobs", "s17-case4.toml")).read()
+    job.write_text(text.replace("stiffness_factor = 1.05", "stiffness_factor = 1.05\nfrequency_factors = [1.0, 20.0]"))
+    assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert "[filter] frequency_factors[1] = 20 multiplies mode 2's frequency" in capsys.readouterr().err
