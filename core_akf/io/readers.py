@@ -67,7 +67,17 @@ class Timing:
 @contextlib.contextmanager
 def file_damage_named(path):
     """Turn what a format library raises on a damaged file (a bad checksum or signature, a read
-    past the end) into an error naming the file: for the reads that open and index a file."""
+    past the end) into an error naming the file: for the reads that open and index a file.
+
+    Parameters
+    ----------
+    path : str
+        The file, for messages.
+
+    Yields
+    ------
+    None
+    """
     try:
         yield
     except AKFInputError:
@@ -84,7 +94,17 @@ _QUOTED_BYTES = re.compile(r"""\bb(['"]).*?(?<!\\)\1""")
 def library_error(exc):
     """What a format library said about a file, for a message: its error type and text, cut to 200
     characters, with any bytes it quotes from the file left out (a message never quotes a file's
-    content)."""
+    content).
+
+    Parameters
+    ----------
+    exc : Exception
+        What the library raised.
+
+    Returns
+    -------
+    str
+    """
     text = _QUOTED_BYTES.sub("(bytes of the file)", getattr(exc, "strerror", None) or str(exc))
     return f"{type(exc).__name__}: {text.strip(chr(39) + chr(34))[:200]}"
 
