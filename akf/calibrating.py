@@ -66,6 +66,9 @@ def identify_modes(job, model, Y, source, block_rows=None, max_order=None):
     labels = [job.sensors[i].label for i in picked]
     Y = np.asarray(Y, float)[:, picked]
     seen = np.all(np.isfinite(Y), axis=1)
+    if not seen.any():
+        raise AKFInputError(f"{source}: no step where all of {', '.join(labels)} are observed: modal analysis needs a "
+                            "stretch without missing samples")
     if not seen.all():                  # the longest stretch without a hole
         edges = np.flatnonzero(np.diff(np.r_[0, seen.astype(int), 0]))
         starts, ends = edges[::2], edges[1::2]

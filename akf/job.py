@@ -51,7 +51,7 @@ from core_akf.defaults import default
 from core_akf.forcemodels import DummyMeasurements, ForceModel
 from core_akf.models import footbridge, from_files, imp_plate, plate, s17_truss, th_plate
 from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
-from core_akf.simulate import MG, MICROSTRAIN, simulate
+from core_akf.simulate import MG, MICROSTRAIN, check_noise, simulate
 
 from .schema import Job as JobSpec
 from .schema import parse_job
@@ -493,6 +493,8 @@ class Job:
             raise AKFInputError(f"[simulation] duration {sp.duration:g} s is shorter than two steps of dt = {dt:g} s")
         loads = self.loads(n_steps)
         absolute = _absolute_noise(sp.absolute_noise) if sp.absolute_noise is not None else None
+        check_noise(sp.relative_noise, absolute, {s.kind for s in sensors},
+                    names=("[simulation] relative_noise", "[simulation] absolute_noise"))
         return simulate(structure, sensors, forces, loads, dt, relative_noise=sp.relative_noise,
                         absolute_noise=absolute, seed=sp.seed or 0, load_hold=self.load_hold)
 

@@ -23,6 +23,10 @@ from .structure import STRAIN_COMPONENTS
 KINDS = ("strain", "acc", "vel", "disp")
 #: units of each sensor kind (for labels and reports)
 UNITS = {"strain": "m/m", "acc": "m/s^2", "vel": "m/s", "disp": "m"}
+#: no sensor of a kind reads beyond this, in SI (strain m/m, acc m/s^2, vel m/s, disp m or rad): a
+#: sample beyond it is a corrupt value or an overflow code (some DAQs write 9.9e37), not a measurement;
+#: 1 m/m is 100 % strain, 1e6 m/s^2 about 100 000 g (the range of shock accelerometers)
+MAX_READABLE = {"strain": 1.0, "acc": 1e6, "vel": 1e4, "disp": 1e4}
 _ALIASES = {"accel": "acc", "acceleration": "acc", "a": "acc", "velocity": "vel", "v": "vel",
             "displacement": "disp", "d": "disp", "s": "strain", "eps": "strain"}
 

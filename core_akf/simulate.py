@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from .structure import Structure
 from .checks import AKFInputError, as_finite_array
 from .forcemodels import check_load_hold
-from .sensors import as_layout, parse_force_locations
+from .sensors import MAX_READABLE, UNITS, as_layout, parse_force_locations
 from .statespace import continuous, foh, modal_blocks, modal_state_transform, observation, strain_feedthrough, zoh
 
 #: standard gravity (m/s^2), for levels given in g or mg
@@ -23,6 +23,8 @@ G0 = 9.80665
 MG = 1e-3 * G0
 #: one micro-strain: ``absolute_noise={"strain": 1 * MICROSTRAIN}``
 MICROSTRAIN = 1e-6
+#: simulated noise above this many times a channel's RMS leaves nothing to measure: a typing slip
+MAX_RELATIVE_NOISE = 10.0
 
 
 @dataclass
@@ -92,6 +94,38 @@ class Simulation:
         return self.states @ G.T + self.loads @ D.T
 
 
+def check_noise(relative, absolute, kinds, names=("relative noise", "absolute noise")):
+    """Simulated noise levels checked: a relative level between 0 and :data:`MAX_RELATIVE_NOISE`,
+    an absolute level for every sensor kind, each >= 0 and at most what such a sensor reads
+    (:data:`~core_akf.sensors.MAX_READABLE`).
+
+    Parameters
+    ----------
+    relative : float or None
+        Fraction of each channel's RMS.
+    absolute : dict or None
+        Standard deviation per sensor kind (SI).
+    kinds : set of str
+        The sensor kinds of the layout.
+    names : tuple of str
+        What the two levels are called in messages (a job names its keys).
+    """
+    if relative is not None and not 0 <= relative <= MAX_RELATIVE_NOISE:
+        raise AKFInputError(f"{names[0]} must be a fraction of each channel's RMS between 0 and "
+                            f"{MAX_RELATIVE_NOISE:g} (0.02 = 2 %), got {relative:.4g}: noise that large leaves nothing "
+                            "to measure")
+    if absolute is None:
+        return
+    missing = sorted(set(kinds) - set(absolute))
+    if missing:
+        raise AKFInputError(f"{names[1]} has no level for sensor kind(s) {missing}")
+    for k in sorted(kinds):
+        if not 0 <= float(absolute[k]) <= MAX_READABLE[k]:
+            raise AKFInputError(f"{names[1]} of {k} = {float(absolute[k]):.4g} {UNITS[k]}: a standard deviation must be "
+                                f">= 0 and at most what such a sensor reads ({MAX_READABLE[k]:g} {UNITS[k]}); the "
+                                "levels are in SI units")
+
+
 def noise_levels(clean, sensors, relative=None, absolute=None):
     """Noise standard deviation per channel.
 
@@ -112,15 +146,11 @@ def noise_levels(clean, sensors, relative=None, absolute=None):
     ndarray (m,)
     """
     layout = as_layout(sensors)
+    check_noise(relative, absolute, {s.kind for s in layout})
     std2 = np.zeros(len(layout))
     if relative is not None:
-        if relative < 0:
-            raise AKFInputError(f"relative noise must be >= 0, got {relative}")
         std2 += (relative * np.sqrt(np.mean(clean ** 2, axis=0))) ** 2
     if absolute is not None:
-        missing = sorted({s.kind for s in layout} - set(absolute))
-        if missing:
-            raise AKFInputError(f"absolute noise has no level for sensor kind(s) {missing}")
         std2 += np.array([float(absolute[s.kind]) for s in layout]) ** 2
     return np.sqrt(std2)
 

@@ -44,10 +44,17 @@ def _filter_model(job, structure):
     differ from the truth in words; None when it is the structure itself."""
     from core_akf.defaults import default
 
+    from ..job import check_stiffness_factors
+
     f = job.get("filter") if isinstance(job.get("filter"), dict) else {}
     placing = isinstance(job.get("place"), dict) and not isinstance(job.get("simulation"), dict)
     factor = f.get("stiffness_factor", default("placement_stiffness_factor" if placing else "stiffness_factor"))
     factors = f.get("frequency_factors") or []
+    numbers = [factor] + (list(factors) if isinstance(factors, list) else [factors])
+    if not isinstance(factors, list) or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in numbers):
+        raise AKFInputError(f"{job.get('name') or 'the job'}: [filter] stiffness_factor must be a number and "
+                            f"frequency_factors a list of numbers, got {factor!r} and {factors!r}"[:300])
+    check_stiffness_factors(factor, factors)
     if factor == 1.0 and not factors:
         return None
     model = structure.scaled(float(factor))

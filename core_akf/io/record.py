@@ -22,17 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import AKFInputError, FloatArray, Layout, Time
-from ..sensors import UNITS, as_layout
+from ..sensors import MAX_READABLE, UNITS, as_layout
 from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
 from .units import conversion, is_bridge_unit, is_unset
 
 #: a strain channel whose RMS exceeds this (m/m) is not in SI units: 1 % is five times the yield
 #: strain of structural steel, far beyond the elastic range every model here assumes
 MAX_PLAUSIBLE_STRAIN = 0.01
-#: no sensor of a kind reads beyond this, in SI (strain m/m, acc m/s^2, vel m/s, disp m or rad): a
-#: sample beyond it is a corrupt value or an overflow code (some DAQs write 9.9e37), not a measurement;
-#: 1 m/m is 100 % strain, 1e6 m/s^2 about 100 000 g (the range of shock accelerometers)
-MAX_READABLE = {"strain": 1.0, "acc": 1e6, "vel": 1e4, "disp": 1e4}
 _SENSOR_NAMES = {"strain": "a strain gauge", "acc": "an accelerometer", "vel": "a velocity sensor",
                  "disp": "a displacement sensor"}
 #: a channel exactly constant over a chunk this long is disconnected or saturated
@@ -476,7 +472,7 @@ class Record:
             yield step, Y
 
     def _check_readable(self, step, Y):
-        """Refuse samples beyond what a sensor of the channel's kind reads (:data:`MAX_READABLE`),
+        """Refuse samples beyond what a sensor of the channel's kind reads (:data:`~core_akf.sensors.MAX_READABLE`),
         naming the first: a corrupt value or an overflow code, or the whole channel in another unit."""
         limits = np.array([MAX_READABLE[s.kind] for s in self.layout])
         with np.errstate(invalid="ignore"):

@@ -44,3 +44,20 @@ def test_oma_refuses_a_record_shorter_than_twenty_periods_of_the_models_first_mo
     assert main(["oma", str(job), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "periods of the model's first mode" in err and "at least 20" in err
+
+
+def test_oma_of_a_record_with_no_step_where_every_accelerometer_is_seen_is_named(tmp_path, capsys):
+    """Two accelerometers missing on alternate steps (or a record of infinite values) ended in
+    "internal error: attempt to get argmax of an empty sequence"."""
+    n, dt = 4096, 0.001
+    t = np.arange(n) * dt
+    a, b = np.sin(40 * t), np.cos(55 * t)
+    a[::2], b[1::2] = np.nan, np.nan
+    cell = lambda v: "" if np.isnan(v) else f"{v:.9g}"  # noqa: E731
+    rows = "".join(f"{ti:.6f},{cell(x)},{cell(y)}\n" for ti, x, y in zip(t, a, b))
+    (tmp_path / "r.csv").write_text("time,acc:4:y,acc:8:y\n" + rows)
+    job = tmp_path / "job.toml"
+    job.write_text(f'dt = {dt}\nsensors = ["acc:4:y", "acc:8:y"]\nforces = ["8:y"]\n[structure]\nmodel = "s17_truss"\n'
+                   '[measurements]\nfile = "r.csv"\n')
+    assert main(["oma", str(job), "--out", str(tmp_path / "o")]) == 2
+    assert "no step where all of acc:4:y, acc:8:y are observed" in capsys.readouterr().err

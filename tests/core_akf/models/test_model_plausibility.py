@@ -82,3 +82,17 @@ def test_a_frequency_factor_that_makes_another_structure_is_named(tmp_path, caps
     job.write_text(text.replace("stiffness_factor = 1.05", "stiffness_factor = 1.05\nfrequency_factors = [1.0, 20.0]"))
     assert main(["estimate", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
     assert "[filter] frequency_factors[1] = 20 multiplies mode 2's frequency" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("line, message", [
+    ('stiffness_factor = ""', "stiffness_factor must be a number and frequency_factors a list of numbers, got ''"),
+    ("stiffness_factor = 1e-12", "stiffness_factor = 1e-12 multiplies the model's stiffness"),
+    ("frequency_factors = 1.1", "frequency_factors a list of numbers, got 1.05 and 1.1")])
+def test_show_names_a_filter_model_it_cannot_build(tmp_path, capsys, line, message):
+    """``akf show JOB`` reads any command's job loosely: a text stiffness factor ended in an
+    internal error ("could not convert string to float")."""
+    job = tmp_path / "j.toml"
+    job.write_text(f'name = "j"\n[structure]\nmodel = "s17_truss"\n[filter]\nstiffness_factor = 1.05\n{line}\n'
+                   .replace("stiffness_factor = 1.05\nstiffness_factor", "stiffness_factor"))
+    assert main(["show", str(job), "--out", str(tmp_path / "o"), "--no-plot"]) == 2
+    assert message in capsys.readouterr().err
