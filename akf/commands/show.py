@@ -11,8 +11,9 @@ import re
 import sys
 
 from core_akf.checks import AKFInputError
+from core_akf.sensors import parse_force_locations, selection_matrices
 
-from ..job import MODELS, build_structure
+from ..job import MODELS, build_structure, check_stiffness_factors
 from ..outputs import OutputFolder
 from ..schema import JOB_NAME_PATTERN
 
@@ -35,7 +36,15 @@ def _structure_of(target):
         raise AKFInputError(f"{target}: name must be a plain name (no '/', no '\\', not starting with '.'): the figure "
                             f"{name}.png is written into the output folder, and this name would leave it")
     structure = build_structure(job["structure"])
-    return structure, name, list(job.get("sensors") or []), list(job.get("forces") or []), _filter_model(job, structure)
+    sensors, forces = job.get("sensors") or [], job.get("forces") or []
+    for key, value, example in (("sensors", sensors, '["strain:13", "acc:8:y"]'), ("forces", forces, '["8:y"]')):
+        if not isinstance(value, list) or not all(isinstance(x, str) for x in value):
+            raise AKFInputError(f"{target}: {key} must be a list of texts such as {example}, got {value!r}"[:300])
+    if sensors:                                     # a sensor off the structure: named here, not in the figure
+        selection_matrices(structure, sensors)
+    if forces:
+        parse_force_locations(structure, forces)
+    return structure, name, list(sensors), list(forces), _filter_model(job, structure)
 
 
 def _filter_model(job, structure):
@@ -43,8 +52,6 @@ def _filter_model(job, structure):
     on ``[structure]`` (placement's default stiffness factor for a place job) -- and what makes it
     differ from the truth in words; None when it is the structure itself."""
     from core_akf.defaults import default
-
-    from ..job import check_stiffness_factors
 
     f = job.get("filter") if isinstance(job.get("filter"), dict) else {}
     placing = isinstance(job.get("place"), dict) and not isinstance(job.get("simulation"), dict)

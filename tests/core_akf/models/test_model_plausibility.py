@@ -96,3 +96,16 @@ def test_show_names_a_filter_model_it_cannot_build(tmp_path, capsys, line, messa
                    .replace("stiffness_factor = 1.05\nstiffness_factor", "stiffness_factor"))
     assert main(["show", str(job), "--out", str(tmp_path / "o"), "--no-plot"]) == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("line, message", [
+    ('sensors = "inf"', "sensors must be a list of texts such as"),
+    ('sensors = ["strain:999"]', "999"),
+    ('forces = ["99:y"]', "99")])
+def test_show_names_sensors_and_forces_it_cannot_draw(tmp_path, capsys, line, message):
+    """``sensors = "inf"`` was drawn as the sensors 'i', 'n' and 'f', with exit 0."""
+    job = tmp_path / "j.toml"
+    job.write_text(f'name = "j"\n{line}\n[structure]\nmodel = "s17_truss"\n')
+    assert main(["show", str(job), "--out", str(tmp_path / "o")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "o" / "j.png").exists()
