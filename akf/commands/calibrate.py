@@ -16,6 +16,7 @@ from .common import add_print_job, print_written
 
 def _calibrate(args):
     from ..calibrating import calibrate_job, calibration_record
+    from ..estimate.files import listed_strain_outputs
     from ..examples import example_path
     from ..job import Job
     from .common import job_data, listing_or_template
@@ -29,6 +30,7 @@ def _calibrate(args):
     if not job.calibrate:
         raise AKFInputError("nothing to calibrate: list the [filter] keys to learn in [filter] calibrate = "
                             "[\"stiffness_factor\", ...] or give --parameters")
+    listed_strain_outputs(job, job.structure)     # calibrated.toml is run by estimate: a wrong label named now
     out = args.out or os.path.join("akf-out", job.name)
     with OutputFolder(out, "--out"):
         sim = record = None

@@ -51,6 +51,26 @@ def default_chunk(n_states, n_channels, n_outputs):
     return int(min(DEFAULT_CHUNK_STEPS, max(1024, CHUNK_BYTES // per_step)))
 
 
+def listed_strain_outputs(job, structure):
+    """Indices of the strain outputs that ``[output] strains`` lists (None where it lists none or
+    says "all"), each checked to be an output of ``structure`` and listed once.
+
+    Parameters
+    ----------
+    job : Job
+    structure : Structure
+
+    Returns
+    -------
+    list of int or None
+    """
+    wanted = job.spec.output.strains if job.spec.output is not None else None
+    if wanted is None or wanted == "all":
+        return None
+    return structure.strain_label_index(distinct_labels(wanted, structure.n_strain, "[output] strains",
+                                                        "strain outputs"))
+
+
 def strain_outputs(job, structure, n_steps, notes, warnings=None):
     """Indices of the strain outputs whose histories are written: ``[output] strains``, or all of
     them unless that is more than :data:`MAX_STRAIN_ROWS` rows (then none, with a note) when the
@@ -67,8 +87,7 @@ def strain_outputs(job, structure, n_steps, notes, warnings=None):
     elif wanted == "all":
         index = list(range(structure.n_strain))
     else:
-        index = structure.strain_label_index(distinct_labels(wanted, structure.n_strain, "[output] strains",
-                                                             "strain outputs"))
+        index = listed_strain_outputs(job, structure)
     fmt = job.spec.output.format if job.spec.output is not None and job.spec.output.format else "csv"
     size = n_steps * (len(job.forces) + len(index)) * BYTES_PER_ROW[fmt]
     if size > LARGE_OUTPUT_BYTES and warnings is not None:

@@ -93,3 +93,12 @@ def test_a_filter_of_any_toml_layout_is_written_as_valid_toml(tmp_path, capsys, 
     assert data["measurements"]["file"] == "../data/rec.csv"
     assert main(["estimate", out["files"]["calibrated_job"], "--json", "--no-plot", "--out", str(tmp_path / "e")]) == 0
     assert json.loads(capsys.readouterr().out)["loglik"] == pytest.approx(out["calibration"]["loglik_after"], rel=1e-6)
+
+
+def test_an_output_label_estimate_would_refuse_is_named_before_the_fit(tmp_path, capsys):
+    """calibrate ignored ``[output] strains`` and wrote a calibrated.toml that estimate then refused."""
+    job = _job(tmp_path, HEAD + 'calibrate = ["stiffness_factor"]\n')
+    job.write_text(job.read_text() + '\n[output]\nstrains = ["strain:13", "strain:99"]\n')
+    assert main(["calibrate", str(job), "--out", str(tmp_path / "o")]) == 2
+    assert "unknown strain output 'strain:99'" in capsys.readouterr().err
+    assert not (tmp_path / "o" / "calibrated.toml").exists()
