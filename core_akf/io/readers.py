@@ -349,7 +349,8 @@ def grid_number(value, path, what):
     except (TypeError, ValueError, OverflowError):
         number = None
     if number is None or not np.isfinite(number):
-        shown = repr(v) if number is not None or np.asarray(v).size == 1 else f"an array of {np.asarray(v).size} values"
+        shown = (repr(number) if number is not None else repr(v) if np.asarray(v).size == 1
+                 else f"an array of {np.asarray(v).size} values")
         raise AKFInputError(f"{path}: {what} is {shown[:60]}, not a finite number of seconds")
     return number
 
@@ -769,9 +770,8 @@ class _SlicedReader(Reader):
                                         f"{np.asarray(self._series[c][start:start + 1]).dtype} values)") from None
                 except (OSError, MemoryError, OverflowError, RuntimeError, KeyError, EOFError) as exc:
                     raise AKFInputError(f"{self.path}: samples {start}..{stop - 1} of channel {c!r} cannot be read "
-                                        f"({type(exc).__name__}: {getattr(exc, 'strerror', None) or exc}): the file's "
-                                        f"index claims {self.timing().n_steps} samples; is it damaged or cut "
-                                        "short?") from None
+                                        f"({library_error(exc)}): the file's index claims {self.timing().n_steps} "
+                                        "samples; is it damaged or cut short?") from None
                 columns.append(values)
             yield np.column_stack(columns)
 

@@ -29,6 +29,7 @@ from .units import conversion, is_bridge_unit, is_unset
 #: a strain channel whose RMS exceeds this (m/m) is not in SI units: 1 % is five times the yield
 #: strain of structural steel, far beyond the elastic range every model here assumes
 MAX_PLAUSIBLE_STRAIN = 0.01
+#: a sensor of each kind, in words (messages)
 _SENSOR_NAMES = {"strain": "a strain gauge", "acc": "an accelerometer", "vel": "a velocity sensor",
                  "disp": "a displacement sensor"}
 #: a channel exactly constant over a chunk this long is disconnected or saturated
