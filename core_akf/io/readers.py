@@ -800,6 +800,9 @@ class TdmsReader(_SlicedReader):
             if not groups:
                 raise AKFInputError(f"{self.path}: no group {group!r}; the file has {[g.name for g in self._file.groups()]}")
         all_channels = [(g.name, c) for g in groups for c in g.channels()]
+        if not all_channels:
+            raise AKFInputError(f"{self.path}: no channels" + (f" in group {group!r}" if group is not None else "")
+                                + ": is it a TDMS file of measurements (it starts with the tag TDSm)?")
         names = [c.name for _, c in all_channels]
         self._series = {}
         for gname, c in all_channels:

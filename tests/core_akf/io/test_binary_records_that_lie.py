@@ -203,3 +203,11 @@ def test_a_text_file_in_a_binary_format_s_name_is_named_not_quoted(tmp_path, ext
     text = str(info.value).replace(str(path), "")
     assert str(path) in str(info.value)
     assert "root" not in text and "secret" not in text, text
+
+
+def test_a_tdms_file_without_channels_is_named(tmp_path):
+    """npTDMS opens a short text file as a TDMS file without channels: it was reported as "sensor(s)
+    [...] have no channel in any file of the record", or, in a folder of impacts, as an event."""
+    (tmp_path / "notes.tdms").write_text("not a TDMS file\n")
+    with pytest.raises(AKFInputError, match="notes.tdms: no channels: is it a TDMS file of measurements"):
+        _read(tmp_path / "notes.tdms")
