@@ -1015,6 +1015,9 @@ _CYCLES, _CYCLES_LOCK = {}, threading.Lock()
 #: the periodic Riccati recursion stops when a period changes the covariance by less than this
 #: (relative), and gives up after this many steps (a cycle whose layout is not detectable)
 CYCLE_TOL, CYCLE_STEPS = 1e-12, 20000
+#: cycles in a row whose covariance grows like a random walk's (relative change >= 1 / (2 k)) before
+#: the periodic recursion is given up as divergent (the exact recursion runs those steps)
+CYCLE_DIVERGED = 200
 
 
 def _cycle_covariances(A, Q, G_p, R_p, patterns, cycle, P_start):
@@ -1050,7 +1053,8 @@ def _periodic_riccati(A, Q, G_c, R_c, P):
     p = len(G_c)
     out = np.empty((p,) + P.shape)
     scale = max(np.abs(P).max(), np.finfo(float).tiny)
-    for _ in range(max(1, CYCLE_STEPS // p)):
+    growing = 0
+    for k in range(1, max(1, CYCLE_STEPS // p) + 1):
         before = P
         for j in range(p):
             out[j] = P
@@ -1061,8 +1065,14 @@ def _periodic_riccati(A, Q, G_c, R_c, P):
         if not np.all(np.isfinite(P)):
             return None
         scale = max(scale, np.abs(P).max())
-        if np.abs(P - before).max() <= CYCLE_TOL * scale:
+        change = np.abs(P - before).max() / scale
+        if change <= CYCLE_TOL:
             return out
+        # a state the cycle does not observe (a random walk): P grows by Q each cycle, its relative
+        # change ~ 1/k, and it never converges -- said after CYCLE_DIVERGED cycles, not 20000 steps
+        growing = growing + 1 if change * k > 0.5 else 0
+        if growing >= CYCLE_DIVERGED:
+            return None
     return None
 
 
