@@ -409,7 +409,7 @@ class Job:
         record = self.open_record()
         counts = record.observed_counts()
         if counts.all():
-            return record, self, []
+            return record, self, list(record.unit_warnings)
         dead = [s for s, c in zip(self.sensors, counts) if c == 0]
         live = [s for s, c in zip(self.sensors, counts) if c > 0]
         for kind in sorted({s.kind for s in dead}):
@@ -422,7 +422,8 @@ class Job:
         job = self.without_sensors([s.label for s in dead])
         notes = [f"channel {s.label} has no observed sample in the record (every value is missing): dropped from the "
                  "sensors" for s in dead]
-        return job.open_record(), job, notes
+        record = job.open_record()
+        return record, job, list(record.unit_warnings) + notes
 
     def without_sensors(self, labels) -> Job:
         """The same job without some sensors (their channel map, units and per-sensor noise too).

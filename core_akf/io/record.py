@@ -7,8 +7,9 @@ sensors and converted to SI, delivered in chunks of a fixed number of steps.
 >>> for first_step, Y in rec.chunks(65536):                                 # doctest: +SKIP
 ...     ...                                                                 # Y (k, 2) in m/m, m/s^2
 
-The files are put in time order and checked to join: the same time step, and each file starting
-one step after the previous one ends (a gap or an overlap is an error naming both files).  The
+The files are put in time order and checked to join: the same time step, each file starting a
+whole number of steps after the previous one ends (an overlap or a gap off the grid is an error
+naming both files; a gap on it is missing samples, up to ``max_gap``).  The
 chunks are cut from the joined record, so a record split over many files gives the same chunks
 as the joined file.
 """
@@ -100,6 +101,8 @@ class Channel:
         Its conversion to SI.
     sign : float
         +1, or -1 for an inverted channel.
+    stated : str or None
+        The unit the file states for the channel, None when the job gives it or the file has none.
     """
 
     sensor: str
@@ -107,6 +110,7 @@ class Channel:
     unit: str
     convert: object
     sign: float
+    stated: str | None = None
 
 
 def _si(block, sources):
@@ -180,7 +184,9 @@ class Record:
         File channel -> sensor label; default: each sensor's channel is named like the sensor.
     units : dict, optional
         File channel -> unit (``"microstrain"``, ``"g"``, ``"mV/V"``, ...); default the unit the
-        file records, else SI.
+        file records, else SI.  A channel without a unit in one file where another file states one
+        is an error; files that state different units are each converted by their own and named in
+        ``unit_warnings`` (a list of str).
     gauge_factor : float or dict, optional
         Gauge factor of bridge outputs (mV/V), one for all or per channel.
     bridge : str or dict, optional
@@ -266,6 +272,7 @@ class Record:
         self.timings = [self.timings[i] for i in order]
         self.sources = [self.sources[i] for i in order]
         self._check_joins()
+        self._check_units()
         self.offsets = None
 
     # ---------------------------------------------------------------------------- channels
@@ -305,18 +312,49 @@ class Record:
         out = []
         for sensor, label in zip(self.layout, self.labels):
             name = by_sensor[label]
-            unit = self.units_given.get(name)
+            unit = stated = self.units_given.get(name)
             if unit is None:
                 recorded = file_units.get(name)
-                unit = None if is_unset(recorded) else recorded
+                unit = stated = None if is_unset(recorded) else str(recorded)
+            elif is_unset(file_units.get(name)):
+                stated = None
+            else:
+                stated = str(file_units.get(name))
             gf = self._per_channel(self.gauge_factor, name)
             br = self._per_channel(self.bridge, name)
             explicit = any(isinstance(v, dict) and name in v for v in (self.gauge_factor, self.bridge))
             if not explicit and not (sensor.kind == "strain" and is_bridge_unit(unit)):
                 gf = br = None      # a record-wide gauge factor and bridge concern the bridge channels only
             conv = conversion(unit, sensor.kind, f"{name} ({os.path.basename(reader.path)})", gf, br)
-            out.append(Channel(label, name, conv.unit, conv, -1.0 if name in self.invert else 1.0))
+            out.append(Channel(label, name, conv.unit, conv, -1.0 if name in self.invert else 1.0, stated))
         return out
+
+    def _check_units(self):
+        """Each channel's unit across the files: one file that states none where another states one
+        is an error (it would be read as SI, silently); two stated units are converted each by its
+        own and named in :attr:`unit_warnings`."""
+        self.unit_warnings = []
+        if len(self.files) < 2:
+            return
+        for j, name in enumerate(s.name for s in self.sources[0]):
+            if name in self.units_given:
+                continue
+            stated = {}         # conversion (None: no unit stated) -> (unit as stated, first file)
+            for path, sources in zip(self.files, self.sources):
+                c = sources[j].convert
+                key = None if sources[j].stated is None else (c.scale, c.bridge, c.gauge_factor)
+                stated.setdefault(key, (sources[j].stated, path))
+            if len(stated) < 2:
+                continue
+            shown = ", ".join(f"{'no unit' if u is None else repr(u)} in {os.path.basename(p)}"
+                              for u, p in list(stated.values())[:4]) + (", ..." if len(stated) > 4 else "")
+            if None in stated:
+                raise AKFInputError(f"channel {name!r} ({self.sources[0][j].sensor}) states {shown}: a file without a "
+                                    f"unit would be read as SI ({UNITS[self.layout[j].kind]}); "
+                                    f"give the channel's unit in [measurements] units = {{{name!r} = \"...\"}}")
+            self.unit_warnings.append(f"channel {name!r} ({self.sources[0][j].sensor}) is recorded in different units: "
+                                      f"{shown}; each file is converted by its own (set [measurements] units to "
+                                      f"override)")
 
     # ---------------------------------------------------------------------------- time
     def _check_joins(self):
@@ -756,6 +794,11 @@ class MixedRecord:
             rates = ", ".join(f"{', '.join(r.labels)} at {1 / r.dt:.6g} Hz" for r in self.parts)
             raise AKFInputError(f"the record's fastest channels sample every {self.dt:.9g} s, not at the job's dt = "
                                 f"{dt:.9g} s ({rates})")
+
+    @property
+    def unit_warnings(self) -> list[str]:
+        """The channels of every channel set recorded in different units by its files (:attr:`Record.unit_warnings`)."""
+        return [w for r in self.parts for w in r.unit_warnings]
 
     def gap_notes(self) -> list[str]:
         """The gap notes of every channel set (:meth:`Record.gap_notes`).

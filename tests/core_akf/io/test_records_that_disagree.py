@@ -1,8 +1,11 @@
 """Records that disagree with themselves: time channels of another length, columns twice, a
-frequency response for a time record."""
+frequency response for a time record, files of one record that state different units."""
 import numpy as np
+import pandas as pd
 import pytest
-from helpers import read_channels
+from helpers import ROOT, read_channels, run_estimate
+
+DAQ = ROOT / "examples" / "daq"
 
 
 @pytest.mark.parametrize("extra", [-3, 5])
@@ -91,3 +94,63 @@ def test_csv_rows_with_empty_cells_quotes_blank_lines_and_no_final_newline_are_r
     (tmp_path / "r.csv").write_text(newline.join(rows))
     t, Y = read_channels(tmp_path / "r.csv")[:2]
     assert Y.shape == (200, 2) and np.isnan(Y[49, 1]) and np.isfinite(np.delete(Y, 49, axis=0)).all()
+
+
+def _two_tdms(folder, unit_of_second, scale=1.0, channel="ACC_4Y"):
+    """record.tdms cut in two files; the second states ``unit_of_second`` for ``channel`` and holds
+    its values times ``scale``."""
+    from nptdms import ChannelObject, TdmsFile, TdmsWriter
+
+    folder.mkdir()
+    chans = TdmsFile.read(DAQ / "record.tdms")["DAQ"].channels()
+    n, dt = len(chans[0]), chans[0].properties["wf_increment"]
+    for i, (a, b) in enumerate([(0, n // 2), (n // 2, n)]):
+        with TdmsWriter(folder / f"part-{i}.tdms") as w:
+            w.write_segment([ChannelObject("DAQ", c.name, c[a:b] * (scale if i and c.name == channel else 1.0),
+                                           properties={"wf_increment": dt, "wf_start_offset": a * dt,
+                                                       "unit_string": unit_of_second if i and c.name == channel
+                                                       else c.properties["unit_string"]})
+                             for c in chans])
+
+
+def _sample_job(file):
+    from akf.job import load_job_file
+
+    job = load_job_file(DAQ / "s17-tdms.toml")
+    job["measurements"]["file"] = str(file)
+    return job
+
+
+@pytest.mark.parametrize("unset", ["", "NONE"])
+def test_a_file_that_states_no_unit_where_another_does_is_refused(tmp_path, unset):
+    """It was read as SI beside files in g: one file's accelerations 9.81 times too small, silently."""
+    pytest.importorskip("nptdms")
+    from akf.job import Job
+    from core_akf.checks import AKFInputError
+
+    _two_tdms(tmp_path / "rec", unset)
+    with pytest.raises(AKFInputError, match=r"channel 'ACC_4Y' \(acc:4:y\) states 'g' in part-0.tdms, no unit in "
+                                            r"part-1.tdms: a file without a unit would be read as SI \(m/s\^2\); "
+                                            r"give the channel's unit in \[measurements\] units"):
+        Job.from_dict(_sample_job(tmp_path / "rec"), "estimate").open_live_record()
+    job = _sample_job(tmp_path / "rec")
+    job["measurements"]["units"] = job["measurements"]["units"] | {"ACC_4Y": "g"}       # the way out
+    record, _, warnings = Job.from_dict(job, "estimate").open_live_record()
+    assert warnings == [] and record.n_steps == 1024
+
+
+def test_files_in_different_units_are_each_converted_and_named(tmp_path):
+    """A DAQ re-scaled between two files (g, then m/s^2): each file by its own unit gives the forces of
+    the one file, with a warning naming both; the same unit spelled otherwise is no warning."""
+    pytest.importorskip("nptdms")
+    whole = run_estimate(_sample_job(DAQ / "record.tdms"), str(tmp_path / "whole"), plot=False)
+    _two_tdms(tmp_path / "rec", "m/s^2", scale=9.80665)
+    split = run_estimate(_sample_job(tmp_path / "rec"), str(tmp_path / "split"), plot=False)
+    assert any("channel 'ACC_4Y' (acc:4:y) is recorded in different units: 'g' in part-0.tdms, 'm/s^2' in "
+               "part-1.tdms; each file is converted by its own" in w for w in split.metrics["warnings"])
+    assert not any("different units" in w for w in whole.metrics["warnings"])
+    a, b = (pd.read_csv(tmp_path / d / "timeseries.csv") for d in ("whole", "split"))
+    np.testing.assert_allclose(b.estimated, a.estimated, rtol=1e-9, atol=1e-9 * np.abs(a.estimated).max())
+    _two_tdms(tmp_path / "same", "m/s2", channel="ACC_12Y")          # m/s^2 in the first
+    same = run_estimate(_sample_job(tmp_path / "same"), str(tmp_path / "same-out"), plot=False)
+    assert not any("different units" in w for w in same.metrics["warnings"])
