@@ -71,11 +71,12 @@ def listed_strain_outputs(job, structure):
                                                         "strain outputs"))
 
 
-def strain_outputs(job, structure, n_steps, notes, warnings=None):
+def strain_outputs(job, structure, n_steps, notes, warnings=None, out=None):
     """Indices of the strain outputs whose histories are written: ``[output] strains``, or all of
     them unless that is more than :data:`MAX_STRAIN_ROWS` rows (then none, with a note) when the
     job leaves it at its default.  A time series that will be larger than
-    :data:`LARGE_OUTPUT_BYTES` is announced before the run (logged and added to ``warnings``)."""
+    :data:`LARGE_OUTPUT_BYTES` is announced before the run (logged and added to ``warnings``); one
+    more than twice the free space of the disk of ``out`` is refused (:func:`check_free_space`)."""
     wanted = job.spec.output.strains if job.spec.output is not None else None
     if wanted is None:
         if structure.n_strain * n_steps <= MAX_STRAIN_ROWS:
@@ -94,9 +95,36 @@ def strain_outputs(job, structure, n_steps, notes, warnings=None):
         text = (f"timeseries.{fmt} will hold about {size / 1e6:.0f} MB ({len(index)} strain outputs and "
                 f"{len(job.forces)} forces x {n_steps} steps): list the channels you need in [output] strains"
                 + (", or write format = \"parquet\" (about a third of the size)" if fmt == "csv" else ""))
+        if out is not None:
+            check_free_space(out, size, text.split(":")[0])
         logging.getLogger("akf").warning("akf: warning: " + text)
         warnings.append(text)
     return index
+
+
+def check_free_space(out, size, what):
+    """Refuse a run whose output (``size`` bytes, an estimate within a factor of about 1.5) is more
+    than twice the free space of the disk that holds the folder ``out``: it would fill the disk.
+
+    Parameters
+    ----------
+    out : str
+        The output folder (it need not exist yet: its nearest existing parent is asked).
+    size : float
+        Estimated bytes to be written.
+    what : str
+        What will be written, for the message.
+    """
+    where = os.path.abspath(out)
+    while not os.path.isdir(where) and os.path.dirname(where) != where:
+        where = os.path.dirname(where)
+    try:
+        free = shutil.disk_usage(where).free
+    except OSError:
+        return
+    if size > 2 * free:
+        raise AKFInputError(f"{what}, but the disk of {out} has {free / 1e6:.0f} MB free: list fewer channels in "
+                            "[output] strains, write format = \"parquet\", or write elsewhere with --out")
 
 
 class TimeseriesWriter:

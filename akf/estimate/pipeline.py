@@ -95,7 +95,7 @@ class Setup:
             n_total, t0 = record.n_steps, record.start
             noise_cov = job.noise_cov()
             if out is None:           # in memory: the record is one chunk
-                check_memory(n_total, 4 * n_a + 3 * structure.n_strain + 4 * len(sensors),
+                check_memory(record.n_filtered, 4 * n_a + 3 * structure.n_strain + 4 * len(sensors),
                              f"the record of {n_total} steps", "give an output folder (akf estimate streams measured "
                              "records in chunks) or use core_akf.filter.Estimator")
         else:
@@ -110,7 +110,8 @@ class Setup:
             Y_cal = sim.measurements if sim is not None else calibration_record(job, record, model)
             setup.model, setup.Q, setup.force_model, setup.noise_cov, setup.calibration = calibrate_job(
                 job, model, sensors, job.forces, Y_cal, noise_cov, None if record is None else record.n_steps)
-        setup.strains = strain_outputs(job, structure, n_total, setup.notes, setup.warnings) if out is not None else []
+        n_rows = n_total if record is None else record.n_filtered        # the rows written: no restart gap
+        setup.strains = strain_outputs(job, structure, n_rows, setup.notes, setup.warnings, out) if out is not None else []
         setup.chunk = setup.chunk_length(n_a)
         return setup
 

@@ -442,8 +442,8 @@ class Record:
                 continue
             gap = restarts.get(i)
             if gap is not None and not gap.restart and first > start:     # predicted through: missing samples
-                a = max(first - gap.steps, start)
-                yield a, np.full((first - a, len(self.labels)), np.nan)
+                for a in range(max(first - gap.steps, start), first, size):      # a long gap: chunk by chunk
+                    yield a, np.full((min(a + size, first) - a, len(self.labels)), np.nan)
             drop = max(start - first, 0)          # rows of this file before ``start``
             step = first + drop
             reader = self._open(path)

@@ -84,3 +84,46 @@ def test_a_gap_off_the_time_grid_is_refused(tmp_path):
                                                                                     "wf_start_offset": offset})])
     with pytest.raises(ValueError, match="a gap of 0.0005 s \\(0.5 steps, not a whole number\\)"):
         Record(folder, ["acc:4:y"])
+
+
+def test_a_long_gap_predicted_through_comes_chunk_by_chunk(tmp_path):
+    """A gap of 10^9 steps (max_gap raised to cover it) was one block of NaN rows: 67 GB allocated
+    at the first chunk, an internal MemoryError."""
+    pytest.importorskip("nptdms")
+    n, _, dt = _two_files(tmp_path / "pieces", 1e9 * 0.000244140625)
+    meas = _job(tmp_path / "pieces")["measurements"]
+    rec = Record(tmp_path / "pieces", load_job_file(DAQ / "s17-tdms.toml")["sensors"],
+                 **{k: meas[k] for k in ("channels", "units", "gauge_factor", "bridge", "invert")}, max_gap=1e12)
+    assert rec.n_steps == n + 10**9 and not rec.gaps[0].restart
+    chunks = rec.chunks(1000)
+    firsts = [next(chunks) for _ in range(3)]
+    assert [(step, Y.shape[0]) for step, Y in firsts] == [(0, 1000), (1000, 1000), (2000, 1000)]
+    assert np.isfinite(firsts[0][1][:n // 2]).all() and np.isnan(firsts[0][1][n // 2:]).all()
+    assert np.isnan(firsts[2][1]).all()
+
+
+def test_the_size_announced_counts_the_rows_written_not_a_restart_gap(tmp_path):
+    """A gap of 2441 s past max_gap writes nothing, but the warning announced 4800 MB for it."""
+    pytest.importorskip("nptdms")
+    n, _, _ = _two_files(tmp_path / "pieces", 1e7 * 0.000244140625)
+    res = run_estimate(_job(tmp_path / "pieces"), str(tmp_path / "out"), plot=False)
+    assert res.complete and any("restarts from its prior" in note for note in res.notes)
+    assert not any("will hold about" in w for w in res.metrics["warnings"]), res.metrics["warnings"]
+    assert len(_timeseries(tmp_path / "out")) == 4 * n
+
+
+def test_an_output_that_cannot_fit_on_the_disk_is_refused_before_the_run(tmp_path, monkeypatch):
+    """A gap predicted through over 10^8 steps: a time series of about 48 GB on a disk with 1 GB free."""
+    pytest.importorskip("nptdms")
+    import shutil
+    from collections import namedtuple
+
+    from core_akf.checks import AKFInputError
+
+    _two_files(tmp_path / "pieces", 1e8 * 0.000244140625)
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(10**12, 10**12 - 10**9, 10**9))
+    with pytest.raises(AKFInputError, match=r"timeseries.csv will hold about 4800\d MB .* but the disk of .* has "
+                                            r"1000 MB free: list fewer channels"):
+        run_estimate(_job(tmp_path / "pieces", max_gap=1e6), str(tmp_path / "out"), plot=False)
+    assert not (tmp_path / "out" / "timeseries.csv").exists()
