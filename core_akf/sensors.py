@@ -27,6 +27,9 @@ UNITS = {"strain": "m/m", "acc": "m/s^2", "vel": "m/s", "disp": "m"}
 #: sample beyond it is a corrupt value or an overflow code (some DAQs write 9.9e37), not a measurement;
 #: 1 m/m is 100 % strain, 1e6 m/s^2 about 100 000 g (the range of shock accelerometers)
 MAX_READABLE = {"strain": 1.0, "acc": 1e6, "vel": 1e4, "disp": 1e4}
+#: a sensor of each kind, in words (messages)
+SENSOR_NAMES = {"strain": "a strain gauge", "acc": "an accelerometer", "vel": "a velocity sensor",
+                "disp": "a displacement sensor"}
 _ALIASES = {"accel": "acc", "acceleration": "acc", "a": "acc", "velocity": "vel", "v": "vel",
             "displacement": "disp", "d": "disp", "s": "strain", "eps": "strain"}
 

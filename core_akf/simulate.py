@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from .structure import Structure
 from .checks import AKFInputError, as_finite_array
 from .forcemodels import check_load_hold
-from .sensors import MAX_READABLE, UNITS, as_layout, parse_force_locations
+from .sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout, parse_force_locations
 from .statespace import continuous, foh, modal_blocks, modal_state_transform, observation, strain_feedthrough, zoh
 
 #: standard gravity (m/s^2), for levels given in g or mg
@@ -155,6 +155,38 @@ def noise_levels(clean, sensors, relative=None, absolute=None):
     return np.sqrt(std2)
 
 
+def check_readable_response(clean, layout, loads, dt):
+    """Refuse a simulated response that no sensor could read: beyond
+    :data:`~core_akf.sensors.MAX_READABLE` for its kind (1 m/m of strain, 1e6 m/s^2, ...) or not
+    finite -- loads typed far too large (1e300, kN for N), named with their peak.
+
+    Parameters
+    ----------
+    clean : ndarray (N, m)
+        Noise-free readings (SI).
+    layout : list of Sensor
+    loads : ndarray (N, n_p)
+        The force histories (N).
+    dt : float
+        Step (s).
+    """
+    if clean.size == 0:
+        return
+    with np.errstate(invalid="ignore"):
+        limits = np.array([MAX_READABLE[s.kind] for s in layout])
+        beyond = ~(np.abs(clean) <= limits)
+    if not beyond.any():
+        return
+    k, j = np.unravel_index(int(np.argmax(beyond)), beyond.shape)
+    s = layout[j]
+    with np.errstate(invalid="ignore"):
+        peak = float(np.max(np.abs(loads))) if loads.size else 0.0
+    raise AKFInputError(f"the simulated response at {s.label} reaches {clean[k, j]:.4g} {UNITS[s.kind]} at step {k} "
+                        f"(t = {k * dt:.6g} s), beyond what {SENSOR_NAMES[s.kind]} reads (|x| <= {MAX_READABLE[s.kind]:g} "
+                        f"{UNITS[s.kind]}): the loads (peak {peak:.4g} N) are far too large for this structure; "
+                        "they are in N")
+
+
 def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: ForceHistories, dt: float, *,
              relative_noise: float | None = None, absolute_noise: dict[str, float] | None = None,
              seed: int | None = None, x0: ArrayLike | None = None, load_hold: str = "zero") -> Simulation:
@@ -211,7 +243,9 @@ def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: Force
     x = np.zeros(nx) if x0 is None else as_finite_array(x0, "x0", shape=(nx,))
     check_load_hold(load_hold)
     X = _march(structure, locs, P, float(dt), x, load_hold)
-    clean = X @ G.T + P @ D.T
+    with np.errstate(over="ignore", invalid="ignore"):
+        clean = X @ G.T + P @ D.T
+    check_readable_response(clean, layout, P, float(dt))
     std = noise_levels(clean, layout, relative_noise, absolute_noise)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     noisy = clean + rng.normal(size=clean.shape) * std

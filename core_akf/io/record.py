@@ -23,16 +23,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import AKFInputError, FloatArray, Layout, Time
-from ..sensors import MAX_READABLE, UNITS, as_layout
+from ..sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout
 from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
 from .units import conversion, is_bridge_unit, is_unset
 
 #: a strain channel whose RMS exceeds this (m/m) is not in SI units: 1 % is five times the yield
 #: strain of structural steel, far beyond the elastic range every model here assumes
 MAX_PLAUSIBLE_STRAIN = 0.01
-#: a sensor of each kind, in words (messages)
-_SENSOR_NAMES = {"strain": "a strain gauge", "acc": "an accelerometer", "vel": "a velocity sensor",
-                 "disp": "a displacement sensor"}
 #: a channel exactly constant over a chunk this long is disconnected or saturated
 _CONSTANT_MIN_STEPS = 16
 
@@ -527,9 +524,9 @@ class Record:
         if rows.size * 2 > observed:            # most of the channel: its unit (strain: the RMS check tells)
             if kind == "strain":
                 return
-            raise AKFInputError(f"channel {self._named(j)}: {where} are beyond what {_SENSOR_NAMES[kind]} reads "
+            raise AKFInputError(f"channel {self._named(j)}: {where} are beyond what {SENSOR_NAMES[kind]} reads "
                                 f"(|x| > {MAX_READABLE[kind]:g} {unit}); is the channel's unit right?")
-        raise AKFInputError(f"channel {self._named(j)}: {where} are beyond what {_SENSOR_NAMES[kind]} reads "
+        raise AKFInputError(f"channel {self._named(j)}: {where} are beyond what {SENSOR_NAMES[kind]} reads "
                             f"(|x| > {MAX_READABLE[kind]:g} {unit}): corrupt values or a data-acquisition "
                             "system's overflow code, not measurements; mark them missing (NaN or an empty cell) in "
                             "the file")

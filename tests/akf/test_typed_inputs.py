@@ -186,3 +186,39 @@ def test_a_sine_load_at_or_above_nyquist_is_refused_and_one_below_runs():
     sine["frequency"] = 100.0
     loads = Job.from_dict(data, "estimate").loads()
     assert np.max(np.abs(loads[:, 0])) == pytest.approx(100.0, rel=1e-3)
+
+
+@pytest.mark.parametrize("example, command, key", [("s17-case4", "estimate", "peak"), ("s17-case4", "estimate", "rms"),
+                                                   ("th-case5", "place", "peak"), ("imp-truss-case1", "locate", "peak")])
+def test_loads_far_beyond_what_the_structure_bears_are_named_as_loads(tmp_path, capsys, example, command, key):
+    """A load amplitude of 1e300 N was named by a consequence: a NaN noise covariance (estimate),
+    a failed Riccati solve or "no layout the GA tried is admissible" (place)."""
+    import tomlkit
+
+    from akf.examples import load_example
+
+    data = load_example(example, command)
+    for load in data["simulation"]["loads"]:
+        for component in load["components"]:
+            if key in component:
+                component[key] = 1e300
+    if command == "place":
+        data["place"].update(population=4, generations=1)
+    job = tmp_path / "job.toml"
+    job.write_text(tomlkit.dumps(data))
+    assert main([command, str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "the simulated response at " in err and "the loads (peak " in err and "are far too large" in err, err
+
+
+def test_a_simulated_response_beyond_any_sensor_is_refused_and_one_within_runs():
+    from core_akf.simulate import simulate
+
+    truss = s17_truss()
+    with pytest.raises(ValueError, match=r"the simulated response at strain:13 reaches .* m/m .* beyond what a strain "
+                                         r"gauge reads \(\|x\| <= 1 m/m\): the loads \(peak 1e\+12 N\)"):
+        simulate(truss, ["strain:13"], ["8:y"], np.full((50, 1), 1e12), 1e-3)
+    with pytest.raises(ValueError, match=r"reaches \S+ m/s\^2 .* beyond what an accelerometer reads"):
+        simulate(truss, ["acc:8:y"], ["8:y"], np.full((50, 1), 1e308), 1e-3)
+    sim = simulate(truss, ["strain:13", "acc:8:y"], ["8:y"], np.full((50, 1), 1e5), 1e-3)
+    assert np.isfinite(sim.measurements).all()
