@@ -364,6 +364,14 @@ class Record:
                 raise AKFInputError(f"{fb}: time step {b.dt:.9g} s differs from {t0.dt:.9g} s of {self.files[0]}")
             delta = b.start - a.end
             steps = delta / t0.dt
+            if abs(b.start - a.start) <= TIME_GRID_RTOL * t0.dt and b.n_steps == a.n_steps and a.n_steps:
+                try:
+                    same = os.path.samefile(fa, fb)
+                except OSError:
+                    same = False
+                raise AKFInputError(f"{fa} and {fb} hold the same time span ({a.n_steps} steps from {a.start:.9g} s): "
+                                    + ("they are one file (a link to it)" if same else "is one a copy of the other?")
+                                    + "; remove one from the record")
             if delta < -TIME_GRID_RTOL * t0.dt or abs(steps - round(steps)) > TIME_GRID_RTOL:
                 what = (f"an overlap of {-delta:.6g} s ({-steps:.6g} steps)" if delta < 0
                         else f"a gap of {delta:.6g} s ({steps:.6g} steps, not a whole number)")

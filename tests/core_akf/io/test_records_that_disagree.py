@@ -1,5 +1,7 @@
 """Records that disagree with themselves: time channels of another length, columns twice, a
 frequency response for a time record, files of one record that state different units."""
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -154,3 +156,27 @@ def test_files_in_different_units_are_each_converted_and_named(tmp_path):
     _two_tdms(tmp_path / "same", "m/s2", channel="ACC_12Y")          # m/s^2 in the first
     same = run_estimate(_sample_job(tmp_path / "same"), str(tmp_path / "same-out"), plot=False)
     assert not any("different units" in w for w in same.metrics["warnings"])
+
+
+@pytest.mark.parametrize("how", ["copy", "link"])
+def test_a_file_twice_in_a_record_is_named_as_such(tmp_path, how):
+    """A file copied (a download saved twice) or linked into a record's folder was named as an overlap
+    of so many steps."""
+    pytest.importorskip("nptdms")
+    import os
+    import shutil
+
+    from core_akf.checks import AKFInputError
+
+    _two_tdms(tmp_path / "rec", "g")
+    (shutil.copy if how == "copy" else os.symlink)(tmp_path / "rec" / "part-1.tdms", tmp_path / "rec" / "part-1 (1).tdms")
+    message = "they are one file (a link to it)" if how == "link" else "is one a copy of the other?"
+    with pytest.raises(AKFInputError, match=r"part-1 \(1\).tdms and .*part-1.tdms hold the same time span \(512 steps "
+                                            rf"from 0.125 s\): {re.escape(message)}; remove one from the record"):
+        _sample_record(tmp_path / "rec")
+
+
+def _sample_record(file):
+    from akf.job import Job
+
+    return Job.from_dict(_sample_job(file), "estimate").open_record()
