@@ -441,3 +441,20 @@ def test_fatigue_objective_under_uncertainty_and_failures():
     assert per_record.shape == (6,) and np.ptp(per_record) > 0
     fit = robust.evaluate(layouts)
     assert fit[0] >= combine(per_record, "p90") - 1e-12 and math.isinf(fit[1])     # a lost gauge leaves one static sensor
+
+
+@pytest.mark.parametrize("samples, seeds", [(2, 10**6), (10**5, 1)])
+def test_draws_that_cannot_fit_in_memory_are_refused_before_any_simulation(samples, seeds, monkeypatch):
+    """seeds = 10^6 in [place.uncertainty] grew the process to 24 GB before the kernel killed it."""
+    from core_akf import checks
+    from sensoropt import objective
+
+    monkeypatch.setattr(checks, "available_memory", lambda: 16 * 2 ** 30)       # whatever machine runs it
+    simulated = []
+    monkeypatch.setattr(objective, "simulate", lambda *a, **k: simulated.append(1))
+    u = Uncertainty.sample((0.95, 1.10), samples=samples, seeds=seeds, seed=1)
+    with pytest.raises(AKFInputError, match=rf"\[place.uncertainty\]: {samples} models x {seeds} noise draws of a "
+                                            r"300-step window: .* records need about .* GiB, but this machine has"):
+        StrainErrorObjective(s17_truss(), FORCES, truss_loads(), DT, encoding(), uncertainty=u, **SETTINGS)
+    assert simulated == []
+    objective.check_scenarios(s17_truss(), Uncertainty.sample((0.95, 1.10), samples=8, seeds=3, seed=1), 300, 80)
