@@ -466,11 +466,23 @@ class Job:
         sim = self.spec.simulation
         if sim is None or sim.duration is None:
             raise AKFInputError("[simulation] needs a positive duration (s)")
-        n_steps = int(round(sim.duration / self.dt)) if n_steps is None else n_steps
+        if n_steps is None:            # the whole record, to be simulated (place, show): refused before it is built
+            self._check_record_fits()
+            n_steps = int(round(sim.duration / self.dt))
         specs = [{"components": [c.model_dump(exclude_unset=True) for c in load.components]}
                  for load in (sim.loads or [])]
         return build_loads(specs, n_steps, self.dt, len(self.spec.forces),
                            warn_after_end=not self.duration_overridden)      # not for a record cut short on purpose
+
+    def _check_record_fits(self, per_step=None):
+        """The simulated record's steps, refused when its simulation (``per_step`` float64 values per
+        step, default the states, strains and readings) would not fit in memory."""
+        sp, structure = self.spec.simulation, self.structure
+        n_steps = sp.duration / self.dt
+        per_step = per_step or (2 * 2 * structure.n + structure.n_strain + 2 * len(self.spec.sensors or []))
+        check_memory(n_steps, per_step, f"a {sp.duration:g} s record at dt = {self.dt:g} s",
+                     "shorten [simulation] duration (CLI: --duration) or check dt")
+        return int(round(n_steps))
 
     def simulate(self, per_step=None):
         """Simulate the measurements of ``[simulation]``: the true structure, its sensors, the forces
@@ -485,11 +497,7 @@ class Job:
         if self.spec.forces is None:
             raise AKFInputError("a simulated job needs forces = ['NODE:DIR'] (where the loads act)")
         structure, sensors, forces, dt = self.structure, self.sensors, self.forces, self.dt
-        n_steps = sp.duration / dt
-        per_step = per_step or (2 * 2 * structure.n + structure.n_strain + 2 * len(sensors))
-        check_memory(n_steps, per_step, f"a {sp.duration:g} s record at dt = {dt:g} s",
-                     "shorten [simulation] duration (CLI: --duration) or check dt")
-        n_steps = int(round(n_steps))
+        n_steps = self._check_record_fits(per_step)
         if n_steps < 2:
             raise AKFInputError(f"[simulation] duration {sp.duration:g} s is shorter than two steps of dt = {dt:g} s")
         loads = self.loads(n_steps)

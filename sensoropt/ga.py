@@ -131,6 +131,18 @@ class PlacementGA(Algorithm):
                 "diversity": self.encoding.diversity([tuple(i) for i in population])}
 
 
+def check_run_size(population: int, generations: int):
+    """Refuse, before the first layout is drawn, a GA whose evaluated layouts (cached, with their
+    fitness) would not fit in memory.
+
+    Parameters
+    ----------
+    population, generations : int
+    """
+    check_memory(population * (generations + 1), 40, f"a GA of population {population} over {generations} generations",
+                 "use a smaller population (the thesis used 50) or fewer generations", items="evaluated layouts")
+
+
 def place(objective: Objective, encoding: CandidateSet, *, population: int = 50, generations: int = 100, elite: int = 2,
           crossover: float = 0.8, mutation: float = 0.16, tournament: int = 4, stall_generations: int = 50,
           stall_tol: float = 1e-6, operators: str = "set", seed: int = 0, n_jobs: int = 1,
@@ -195,8 +207,7 @@ def place(objective: Objective, encoding: CandidateSet, *, population: int = 50,
     if population < 2 or generations < 0 or not 0 <= elite < population:
         raise AKFInputError("need population >= 2, generations >= 0 and 0 <= elite < population")
     # every evaluated layout is kept (the cache, the checkpoint): about 40 float64 each
-    check_memory(population * (generations + 1), 40, f"a GA of population {population} over {generations} generations",
-                 "use a smaller population (the thesis used 50) or fewer generations", items="evaluated layouts")
+    check_run_size(population, generations)
     if operators not in ("set", "thesis"):
         raise AKFInputError(f"operators must be 'set' or 'thesis', got {operators!r}")
     if getattr(objective, "n_objectives", 1) != 1:

@@ -15,7 +15,7 @@ from core_akf.checks import AKFInputError
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, individual_class, tournament_dcd
 
 from .encoding import STRAIN_KINDS, PlateGrid
-from .ga import BATCH, PENALTY
+from .ga import BATCH, PENALTY, check_run_size
 
 if TYPE_CHECKING:
     from core_akf.structure import Structure
@@ -195,6 +195,7 @@ def pareto(objective: Objective, structure: Structure | None = None, *, kinds: t
     import pandas as pd
 
     population = 4 * math.ceil(population / 4)
+    check_run_size(population, generations)
     lo, hi = int(sizes[0]), int(sizes[1])
     if not 1 <= lo <= hi:
         raise AKFInputError(f"sizes must satisfy 1 <= min <= max, got {sizes}")

@@ -128,6 +128,35 @@ def test_population_that_does_not_fit_in_memory(tmp_path, capsys):
     assert "a GA of population 1000000000 over 100 generations" in capsys.readouterr().err
 
 
+def test_population_of_a_cost_front_that_does_not_fit_in_memory(tmp_path, capsys):
+    """The NSGA-II front (objectives = ["error", "cost"]) drew 10^9 layouts one by one, silent past 90 s."""
+    import tomlkit
+
+    from akf.examples import load_example
+
+    data = load_example("th-case5", "place")
+    data["place"].update(objectives=["error", "cost"], population=10**9, generations=2)
+    data["simulation"]["duration"] = 0.5
+    job = tmp_path / "front.toml"
+    job.write_text(tomlkit.dumps(data))
+    assert main(["place", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert "a GA of population 1000000000 over 2 generations" in capsys.readouterr().err
+
+
+def test_a_simulated_record_that_cannot_fit_is_refused_before_its_loads_are_built(tmp_path, capsys):
+    """A place job's duration of 1e300 s ended in numpy's "Maximum allowed size exceeded" (internal error)."""
+    import tomlkit
+
+    from akf.examples import load_example
+
+    data = load_example("th-case5", "place")
+    data["simulation"]["duration"] = 1e300
+    job = tmp_path / "long.toml"
+    job.write_text(tomlkit.dumps(data))
+    assert main(["place", str(job), "--no-plot", "--out", str(tmp_path / "o")]) == 2
+    assert "a 1e+300 s record at dt = 0.0005 s" in capsys.readouterr().err
+
+
 def test_diversity_of_a_large_population_is_sampled():
     from sensoropt.encoding import DIVERSITY_SAMPLE, make_encoding
 
