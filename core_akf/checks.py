@@ -286,6 +286,11 @@ def as_measurements(value, name="measurements", ndim=None):
     """
     if np.iscomplexobj(value):
         raise AKFInputError(f"{name} is complex; the filter works on real data (take .real, or the magnitude, first)")
+    kind = np.asarray(value).dtype.kind if not isinstance(value, np.ndarray) else value.dtype.kind
+    if kind in "USb":
+        raise AKFInputError(f"{name} must be numeric (NaN for a missing sample), not "
+                            f"{'true/false values' if kind == 'b' else 'text'}: convert the channels to numbers in SI "
+                            "first")
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -300,6 +305,35 @@ def as_measurements(value, name="measurements", ndim=None):
     if arr.size and np.isnan(arr).all():
         raise AKFInputError(f"{name} has no observed sample: every value is NaN (missing)")
     return arr
+
+
+def as_time_step(dt, name="time step dt"):
+    """A time step as a positive finite float (s); text, an array of more than one value or a
+    true/false value is named, not converted.
+
+    Parameters
+    ----------
+    dt : float
+    name : str
+        What the value is, for the message.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> as_time_step(1e-3)
+    0.001
+    """
+    value = None
+    if isinstance(dt, np.ndarray) and dt.ndim == 0:
+        dt = dt.item()
+    if isinstance(dt, (int, float, np.integer, np.floating)) and not isinstance(dt, (bool, np.bool_)):
+        value = float(dt)
+    if value is None or not np.isfinite(value) or value <= 0:
+        raise AKFInputError(f"{name} must be a positive number of seconds, got {shortened(repr(dt))}")
+    return value
 
 
 def check_square_symmetric(mat, name, rtol=1e-9):

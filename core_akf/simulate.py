@@ -12,7 +12,7 @@ from .checks import ArrayLike, FloatArray, ForceHistories, Forces, Layout
 
 if TYPE_CHECKING:
     from .structure import Structure
-from .checks import AKFInputError, as_finite_array
+from .checks import AKFInputError, as_finite_array, as_time_step
 from .forcemodels import check_load_hold
 from .sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout, parse_force_locations
 from .statespace import continuous, foh, modal_blocks, modal_state_transform, observation, strain_feedthrough, zoh
@@ -232,6 +232,7 @@ def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: Force
     ((50, 2), (50, 34))
     """
     layout = as_layout(sensors)
+    dt = as_time_step(dt)
     locs = parse_force_locations(structure, forces)
     P = as_finite_array(loads, "loads", ndim=(1, 2))
     if P.ndim == 1:

@@ -19,7 +19,7 @@ from .checks import Forces, Layout
 if TYPE_CHECKING:
     from .structure import Structure
 from . import rank
-from .checks import AKFInputError, UndetectableError
+from .checks import UndetectableError, as_time_step
 from .forcemodels import ForceModel
 from .rank import is_supported
 from .sensors import as_layout, parse_force_locations, selection_matrices
@@ -32,10 +32,7 @@ def _minv(structure):
 
 
 def _check_dt(dt):
-    dt = float(dt)
-    if not np.isfinite(dt) or dt <= 0:
-        raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
-    return dt
+    return as_time_step(dt)
 
 
 def modal_damping(structure, rtol=1e-10):

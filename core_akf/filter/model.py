@@ -26,7 +26,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg
 
-from ..checks import AKFInputError, ArrayLike, Covariance, FloatArray, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
+from ..checks import (
+    AKFInputError,
+    ArrayLike,
+    Covariance,
+    FloatArray,
+    Forces,
+    Layout,
+    Measurements,
+    NoiseCovariance,
+    as_finite_array,
+    as_time_step,
+)
 from ..covariances import diag_levels, noise_covariance, state_covariance
 from ..defaults import resolve_modes
 from ..forcemodels import DummyMeasurements, ForceModel, as_force_model
@@ -391,8 +402,7 @@ class Filter:
                  noise_cov: NoiseCovariance | Sequence[NoiseCovariance], steady: bool | None = None,
                  allow_undetectable: bool = False, x0: ArrayLike | None = None, P0: Covariance | None = None,
                  force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None):
-        if not np.isfinite(dt) or dt <= 0:
-            raise AKFInputError(f"time step dt must be a positive number of seconds, got {dt!r}")
+        dt = as_time_step(dt)
         self.layouts = [as_layout(layout) for layout in layouts]
         if not self.layouts:
             raise AKFInputError("no sensor layouts given")
