@@ -254,6 +254,29 @@ def as_finite_array(value, name, ndim=None, shape=None, dtype=float):
     return arr
 
 
+def check_numeric_kind(value, name):
+    """Refuse measurements that numpy would convert without a word: complex values (their
+    imaginary part dropped), text (numbers as strings) and true/false values (as 0/1).
+
+    Parameters
+    ----------
+    value : array_like
+    name : str
+        What the values are, for the message.
+    """
+    try:
+        arr = value if isinstance(value, np.ndarray) else np.asarray(value)
+    except (TypeError, ValueError):
+        return                  # ragged or nested: the conversion to floats names it
+    if np.iscomplexobj(arr):
+        raise AKFInputError(f"{name} is complex; the filter works on real data (take .real, or the magnitude, first)")
+    kind = arr.dtype.kind
+    if kind in "USb":
+        raise AKFInputError(f"{name} must be numeric (NaN for a missing sample), not "
+                            f"{'true/false values' if kind == 'b' else 'text'}: convert the channels to numbers in SI "
+                            "first")
+
+
 def as_measurements(value, name="measurements", ndim=None):
     """Return measurements as a float array in which NaN marks a missing sample.
 
@@ -284,13 +307,7 @@ def as_measurements(value, name="measurements", ndim=None):
     >>> as_measurements([[1.0, float("nan")], [2.0, 3.0]]).tolist()
     [[1.0, nan], [2.0, 3.0]]
     """
-    if np.iscomplexobj(value):
-        raise AKFInputError(f"{name} is complex; the filter works on real data (take .real, or the magnitude, first)")
-    kind = np.asarray(value).dtype.kind if not isinstance(value, np.ndarray) else value.dtype.kind
-    if kind in "USb":
-        raise AKFInputError(f"{name} must be numeric (NaN for a missing sample), not "
-                            f"{'true/false values' if kind == 'b' else 'text'}: convert the channels to numbers in SI "
-                            "first")
+    check_numeric_kind(value, name)
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -63,6 +63,13 @@ def _indefinite(n):
     return M
 
 
+def _stream(chunk):
+    """One chunk through a streaming Estimator of the small truss job."""
+    est = akf.Estimator(s17_truss(), SENSORS, FORCES, DT, model_error_cov=1e-16, force_increment_cov=1e4,
+                        noise_cov={"strain": 1e-14, "acc": 1e-2})
+    return est.update(chunk)
+
+
 API_CASES = {
     "Q_a not symmetric": (lambda: _run(Q_a=np.triu(np.ones((6, 6))) * 1e-2), "Q_a is not symmetric"),
     "Q_a indefinite": (lambda: _run(Q_a=1e-2 * _indefinite(6)), "Q_a must be positive semi-definite"),
@@ -103,6 +110,11 @@ API_CASES = {
     "dt as text": (lambda: _estimate(dt="0.001"), "time step dt must be a positive number of seconds, got '0.001'"),
     "dt as an array": (lambda: _estimate(dt=np.array([1e-3, 2e-3])), "time step dt must be a positive number"),
     "dt as true": (lambda: _estimate(dt=True), "time step dt must be a positive number"),
+    "a chunk of text": (lambda: _stream([["a", "b", "c", "d"]] * 5), "a chunk of measurements must be numeric .*, not text"),
+    "a chunk of numbers as text": (lambda: _stream(_measured()[:5].astype(str)), "must be numeric .*, not text"),
+    "a chunk of true/false": (lambda: _stream(_measured()[:5] > 0), "must be numeric .*, not true/false values"),
+    "a complex chunk": (lambda: _stream(_measured()[:5] * (1 + 1j)), "a chunk of measurements is complex"),
+    "a chunk of lists": (lambda: _stream([[1.0, [2.0], 3.0, 4.0]] * 5), "a chunk of measurements must be numeric"),
     "undetectable set": (lambda: _estimate(sensors=["acc:4:y", "acc:8:y", "strain:9"],
                                            measurements=_measured()[:, :3]), "not detectable"),
     "steady on undetectable": (lambda: _estimate(sensors=["acc:4:y", "acc:8:y", "strain:9"], steady=True,

@@ -25,7 +25,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..checks import AKFInputError, ArrayLike, Covariance, Forces, Layout, Measurements, NoiseCovariance, as_finite_array
+from ..checks import (
+    AKFInputError,
+    ArrayLike,
+    Covariance,
+    Forces,
+    Layout,
+    Measurements,
+    NoiseCovariance,
+    as_finite_array,
+    check_numeric_kind,
+)
 from ..forcemodels import DummyMeasurements, ForceModel
 from . import kernels
 from .model import Filter
@@ -193,7 +203,11 @@ class Estimator:
         Estimate
             The chunk's estimate (its ``time`` continues the record).
         """
-        Y = np.asarray(chunk, dtype=float)
+        check_numeric_kind(chunk, "a chunk of measurements")
+        try:
+            Y = np.asarray(chunk, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise AKFInputError(f"a chunk of measurements must be numeric (NaN for a missing sample): {exc}") from None
         if Y.ndim != 2 or Y.shape[1] != self.n_channels:
             raise AKFInputError(f"a chunk must have shape (steps, {self.n_channels}) for the sensors "
                                 f"{[s.label for s in self.layout]}; got {Y.shape}")
