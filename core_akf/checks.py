@@ -353,6 +353,52 @@ def as_time_step(dt, name="time step dt"):
     return value
 
 
+def as_seed(seed, name="seed"):
+    """A seed checked: None, a whole number >= 0 or a :class:`numpy.random.Generator` (returned as
+    is); a negative, fractional, true/false or text seed is named, not passed on to numpy.
+
+    Parameters
+    ----------
+    seed : int, numpy.random.Generator or None
+    name : str
+        What the value is, for the message.
+
+    Returns
+    -------
+    int, numpy.random.Generator or None
+
+    Examples
+    --------
+    >>> as_seed(3)
+    3
+    """
+    if seed is None or isinstance(seed, np.random.Generator):
+        return seed
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)) and seed >= 0:
+        return int(seed)
+    raise AKFInputError(f"{name} must be a whole number >= 0, got {shortened(repr(seed))}")
+
+
+def as_n_jobs(n_jobs, name="n_jobs"):
+    """A number of workers checked: a whole number >= 1, or -1 (every core) and below as joblib
+    counts them.
+
+    Parameters
+    ----------
+    n_jobs : int
+    name : str
+        What the value is, for the message.
+
+    Returns
+    -------
+    int
+    """
+    if isinstance(n_jobs, (int, np.integer)) and not isinstance(n_jobs, (bool, np.bool_)) and n_jobs != 0:
+        return int(n_jobs)
+    raise AKFInputError(f"{name} must be a whole number of workers >= 1 (or -1: every core), got "
+                        f"{shortened(repr(n_jobs))}")
+
+
 def check_square_symmetric(mat, name, rtol=1e-9):
     """Raise :class:`ModelError` unless ``mat`` is a square symmetric matrix.
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .checks import AKFInputError
+from .checks import AKFInputError, as_seed
 from .outputs import atomic_path
 
 #: identifies a checkpoint of this engine; a file with another tag or version is refused
@@ -364,6 +364,8 @@ class GeneticAlgorithm:
         if isinstance(seed, (bool, np.bool_)) or int(seed) != seed or seed < 0:
             raise AKFInputError(f"seed must be a whole number >= 0, got {seed!r}")
         self.algorithm, self.evaluator = algorithm, evaluator
+        if isinstance(as_seed(seed), np.random.Generator) or seed is None:
+            raise AKFInputError(f"seed must be a whole number >= 0 (a checkpoint records it), got {seed!r}")
         self.generations, self.seed = int(generations), int(seed)
         self.stall_generations, self.stall_tol, self.stall_column = int(stall_generations), stall_tol, stall_column
         self.checkpoint, self.checkpoint_every, self.resume = checkpoint, int(checkpoint_every), resume

@@ -12,7 +12,7 @@ from .checks import ArrayLike, FloatArray, ForceHistories, Forces, Layout
 
 if TYPE_CHECKING:
     from .structure import Structure
-from .checks import AKFInputError, as_finite_array, as_time_step
+from .checks import AKFInputError, as_finite_array, as_seed, as_time_step
 from .forcemodels import check_load_hold
 from .sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout, parse_force_locations
 from .statespace import continuous, foh, modal_blocks, modal_state_transform, observation, strain_feedthrough, zoh
@@ -248,6 +248,7 @@ def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: Force
         clean = X @ G.T + P @ D.T
     check_readable_response(clean, layout, P, float(dt))
     std = noise_levels(clean, layout, relative_noise, absolute_noise)
+    seed = as_seed(seed)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     noisy = clean + rng.normal(size=clean.shape) * std
     return Simulation(structure, layout, locs, float(dt), P, X, clean, noisy, std)

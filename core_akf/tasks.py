@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
+from .checks import as_n_jobs
+
 
 class WorkerLostError(RuntimeError):
     """A worker process died twice while running tasks (out of memory or killed)."""
@@ -43,6 +45,7 @@ def run_tasks(fn: Callable, items: Iterable, n_jobs: int) -> list:
     >>> run_tasks(abs, [-1, 2, -3], 1)
     [1, 2, 3]
     """
+    n_jobs = as_n_jobs(n_jobs)
     items = list(items)
     if n_jobs == 1 or len(items) <= 1:
         return [fn(x) for x in items]

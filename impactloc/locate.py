@@ -15,16 +15,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core_akf.checks import AKFInputError
+from core_akf.checks import AKFInputError, as_measurements, as_n_jobs, as_seed
 from core_akf.forcemodels import ForceModel
 from core_akf.sensors import as_layout
 
 from .reconstruct import reconstruct
 from .roles import role_splits
-from .scan import ImpactModel, candidate_locations, default_covariances, scan
+from .scan import ImpactModel, candidate_locations, check_skip, default_covariances, scan
 from .tuning import check_decades, tune_covariances, tune_covariances_ml
 
 #: units of the numbers in :meth:`LocateResult.to_dict` (and ``akf locate --json``)
+#: the settings of tune_covariances a locate's ``tuning`` may give
+TUNING_KEYS = ("population", "generations", "n_splits", "decades", "crossover", "mutation")
 LOCATE_UNITS = {"confidence": "share of role splits (0-1)", "margin": "runner-up distance in pooled spreads",
                 "peak_force": "N", "time_of_peak": "s", "duration": "s", "impulse": "N s",
                 "ranking.mean": "relative RMS error at the AD sensors", "ranking.std": "relative RMS error",
@@ -157,7 +159,15 @@ def locate(structure: Structure, sensors: Layout, measurements: ArrayLike, dt: f
     if method == "?":
         raise AKFInputError(f"tune must be True, False, \"ga\" or \"ml\", got {tune!r}")
     layout = as_layout(sensors)
-    Y = np.asarray(measurements, dtype=float)
+    Y = as_measurements(measurements, ndim=2)
+    seed, n_jobs = as_seed(seed), as_n_jobs(n_jobs)
+    check_skip(skip, dt, Y.shape[0])
+    if tuning is not None and not isinstance(tuning, dict):
+        raise AKFInputError(f"tuning must be a dict of tune_covariances settings ({', '.join(TUNING_KEYS)}), got "
+                            f"{type(tuning).__name__}")
+    unknown = sorted(set(tuning or {}) - set(TUNING_KEYS))
+    if unknown:
+        raise AKFInputError(f"tuning has unknown setting(s) {unknown}; use {', '.join(TUNING_KEYS)}")
     if tuning and "decades" in tuning:
         check_decades(tuning["decades"], "tuning decades")           # before the scan, not after it
     splits = role_splits(layout, n_ad, ad_kinds, max_splits=max_splits, seed=seed)

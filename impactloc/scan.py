@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core_akf.checks import AKFInputError, FloatArray, ForceLocation, Layout, Measurements, as_measurements
+from core_akf.checks import AKFInputError, FloatArray, ForceLocation, Layout, Measurements, as_measurements, as_n_jobs, shortened
 from core_akf.defaults import default, resolve_modes
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
@@ -163,6 +163,10 @@ def candidate_locations(structure: Structure, direction: str, nodes: Sequence[in
         nodes = [int(n) for n in structure.user_node_ids if _free(structure, int(n), direction)]
         if not nodes:
             raise AKFInputError(f"no free node moves in direction {direction!r}")
+    bad = [n for n in nodes if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer, float, np.floating))
+           or n != int(n)]
+    if bad:
+        raise AKFInputError(f"candidate node(s) {shortened(repr(bad[:5]))} are not node numbers (whole numbers, 1-based)")
     return parse_force_locations(structure, [(int(n), direction) for n in nodes])
 
 
@@ -202,6 +206,9 @@ class ImpactModel:
 
     def __init__(self, structure: Structure, sensors: Layout, dt: float, n_modes: int | str | None = None,
                  force_model: ForceModel | None = None):
+        if force_model is not None and not isinstance(force_model, ForceModel):
+            raise AKFInputError(f"force_model must be a core_akf.forcemodels.ForceModel (or None: the random walk), got "
+                                f"{type(force_model).__name__}")
         self.full = structure
         self.force_model = force_model if force_model is not None and force_model.stationary else None
         self.hold = "zero" if force_model is None else force_model.hold
@@ -308,6 +315,31 @@ class ImpactModel:
         if missing:
             raise AKFInputError(f"covariances have no noise variance for sensor kind(s) {missing}")
         return np.array([cov.noise[k] for k in self.kinds])
+
+
+def check_skip(skip, dt, n_steps):
+    """The samples a ``skip`` of seconds leaves out, checked: a time >= 0 that leaves samples.
+
+    Parameters
+    ----------
+    skip : float
+        Seconds at the record's start left out of the AD error.
+    dt : float
+        Time step (s).
+    n_steps : int
+        Samples of the record.
+
+    Returns
+    -------
+    int
+    """
+    if isinstance(skip, (bool, np.bool_)) or not isinstance(skip, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(skip) or skip < 0:
+        raise AKFInputError(f"skip must be a time >= 0 (s), got {shortened(repr(skip))}")
+    skip_n = int(round(skip / dt))
+    if skip_n >= n_steps - 1:
+        raise AKFInputError(f"skip = {skip} s leaves no samples of the {n_steps * dt:.3g} s record")
+    return skip_n
 
 
 def rms_errors(pred, Y_ad, skip=0):
@@ -548,9 +580,8 @@ def scan(structure: Structure, sensors: Layout, measurements: Measurements, dt: 
     locs = parse_force_locations(structure, candidates)
     if not locs:
         raise AKFInputError("no candidate locations")
-    skip_n = int(round(skip / dt))
-    if not 0 <= skip_n < Y.shape[0] - 1:
-        raise AKFInputError(f"skip = {skip} s leaves no samples of the {Y.shape[0] * dt:.3g} s record")
+    skip_n = check_skip(skip, dt, Y.shape[0])
+    n_jobs = as_n_jobs(n_jobs)
     model = model or ImpactModel(structure, layout, dt, n_modes)
     if n_jobs == 1:
         it = locs

@@ -20,6 +20,7 @@ from core_akf import AKFInputError, UndetectableError
 from core_akf import filter as akf
 from core_akf.filter import estimate
 from core_akf.models import s17_truss
+from core_akf.simulate import simulate
 from core_akf.structure import Structure
 
 SENSORS = ["acc:4:y", "acc:8:y", "strain:5", "strain:13"]
@@ -43,7 +44,6 @@ def _run(**change):
 
 def _measured(n=256):
     """Simulated measurements of SENSORS (N x 4) for the small truss job."""
-    from core_akf.simulate import simulate
     t = np.arange(n) * DT
     sim = simulate(s17_truss(), SENSORS, FORCES, (800 * np.sin(2 * np.pi * 5 * t))[:, None], DT,
                    relative_noise=0.02, seed=1)
@@ -68,6 +68,17 @@ def _stream(chunk):
     est = akf.Estimator(s17_truss(), SENSORS, FORCES, DT, model_error_cov=1e-16, force_increment_cov=1e4,
                         noise_cov={"strain": 1e-14, "acc": 1e-2})
     return est.update(chunk)
+
+
+def _locate(**change):
+    """impactloc.locate on a short simulated impact at joint 8 of the truss, with ``change``."""
+    from impactloc import locate, simulate_impact
+
+    sensors = ["acc:4:y", "acc:8:y", "acc:12:y", "strain:5", "strain:9", "strain:13", "strain:26"]
+    sim = simulate_impact(s17_truss(), sensors, "8:y", record=0.3, seed=1)
+    kw = dict(n_ad=2, direction="y", tune=False, max_splits=2, candidates=[8, 10])
+    kw.update(change)
+    return locate(s17_truss(), sensors, kw.pop("measurements", sim.measurements), sim.dt, **kw)
 
 
 API_CASES = {
@@ -114,6 +125,21 @@ API_CASES = {
     "a chunk of numbers as text": (lambda: _stream(_measured()[:5].astype(str)), "must be numeric .*, not text"),
     "a chunk of true/false": (lambda: _stream(_measured()[:5] > 0), "must be numeric .*, not true/false values"),
     "a complex chunk": (lambda: _stream(_measured()[:5] * (1 + 1j)), "a chunk of measurements is complex"),
+    "candidate node as text": (lambda: _locate(candidates=["8"]), r"candidate node\(s\) \['8'\] are not node numbers"),
+    "fractional candidate node": (lambda: _locate(candidates=[8.5]), r"candidate node\(s\) \[8.5\] are not node numbers"),
+    "negative skip": (lambda: _locate(skip=-1.0), r"skip must be a time >= 0 \(s\), got -1.0"),
+    "NaN skip": (lambda: _locate(skip=float("nan")), r"skip must be a time >= 0 \(s\), got nan"),
+    "no workers": (lambda: _locate(n_jobs=0), r"n_jobs must be a whole number of workers >= 1 \(or -1: every core\)"),
+    "negative seed": (lambda: _locate(seed=-1), "seed must be a whole number >= 0, got -1"),
+    "fractional seed": (lambda: _locate(seed=1.5), "seed must be a whole number >= 0, got 1.5"),
+    "a tuning setting misspelt": (lambda: _locate(tune=True, tuning={"generation": 3}),
+                                  r"tuning has unknown setting\(s\) \['generation'\]"),
+    "tuning as text": (lambda: _locate(tune=True, tuning="fast"), "tuning must be a dict of tune_covariances settings"),
+    "a force model as text": (lambda: _locate(force_model="matern"), "force_model must be a core_akf.forcemodels.ForceModel"),
+    "impact record of true/false": (lambda: _locate(measurements=np.ones((300, 7)) > 0), "not true/false values"),
+    "a noise seed below zero": (lambda: simulate(s17_truss(), ["acc:4:y"], FORCES, np.ones((5, 1)), DT,
+                                                 relative_noise=0.1, seed=-3),
+        "seed must be a whole number >= 0, got -3"),
     "a chunk of lists": (lambda: _stream([[1.0, [2.0], 3.0, 4.0]] * 5), "a chunk of measurements must be numeric"),
     "undetectable set": (lambda: _estimate(sensors=["acc:4:y", "acc:8:y", "strain:9"],
                                            measurements=_measured()[:, :3]), "not detectable"),

@@ -348,10 +348,9 @@ class Record:
             if None in stated:
                 raise AKFInputError(f"channel {name!r} ({self.sources[0][j].sensor}) states {shown}: a file without a "
                                     f"unit would be read as SI ({UNITS[self.layout[j].kind]}); "
-                                    f"give the channel's unit in [measurements] units = {{{name!r} = \"...\"}}")
+                                    f"give the channel's unit: units = {{{name!r}: \"...\"}}")
             self.unit_warnings.append(f"channel {name!r} ({self.sources[0][j].sensor}) is recorded in different units: "
-                                      f"{shown}; each file is converted by its own (set [measurements] units to "
-                                      f"override)")
+                                      f"{shown}; each file is converted by its own (give units to override)")
 
     # ---------------------------------------------------------------------------- time
     def _check_joins(self):

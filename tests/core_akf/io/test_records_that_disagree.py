@@ -133,7 +133,7 @@ def test_a_file_that_states_no_unit_where_another_does_is_refused(tmp_path, unse
     _two_tdms(tmp_path / "rec", unset)
     with pytest.raises(AKFInputError, match=r"channel 'ACC_4Y' \(acc:4:y\) states 'g' in part-0.tdms, no unit in "
                                             r"part-1.tdms: a file without a unit would be read as SI \(m/s\^2\); "
-                                            r"give the channel's unit in \[measurements\] units"):
+                                            r"give the channel's unit: units = {'ACC_4Y': "):
         Job.from_dict(_sample_job(tmp_path / "rec"), "estimate").open_live_record()
     job = _sample_job(tmp_path / "rec")
     job["measurements"]["units"] = job["measurements"]["units"] | {"ACC_4Y": "g"}       # the way out
