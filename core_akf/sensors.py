@@ -34,6 +34,20 @@ _ALIASES = {"accel": "acc", "acceleration": "acc", "a": "acc", "velocity": "vel"
             "displacement": "disp", "d": "disp", "s": "strain", "eps": "strain"}
 
 
+
+def readable_limits(layout) -> np.ndarray:
+    """Per channel of a layout, the largest magnitude a sensor of its kind reads (:data:`MAX_READABLE`, SI).
+
+    Parameters
+    ----------
+    layout : sequence of Sensor
+
+    Returns
+    -------
+    ndarray (m,)
+    """
+    return np.array([MAX_READABLE[s.kind] for s in layout])
+
 @dataclass(frozen=True)
 class Sensor:
     """One sensor: its kind and its location.

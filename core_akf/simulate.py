@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from .structure import Structure
 from .checks import AKFInputError, as_finite_array, as_seed, as_time_step
 from .forcemodels import check_load_hold
-from .sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout, parse_force_locations
+from .sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout, parse_force_locations, readable_limits
 from .statespace import continuous, foh, modal_blocks, modal_state_transform, observation, strain_feedthrough, zoh
 
 #: standard gravity (m/s^2), for levels given in g or mg
@@ -173,8 +173,7 @@ def check_readable_response(clean, layout, loads, dt):
     if clean.size == 0:
         return
     with np.errstate(invalid="ignore"):
-        limits = np.array([MAX_READABLE[s.kind] for s in layout])
-        beyond = ~(np.abs(clean) <= limits)
+        beyond = ~(np.abs(clean) <= readable_limits(layout))
     if not beyond.any():
         return
     k, j = np.unravel_index(int(np.argmax(beyond)), beyond.shape)

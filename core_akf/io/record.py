@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import AKFInputError, FloatArray, Layout, Time
-from ..sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout
+from ..sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout, readable_limits
 from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
 from .units import conversion, is_bridge_unit, is_unset
 
@@ -229,6 +229,7 @@ class Record:
                  invert: Sequence[str] = (), remove_offset: bool | float = False, format: str | None = None,
                  time_column: str = "time", group: str | None = None, max_gap: float = MAX_GAP):
         self.layout = as_layout(sensors)
+        self._limits = readable_limits(self.layout)
         self.labels = [s.label for s in self.layout]
         paths = record_files(files)
         classes = {reader_class(p, format) for p in paths}
@@ -517,9 +518,8 @@ class Record:
     def _check_readable(self, step, Y):
         """Refuse samples beyond what a sensor of the channel's kind reads (:data:`~core_akf.sensors.MAX_READABLE`),
         naming the first: a corrupt value or an overflow code, or the whole channel in another unit."""
-        limits = np.array([MAX_READABLE[s.kind] for s in self.layout])
         with np.errstate(invalid="ignore"):
-            beyond = np.abs(Y) > limits                 # NaN (missing) is not beyond
+            beyond = np.abs(Y) > self._limits                # NaN (missing) is not beyond
         if not beyond.any():
             return
         j = int(np.flatnonzero(beyond.any(axis=0))[0])

@@ -38,7 +38,9 @@ _STRAIN_NAMES = {"ue": "microstrain", "µe": "microstrain", "μe": "microstrain"
                  "ɛ": "strain"}     # ɛ: the Latin epsilon some catalogues print for ε
 #: pint's dimensionless units that no sensor reads in: counts of raw values, and logarithmic levels
 #: (matched at the end of a name, so that prefixed ones such as "kilobyte" and "decibel" are caught)
-_NOT_PHYSICAL = ("count", "bit", "byte", "baud", "bel", "neper", "octave", "decade")
+_RAW_COUNTS = ("count", "bit", "byte", "baud")
+_LOGARITHMIC = ("bel", "neper", "octave", "decade")
+_NOT_PHYSICAL = _RAW_COUNTS + _LOGARITHMIC
 #: a unit's power written as digits after its name, as DAQ systems label channels ("m/s2", "m s-2")
 _BARE_POWER = re.compile(r"(?<=[A-Za-zµμ])(-?\d+)(?![\d.])")
 
@@ -137,7 +139,7 @@ def conversion(unit: str, kind: str, channel: str, gauge_factor: float | None = 
                             f"{_examples(kind)}") from None
     raw = [str(u) for u in parsed._units if str(u).endswith(_NOT_PHYSICAL)]
     if raw:
-        what = ("a logarithmic level" if raw[0].endswith(("bel", "neper", "octave", "decade"))
+        what = ("a logarithmic level" if raw[0].endswith(_LOGARITHMIC)
                 else "a count of raw values (ADC counts, bits or bytes)")
         raise AKFInputError(f"channel {channel!r}: {unit!r} is {what}, not a unit of {kind}; give the unit the "
                             f"channel's values are scaled in, such as {_examples(kind)}")
