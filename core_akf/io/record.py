@@ -57,6 +57,9 @@ def record_files(spec: str | os.PathLike | Sequence[str | os.PathLike]) -> list[
     >>> [os.path.basename(f) for f in record_files(folder)]      # files of a registered format, by name
     ['a.csv', 'b.csv']
     """
+    if not isinstance(spec, (str, os.PathLike, list, tuple)):
+        raise AKFInputError(f"the record's files must be a path, a glob pattern, a folder or a list of those; got "
+                            f"{type(spec).__name__}")
     specs = [spec] if isinstance(spec, (str, os.PathLike)) else list(spec)
     if not specs:
         raise AKFInputError("no measurement files given")
@@ -238,9 +241,18 @@ class Record:
                                 + "); give files of one format")
         self.channels_map = self._channel_map(channels)
         self._open = lambda p: _reader_of(open_file(p, format, time_column, group), self.channels_map)
+        if units is not None and not isinstance(units, Mapping):
+            raise AKFInputError(f"units must map file channels to units, e.g. {{'SG13': 'microstrain'}}; got "
+                                f"{type(units).__name__}")
         self.units_given = dict(units or {})
+        factors = ({f"gauge_factor[{k!r}]": v for k, v in gauge_factor.items()} if isinstance(gauge_factor, dict)
+                   else {"gauge_factor": gauge_factor})
+        for name, value in factors.items():
+            if value is not None and (isinstance(value, (bool, np.bool_))
+                                      or not isinstance(value, (int, float, np.integer, np.floating))):
+                raise AKFInputError(f"{name} must be a number (a gauge factor, about 2), got {value!r}")
         self.gauge_factor, self.bridge = gauge_factor, bridge
-        self.invert = list(invert or ())
+        self.invert = [invert] if isinstance(invert, str) else list(invert or ())      # one channel, or several
         unknown = [c for c in [*self.units_given, *self.invert] if c not in self.channels_map]
         if isinstance(gauge_factor, dict):
             unknown += [c for c in gauge_factor if c not in self.channels_map]
@@ -251,11 +263,12 @@ class Record:
                                 f"mapped to a sensor; mapped: {sorted(self.channels_map)}")
         if isinstance(remove_offset, bool) or remove_offset is None:
             self.remove_offset = bool(remove_offset)
-        elif not (np.isfinite(remove_offset) and remove_offset > 0):
+        elif not (isinstance(remove_offset, (int, float, np.integer, np.floating)) and np.isfinite(remove_offset)
+                  and remove_offset > 0):
             raise AKFInputError(f"remove_offset must be true, false or a positive time (s), got {remove_offset!r}")
         else:
             self.remove_offset = float(remove_offset)
-        if not (isinstance(max_gap, (int, float)) and not np.isnan(max_gap) and max_gap >= 0):
+        if isinstance(max_gap, bool) or not (isinstance(max_gap, (int, float)) and not np.isnan(max_gap) and max_gap >= 0):
             raise AKFInputError(f"max_gap must be a time >= 0 (s), got {max_gap!r}")
         self.max_gap = float(max_gap)
         self.files, self.timings, self.sources = [], [], []

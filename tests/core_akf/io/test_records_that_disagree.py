@@ -180,3 +180,36 @@ def _sample_record(file):
     from akf.job import Job
 
     return Job.from_dict(_sample_job(file), "estimate").open_record()
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(files=None), "the record's files must be a path, a glob pattern, a folder or a list of those; got NoneType"),
+    (dict(files=3), "got int"),
+    (dict(units=["g"]), r"units must map file channels to units, e.g. \{'SG13': 'microstrain'\}; got list"),
+    (dict(gauge_factor="2.1"), r"gauge_factor must be a number \(a gauge factor, about 2\), got '2.1'"),
+    (dict(gauge_factor={"SG13": "2.1"}), r"gauge_factor\['SG13'\] must be a number"),
+    (dict(remove_offset="yes"), "remove_offset must be true, false or a positive time"),
+    (dict(max_gap=True), "max_gap must be a time >= 0"),
+])
+def test_record_arguments_of_the_wrong_type_are_named(change, message):
+    """Each was a TypeError or ValueError from inside Python or numpy (a gauge factor as text compared
+    with 0, units as a list made into a dict, a path of None iterated)."""
+    from core_akf.checks import AKFInputError
+    from core_akf.io import Record
+
+    meas = _sample_job(DAQ / "record.tdms")["measurements"]
+    kw = {k: meas[k] for k in ("channels", "gauge_factor", "bridge", "invert")} | change
+    sensors = list(meas["channels"].values())
+    with pytest.raises(AKFInputError, match=message):
+        Record(kw.pop("files", DAQ / "record.tdms"), sensors, **kw)
+
+
+def test_one_channel_to_invert_may_be_given_as_its_name():
+    from core_akf.io import Record
+
+    meas = _sample_job(DAQ / "record.tdms")["measurements"]
+    kw = {k: meas[k] for k in ("channels", "gauge_factor", "bridge")}
+    sensors = list(meas["channels"].values())
+    one = Record(DAQ / "record.tdms", sensors, invert="ACC_6X", **kw).read()[1]
+    listed = Record(DAQ / "record.tdms", sensors, invert=["ACC_6X"], **kw).read()[1]
+    np.testing.assert_array_equal(one, listed)
