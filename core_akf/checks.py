@@ -379,6 +379,52 @@ def as_seed(seed, name="seed"):
     raise AKFInputError(f"{name} must be a whole number >= 0, got {shortened(repr(seed))}")
 
 
+def as_count(value, name, minimum=0):
+    """A whole number >= ``minimum`` (a population, a number of generations): an integral float
+    (6.0) is taken, a fractional one, text or true/false is named.
+
+    Parameters
+    ----------
+    value : int
+    name : str
+        What the value is, for the message.
+    minimum : int
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> as_count(6.0, "population", 2)
+    6
+    """
+    ok = (isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+          and np.isfinite(value) and value == int(value) and value >= minimum)
+    if not ok:
+        raise AKFInputError(f"{name} must be a whole number >= {minimum}, got {shortened(repr(value))}")
+    return int(value)
+
+
+def as_probability(value, name):
+    """A probability in [0, 1], checked.
+
+    Parameters
+    ----------
+    value : float
+    name : str
+        What the value is, for the message.
+
+    Returns
+    -------
+    float
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not 0 <= value <= 1:
+        raise AKFInputError(f"{name} must be a probability between 0 and 1, got {shortened(repr(value))}")
+    return float(value)
+
+
 def as_n_jobs(n_jobs, name="n_jobs"):
     """A number of workers checked: a whole number >= 1, or -1 (every core) and below as joblib
     counts them.

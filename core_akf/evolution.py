@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .checks import AKFInputError, as_seed
+from .checks import AKFInputError, as_count
 from .outputs import atomic_path
 
 #: identifies a checkpoint of this engine; a file with another tag or version is refused
@@ -359,19 +359,23 @@ class GeneticAlgorithm:
     def __init__(self, algorithm, evaluator, *, generations, seed=0, stall_generations=0, stall_tol=1e-6,
                  stall_column="mean", checkpoint=None, checkpoint_every=5, resume=False, settings=None,
                  progress=None, hall_of_fame=5, on_generation=None):
-        if generations < 0:
-            raise AKFInputError(f"generations must be >= 0, got {generations}")
-        if isinstance(seed, (bool, np.bool_)) or int(seed) != seed or seed < 0:
-            raise AKFInputError(f"seed must be a whole number >= 0, got {seed!r}")
         self.algorithm, self.evaluator = algorithm, evaluator
-        if isinstance(as_seed(seed), np.random.Generator) or seed is None:
-            raise AKFInputError(f"seed must be a whole number >= 0 (a checkpoint records it), got {seed!r}")
-        self.generations, self.seed = int(generations), int(seed)
-        self.stall_generations, self.stall_tol, self.stall_column = int(stall_generations), stall_tol, stall_column
-        self.checkpoint, self.checkpoint_every, self.resume = checkpoint, int(checkpoint_every), resume
+        self.generations, self.seed = as_count(generations, "generations"), as_count(seed, "seed")
+        if isinstance(stall_tol, (bool, np.bool_)) or not isinstance(stall_tol, (int, float, np.integer, np.floating)) \
+                or not stall_tol >= 0:
+            raise AKFInputError(f"stall_tol must be a number >= 0, got {stall_tol!r}")
+        self.stall_generations, self.stall_tol, self.stall_column = (as_count(stall_generations, "stall_generations"),
+                                                                     float(stall_tol), stall_column)
+        if checkpoint is not None and os.path.isdir(checkpoint):
+            raise AKFInputError(f"checkpoint {checkpoint} is a folder; give the checkpoint file's path")
+        if on_generation is not None and not callable(on_generation):
+            raise AKFInputError(f"on_generation must be a function of the generation's record, got "
+                                f"{type(on_generation).__name__}")
+        self.checkpoint, self.checkpoint_every, self.resume = checkpoint, as_count(checkpoint_every, "checkpoint_every",
+                                                                                   1), resume
         self.settings = json.loads(json.dumps(dict(settings or {}, generations=self.generations, seed=self.seed),
                                               default=_plain))
-        self.progress, self.n_hall = progress, int(hall_of_fame)
+        self.progress, self.n_hall = progress, as_count(hall_of_fame, "hall_of_fame")
         self.on_generation = on_generation
 
     # -- evaluation of individuals

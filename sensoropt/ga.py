@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from core_akf.checks import AKFInputError, check_memory
+from core_akf.checks import AKFInputError, as_count, as_probability, check_memory
 from core_akf.defaults import default
 from core_akf.evolution import Algorithm, Evaluator, GeneticAlgorithm, Individual, best, tournament
 
@@ -104,6 +104,12 @@ class PlacementGA(Algorithm):
 
     def initial(self, rng, pyrng):
         layouts = [self.encoding.from_sensors(l) for l in self.seeded]
+        for i, layout in enumerate(layouts):
+            if not self.encoding.is_genome(list(layout)):
+                raise AKFInputError(f"initial layout {i + 1} ({len(layout)} sensors: {list(self.seeded[i])}) is not a "
+                                    f"layout of this search ({self.encoding.n_sensors} sensors"
+                                    + (f", per type {self.encoding.budget}" if getattr(self.encoding, "budget", None)
+                                       else "") + ", each a candidate once)")
         while len(layouts) < self.size:
             layouts.append(self.encoding.random_layout(rng))
         return layouts[:self.size]
@@ -204,8 +210,13 @@ def place(objective: Objective, encoding: CandidateSet, *, population: int = 50,
     >>> len(res.sensors), res.best_error <= 10, res.stopped
     (2, True, 'generations')
     """
-    if population < 2 or generations < 0 or not 0 <= elite < population:
-        raise AKFInputError("need population >= 2, generations >= 0 and 0 <= elite < population")
+    population, generations = as_count(population, "population", 2), as_count(generations, "generations")
+    elite, tournament = as_count(elite, "elite"), as_count(tournament, "tournament", 1)
+    crossover, mutation = as_probability(crossover, "crossover"), as_probability(mutation, "mutation")
+    if not elite < population:
+        raise AKFInputError(f"elite = {elite} must be below the population ({population}): some layouts must be new")
+    if isinstance(penalty, bool) or not isinstance(penalty, (int, float)) or not (np.isfinite(penalty) and penalty > 0):
+        raise AKFInputError(f"penalty must be a positive number (the fitness of an infeasible layout), got {penalty!r}")
     # every evaluated layout is kept (the cache, the checkpoint): about 40 float64 each
     check_run_size(population, generations)
     if operators not in ("set", "thesis"):

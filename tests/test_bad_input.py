@@ -81,6 +81,16 @@ def _locate(**change):
     return locate(s17_truss(), sensors, kw.pop("measurements", sim.measurements), sim.dt, **kw)
 
 
+def _place(**change):
+    """A short GA (sensoropt.place) of 3 sensors on the truss, a toy objective, with ``change``."""
+    from sensoropt import CandidateSet, FunctionObjective, place
+
+    kw = dict(population=6, generations=1, seed=0)
+    kw.update(change)
+    return place(FunctionObjective(lambda sensors: float(len(sensors))),
+                 CandidateSet(s17_truss(), kinds=("strain", "acc"), n_sensors=3), **kw)
+
+
 API_CASES = {
     "Q_a not symmetric": (lambda: _run(Q_a=np.triu(np.ones((6, 6))) * 1e-2), "Q_a is not symmetric"),
     "Q_a indefinite": (lambda: _run(Q_a=1e-2 * _indefinite(6)), "Q_a must be positive semi-definite"),
@@ -140,6 +150,19 @@ API_CASES = {
     "a noise seed below zero": (lambda: simulate(s17_truss(), ["acc:4:y"], FORCES, np.ones((5, 1)), DT,
                                                  relative_noise=0.1, seed=-3),
         "seed must be a whole number >= 0, got -3"),
+    "fractional population": (lambda: _place(population=6.5), "population must be a whole number >= 2, got 6.5"),
+    "population as text": (lambda: _place(population="6"), "population must be a whole number >= 2, got '6'"),
+    "crossover above 1": (lambda: _place(crossover=2.0), "crossover must be a probability between 0 and 1, got 2.0"),
+    "negative mutation": (lambda: _place(mutation=-1.0), "mutation must be a probability between 0 and 1"),
+    "tournament of none": (lambda: _place(tournament=0), "tournament must be a whole number >= 1, got 0"),
+    "negative stall": (lambda: _place(stall_generations=-1), "stall_generations must be a whole number >= 0"),
+    "checkpoint every 0": (lambda: _place(checkpoint_every=0), "checkpoint_every must be a whole number >= 1"),
+    "checkpoint a folder": (lambda: _place(checkpoint=os.getcwd()), "is a folder; give the checkpoint file's path"),
+    "NaN penalty": (lambda: _place(penalty=float("nan")), "penalty must be a positive number"),
+    "an initial layout too short": (lambda: _place(initial=[["strain:5"]]),
+                                    r"initial layout 1 \(1 sensors: \['strain:5'\]\) is not a layout of this search "
+                                    r"\(3 sensors, each a candidate once\)"),
+    "on_generation as text": (lambda: _place(on_generation="print"), "on_generation must be a function"),
     "a chunk of lists": (lambda: _stream([[1.0, [2.0], 3.0, 4.0]] * 5), "a chunk of measurements must be numeric"),
     "undetectable set": (lambda: _estimate(sensors=["acc:4:y", "acc:8:y", "strain:9"],
                                            measurements=_measured()[:, :3]), "not detectable"),
