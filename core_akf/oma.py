@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import AKFInputError
+from .checks import AKFInputError, as_count, as_time_step, check_numeric_kind
 
 #: a mode is kept when it is stable in at least this share of the model orders scanned
 MIN_SHARE = 0.3
@@ -137,27 +137,37 @@ def ssi_cov(Y: np.ndarray, dt: float, *, channels: list[str] | None = None, bloc
     """
     import pandas as pd
 
+    check_numeric_kind(Y, "the record for modal analysis")
     Y = np.asarray(Y, float)
     if Y.ndim != 2 or Y.shape[1] < 2:
         raise AKFInputError(f"operational modal analysis needs at least 2 channels (got {Y.shape[-1] if Y.ndim == 2 else 1})")
     if not np.all(np.isfinite(Y)):
         raise AKFInputError("the record for modal analysis has missing (NaN) or infinite samples: give a stretch "
                             "without holes")
-    if not (np.isfinite(dt) and dt > 0):
-        raise AKFInputError(f"dt must be a positive number of seconds, got {dt!r}")
+    dt = as_time_step(dt, "dt")
     N, l = Y.shape
+    if channels is not None and (not isinstance(channels, (list, tuple)) or not all(isinstance(c, str) for c in channels)):
+        raise AKFInputError(f"channels must be a list of channel names, got {type(channels).__name__}")
     channels = list(channels) if channels is not None else [f"ch{i + 1}" for i in range(l)]
     if len(channels) != l:
         raise AKFInputError(f"{len(channels)} channel names for {l} channels")
+    flat = [c for c, span in zip(channels, np.ptp(Y, axis=0)) if span == 0]
+    if flat:
+        raise AKFInputError(f"channel(s) {flat} are constant: they hold no vibration to identify modes from (a "
+                            "disconnected sensor?); leave them out")
+    if max_order is not None:
+        max_order = as_count(max_order, "max_order", 2)
     if block_rows is None:
         block_rows = int(min(100, max(np.ceil((max_order or 60) / l) + 1, 20)))
-    br = int(block_rows)
+    br = as_count(block_rows, "block_rows", 2)
     if br < 2 or N < 4 * br * 10:
         raise AKFInputError(f"the record ({N} samples) is too short for {br} block rows: it needs at least "
                             f"{40 * br} samples")
-    max_order = int(min(60, br * l) if max_order is None else max_order)
-    if not 2 <= max_order <= br * l:
-        raise AKFInputError(f"max_order must be between 2 and block_rows x channels = {br * l}, got {max_order}")
+    # the shifted observability matrix has (block_rows - 1) x channels rows: no higher order fits in it
+    top = (br - 1) * l
+    max_order = int(min(60, top) if max_order is None else max_order)
+    if not 2 <= max_order <= top:
+        raise AKFInputError(f"max_order must be between 2 and (block_rows - 1) x channels = {top}, got {max_order}")
     Y = Y - Y.mean(axis=0)
     H = hankel(Y, br)
     U, s, _ = np.linalg.svd(H)

@@ -68,6 +68,33 @@ def test_bad_records_are_named(record, message):
         ssi_cov(record, DT, block_rows=20, max_order=20)
 
 
+@pytest.mark.parametrize("change, message", [
+    (dict(block_rows=10.5), "block_rows must be a whole number >= 2, got 10.5"),
+    (dict(block_rows=0), "block_rows must be a whole number >= 2, got 0"),
+    (dict(max_order="20"), "max_order must be a whole number >= 2, got '20'"),
+    (dict(dt="0.01"), "dt must be a positive number of seconds, got '0.01'"),
+    (dict(channels="ab"), "channels must be a list of channel names, got str"),
+    (dict(channels=2), "channels must be a list of channel names, got int"),
+    (dict(constant=1), r"channel\(s\) \['ch2'\] are constant: they hold no vibration"),
+    (dict(true_false=1), "must be numeric .*, not true/false values"),
+    (dict(block_rows=10, max_order=20), r"max_order must be between 2 and \(block_rows - 1\) x channels = 18, got 20"),
+])
+def test_bad_arguments_are_named(change, message):
+    """Each ended in numpy's TypeError or LinAlgError (a constant channel: "Singular matrix"; an order
+    between (block_rows - 1) x channels and block_rows x channels, which the old bound let through:
+    "Last 2 dimensions of the array must be square")."""
+    dt = 0.01
+    Y = _two_modes(20000, dt, 5.0, 12.0)
+    if change.pop("constant", None):
+        Y[:, 1] = 0.25
+    if change.pop("true_false", None):
+        Y = Y > 0
+    kw = dict(block_rows=30, max_order=20) | change
+    with pytest.raises(AKFInputError, match=message):
+        ssi_cov(Y, kw.pop("dt", dt), **kw)
+    assert len(ssi_cov(_two_modes(20000, dt, 5.0, 12.0), dt, block_rows=10, max_order=18).modes) == 2
+
+
 def _two_modes(n, dt, f1, f2, seed=0):
     """Two lightly damped modes driven by white noise, seen by two channels."""
     import scipy.signal
