@@ -327,10 +327,6 @@ CLI_CASES = {
                                                                 'forces = ["8:y"]\n[structure]\nmodel = "s17_truss"\n'
                                                                 '[filter]\nsteady = "no"\n')],
                              "steady in \\[filter\\] must be true or false"),
-    "place --n-jobs 0": (lambda tp: ["place", "--example", "th-case5", "--n-jobs", "0", "--out", str(tp)],
-                         "--n-jobs must be a positive number"),
-    "locate --n-jobs 0": (lambda tp: ["locate", "--example", "imp-truss-case1", "--n-jobs", "0", "--out", str(tp)],
-                          "--n-jobs must be a positive number"),
     "unknown example": (lambda tp: ["estimate", "--example", "nope"], "unknown example 'nope'"),
     "locate: strain:99 on measured data": (lambda tp: ["locate", _write_job(tp, 'dt = 0.001\nsensors = ["strain:5", '
                                                                      '"strain:99", "acc:8:y"]\n[structure]\nmodel = '
@@ -348,6 +344,21 @@ def test_cli_bad_input_exit_2(name, tmp_path, capsys):
     assert rc == 2, err
     assert err.startswith("akf: error: ")
     assert __import__("re").search(message, err), err
+
+
+@pytest.mark.parametrize("command, value, message", [
+    ("place --example th-case5", "0", "a number of workers is >= 1, or negative (-1: all cores), not 0"),
+    ("locate --example imp-truss-case1", "0", "a number of workers is >= 1, or negative (-1: all cores), not 0"),
+    ("study s17_truss --quick", "0", "a number of workers is >= 1, or negative (-1: all cores), not 0"),
+    ("estimate --example s17-case4", "two", "a number of workers is a whole number (-1: all cores), got 'two'"),
+])
+def test_n_jobs_that_is_no_number_of_workers_is_refused_by_every_command(command, value, message, tmp_path, capsys):
+    """`akf study --n-jobs 0` ran (the studies that use no workers ignored it); every command now
+    refuses it as it parses its flags, as it does a seed."""
+    with pytest.raises(SystemExit) as stop:
+        main([*command.split(), "--n-jobs", value, "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and f"argument --n-jobs: {message}" in err, err
 
 
 def test_second_run_into_a_locked_folder_refuses(tmp_path, capsys):

@@ -91,6 +91,29 @@ def seed(text):
     return value
 
 
+def worker_count(text):
+    """An argparse type: ``--n-jobs`` is a whole number of workers, -1 (and below) counting back from
+    every core as joblib does; 0 is no number of workers.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    int
+    """
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a number of workers is a whole number (-1: all cores), got {text!r}") from None
+    if value == 0:
+        raise argparse.ArgumentTypeError("a number of workers is >= 1, or negative (-1: all cores), not 0")
+    return value
+
+
 def listing_or_template(args, command):
     """``--list-examples`` or ``--print-job`` of ``command``: print it and return the exit code 0;
     None when neither was asked for."""

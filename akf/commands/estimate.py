@@ -9,7 +9,7 @@ from core_akf.checks import AKFInputError
 
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler, workers
-from .common import add_print_job, print_written, seed
+from .common import add_print_job, print_written, seed, worker_count
 
 #: the captions of the figures in report.html
 FIGURES = {"figure": "the estimated forces (with the reference of a simulation, the ±2σ bands of a smoothed "
@@ -143,7 +143,7 @@ def register(sub):
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG figure")
     p.add_argument("--report", action="store_true", help="also write report.html: one self-contained page of the run "
                    "(job, model, warnings, results with their bands, figures) to hand on")
-    p.add_argument("--n-jobs", type=int, help="a measured record of many files: filter its files at the same time on "
+    p.add_argument("--n-jobs", type=worker_count, help="a measured record of many files: filter its files at the same time on "
                    "this many workers (time-parallel steady-state filter; -1: all cores)")
     add_scheduler_option(p)
     p.add_argument("--resume", action="store_true", help="measured data: continue an interrupted run in --out from its "

@@ -12,7 +12,7 @@ from core_akf.checks import AKFInputError
 from ..job import load_job
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler, workers
-from .common import add_print_job, seed
+from .common import add_print_job, seed, worker_count
 
 
 def _locate(args):
@@ -146,7 +146,7 @@ def register(sub):
     p.add_argument("--impact-node", type=int, help="example: where the simulated impact hits (default the paper's)")
     p.add_argument("--noise", choices=NOISE, default="abs", help="example noise: abs (1 µε, 1 mg) or rel10 (10 %%)")
     p.add_argument("--seed", type=seed, default=0, help="noise, role-split sample and GA seed")
-    p.add_argument("--n-jobs", type=int, help="joblib workers (-1: all cores; default 1, every worker with --scheduler)")
+    p.add_argument("--n-jobs", type=worker_count, help="joblib workers (-1: all cores; default 1, every worker with --scheduler)")
     add_scheduler_option(p)
     p.add_argument("--no-tune", action="store_true", help="skip the covariance tuning")
     p.add_argument("--tune", choices=("ga", "ml"), help="tune the covariances with the paper's GA or by maximum "

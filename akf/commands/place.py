@@ -16,7 +16,7 @@ from core_akf.outputs import write_csv
 
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, check_scheduler
-from .common import add_print_job, finish, seed
+from .common import add_print_job, finish, seed, worker_count
 
 log = logging.getLogger("akf")
 
@@ -320,7 +320,7 @@ def register(sub):
     p.add_argument("--operators", choices=["set", "thesis"], help="set-based (default) or the thesis' operators")
     p.add_argument("--window", type=float, help="seconds of response per fitness evaluation (default 0.1; "
                    "1 s generalises better to the full record, at little extra cost)")
-    p.add_argument("--n-jobs", type=int, help="joblib workers for the fitness (default 1; every worker with "
+    p.add_argument("--n-jobs", type=worker_count, help="joblib workers for the fitness (default 1; every worker with "
                    "--scheduler)")
     add_scheduler_option(p)
     p.add_argument("--checkpoint", help="checkpoint file (default OUT/checkpoint.json)")

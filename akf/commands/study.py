@@ -5,7 +5,7 @@ import os
 
 from ..outputs import OutputFolder
 from ..parallel import add_scheduler_option, scheduler
-from .common import seed
+from .common import seed, worker_count
 
 
 def _study(args):
@@ -42,7 +42,7 @@ def register(sub):
     p.add_argument("--quick", action="store_true", help="short records (under a minute)")
     p.add_argument("--out", help="output folder (default akf-out/studies/NAME)")
     p.add_argument("--seed", type=seed, default=0, help="noise seed")
-    p.add_argument("--n-jobs", type=int, help="joblib workers of the placement and impact studies (default: the "
+    p.add_argument("--n-jobs", type=worker_count, help="joblib workers of the placement and impact studies (default: the "
                    "study's; every worker with --scheduler)")
     add_scheduler_option(p)
     p.set_defaults(func=_study)
