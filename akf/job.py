@@ -47,10 +47,19 @@ import numpy as np
 
 from core_akf import loads as L
 from core_akf.checks import AKFInputError, check_memory
+from core_akf.covariances import noise_covariance
 from core_akf.defaults import default
 from core_akf.forcemodels import DummyMeasurements, ForceModel
 from core_akf.models import footbridge, from_files, imp_plate, plate, s17_truss, th_plate
-from core_akf.sensors import as_layout, parse_force_locations, selection_matrices
+from core_akf.sensors import (
+    MAX_READABLE,
+    SENSOR_NAMES,
+    UNITS,
+    as_layout,
+    parse_force_locations,
+    readable_limits,
+    selection_matrices,
+)
 from core_akf.simulate import MG, MICROSTRAIN, check_noise, simulate
 
 from .schema import Job as JobSpec
@@ -148,6 +157,39 @@ def check_force_prior(std, timescale, dt):
         if not value <= MAX_TIMESCALE:
             raise AKFInputError(f"[filter] force_timescale = {value:.4g} s is beyond any record (at most "
                                 f"{MAX_TIMESCALE:g} s); give the loads' correlation time in s (e.g. 0.005)")
+
+
+#: a noise standard deviation above this share of what a sensor reads (:data:`MAX_READABLE`: 0.01
+#: m/m of strain, 1e4 m/s^2) is no sensor's noise but a variance typed in other units
+NOISE_SHARE_OF_RANGE = 0.01
+
+
+def check_noise_within_reach(sensors, noise_cov):
+    """Refuse a ``[filter] noise_cov`` whose standard deviation for a sensor is above
+    :data:`NOISE_SHARE_OF_RANGE` of what such a sensor reads (:data:`core_akf.sensors.MAX_READABLE`):
+    a variance typed in other units (0.5 for a strain gauge, 1e9 for an accelerometer), which the
+    filter would take as "this channel says nothing".
+
+    Parameters
+    ----------
+    sensors : list of Sensor
+    noise_cov : dict, float, list or matrix
+        As ``[filter] noise_cov`` (SI units squared).
+    """
+    variances = np.diag(noise_covariance(sensors, noise_cov))
+    beyond = np.flatnonzero(variances > (NOISE_SHARE_OF_RANGE * readable_limits(sensors)) ** 2)
+    if beyond.size:
+        s, var = sensors[beyond[0]], float(variances[beyond[0]])
+        raise AKFInputError(f"[filter] noise_cov of {s.label} is {var:.4g} ({UNITS[s.kind]})^2, a standard deviation of "
+                            f"{np.sqrt(var):.4g} {UNITS[s.kind]}, above {NOISE_SHARE_OF_RANGE:.0%} of what "
+                            f"{SENSOR_NAMES[s.kind]} reads ({MAX_READABLE[s.kind]:g} {UNITS[s.kind]}): noise_cov is a "
+                            "variance in SI units squared "
+                            f"(a noise of {_TYPICAL_NOISE[s.kind]})")
+
+
+#: a typical noise of a sensor kind and its variance in SI units squared (messages)
+_TYPICAL_NOISE = {"strain": "1 microstrain is 1e-12", "acc": "10 mg is 0.0096", "vel": "1 mm/s is 1e-6",
+                  "disp": "1 mm is 1e-6"}
 
 
 class Job:
@@ -366,6 +408,8 @@ class Job:
         (floored at :data:`core_akf.defaults.DEFAULTS` ``noise_floor``), which measured data lack."""
         value = "simulated" if self.spec.filter.noise_cov is None else self.spec.filter.noise_cov
         if not isinstance(value, str):
+            if self.spec.sensors:
+                check_noise_within_reach(self.sensors, value)
             return value
         if simulation is None:
             raise AKFInputError("[filter] noise_cov = \"simulated\" (the default) needs a simulated job: measured data need "

@@ -251,3 +251,22 @@ def test_a_simulated_response_beyond_any_sensor_is_refused_and_one_within_runs()
         simulate(truss, ["acc:8:y"], ["8:y"], np.full((50, 1), 1e308), 1e-3)
     sim = simulate(truss, ["strain:13", "acc:8:y"], ["8:y"], np.full((50, 1), 1e5), 1e-3)
     assert np.isfinite(sim.measurements).all()
+
+
+@pytest.mark.parametrize("noise, message", [
+    ({"strain": 0.5, "acc": 0.2}, r"noise_cov of strain:5 is 0.5 \(m/m\)\^2, a standard deviation of 0.7071 m/m, "
+                                  r"above 1% of what a strain gauge reads"),
+    ({"strain": 4e-14, "acc": 1e9}, r"noise_cov of acc:4:y is 1e\+09 \(m/s\^2\)\^2, a standard deviation of 3.162e\+04"),
+    ([0.2] * 4 + [1e9] + [4e-14] * 4, r"noise_cov of acc:6:x is 1e\+09"),          # one variance per sensor
+])
+def test_a_noise_variance_in_other_units_is_named(noise, message):
+    """noise_cov = {strain = 0.5} (a standard deviation of 0.7 m/m) or {acc = 1e9} ran to exit 0: the
+    filter took the channels as saying nothing."""
+    from akf.job import Job, load_job_file
+
+    data = load_job_file(os.path.join(ROOT, "examples", "daq", "s17-tdms.toml"))
+    data["filter"]["noise_cov"] = noise
+    with pytest.raises(ValueError, match=message):
+        Job.from_dict(data, "estimate").noise_cov()
+    data["filter"]["noise_cov"] = {"strain": 4e-14, "acc": 0.2}
+    assert Job.from_dict(data, "estimate").noise_cov() == {"strain": 4e-14, "acc": 0.2}
