@@ -182,8 +182,8 @@ def check_readable_response(clean, layout, loads, dt):
         peak = float(np.max(np.abs(loads))) if loads.size else 0.0
     raise AKFInputError(f"the simulated response at {s.label} reaches {clean[k, j]:.4g} {UNITS[s.kind]} at step {k} "
                         f"(t = {k * dt:.6g} s), beyond what {SENSOR_NAMES[s.kind]} reads (|x| <= {MAX_READABLE[s.kind]:g} "
-                        f"{UNITS[s.kind]}): the loads (peak {peak:.4g} N) are far too large for this structure; "
-                        "they are in N")
+                        f"{UNITS[s.kind]}): the loads (peak {peak:.4g} N) are far too large for this structure ("
+                        "loads are in N)")
 
 
 def simulate(structure: Structure, sensors: Layout, forces: Forces, loads: ForceHistories, dt: float, *,

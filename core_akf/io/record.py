@@ -102,7 +102,8 @@ class Channel:
     sign : float
         +1, or -1 for an inverted channel.
     stated : str or None
-        The unit the file states for the channel, None when the job gives it or the file has none.
+        The unit the file states for the channel (None: it states none); ``unit`` is the one given
+        instead, if any.
     """
 
     sensor: str
@@ -323,14 +324,9 @@ class Record:
         out = []
         for sensor, label in zip(self.layout, self.labels):
             name = by_sensor[label]
-            unit = stated = self.units_given.get(name)
-            if unit is None:
-                recorded = file_units.get(name)
-                unit = stated = None if is_unset(recorded) else str(recorded)
-            elif is_unset(file_units.get(name)):
-                stated = None
-            else:
-                stated = str(file_units.get(name))
+            recorded = file_units.get(name)
+            stated = None if is_unset(recorded) else str(recorded)
+            unit = self.units_given.get(name, stated)
             gf = self._per_channel(self.gauge_factor, name)
             br = self._per_channel(self.bridge, name)
             explicit = any(isinstance(v, dict) and name in v for v in (self.gauge_factor, self.bridge))
