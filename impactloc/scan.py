@@ -164,7 +164,7 @@ def candidate_locations(structure: Structure, direction: str, nodes: Sequence[in
         if not nodes:
             raise AKFInputError(f"no free node moves in direction {direction!r}")
     bad = [n for n in nodes if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer, float, np.floating))
-           or n != int(n)]
+           or not np.isfinite(n) or n != int(n)]
     if bad:
         raise AKFInputError(f"candidate node(s) {shortened(repr(bad[:5]))} are not node numbers (whole numbers, 1-based)")
     return parse_force_locations(structure, [(int(n), direction) for n in nodes])
