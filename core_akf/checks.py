@@ -324,6 +324,34 @@ def as_measurements(value, name="measurements", ndim=None):
     return arr
 
 
+def is_real(value):
+    """Whether ``value`` is one real number (Python's or numpy's), not true/false.
+
+    Parameters
+    ----------
+    value : object
+
+    Returns
+    -------
+    bool
+    """
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def is_integer(value):
+    """Whether ``value`` is one integer (Python's or numpy's), not true/false.
+
+    Parameters
+    ----------
+    value : object
+
+    Returns
+    -------
+    bool
+    """
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
 def as_time_step(dt, name="time step dt"):
     """A time step as a positive finite float (s); text, an array of more than one value or a
     true/false value is named, not converted.
@@ -346,7 +374,7 @@ def as_time_step(dt, name="time step dt"):
     value = None
     if isinstance(dt, np.ndarray) and dt.ndim == 0:
         dt = dt.item()
-    if isinstance(dt, (int, float, np.integer, np.floating)) and not isinstance(dt, (bool, np.bool_)):
+    if is_real(dt):
         value = float(dt)
     if value is None or not np.isfinite(value) or value <= 0:
         raise AKFInputError(f"{name} must be a positive number of seconds, got {shortened(repr(dt))}")
@@ -374,7 +402,7 @@ def as_seed(seed, name="seed"):
     """
     if seed is None or isinstance(seed, np.random.Generator):
         return seed
-    if isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)) and seed >= 0:
+    if is_integer(seed) and seed >= 0:
         return int(seed)
     raise AKFInputError(f"{name} must be a whole number >= 0, got {shortened(repr(seed))}")
 
@@ -399,9 +427,7 @@ def as_count(value, name, minimum=0):
     >>> as_count(6.0, "population", 2)
     6
     """
-    ok = (isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-          and np.isfinite(value) and value == int(value) and value >= minimum)
-    if not ok:
+    if not (is_real(value) and np.isfinite(value) and value == int(value) and value >= minimum):
         raise AKFInputError(f"{name} must be a whole number >= {minimum}, got {shortened(repr(value))}")
     return int(value)
 
@@ -419,8 +445,7 @@ def as_probability(value, name):
     -------
     float
     """
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not 0 <= value <= 1:
+    if not (is_real(value) and 0 <= value <= 1):
         raise AKFInputError(f"{name} must be a probability between 0 and 1, got {shortened(repr(value))}")
     return float(value)
 
@@ -439,7 +464,7 @@ def as_n_jobs(n_jobs, name="n_jobs"):
     -------
     int
     """
-    if isinstance(n_jobs, (int, np.integer)) and not isinstance(n_jobs, (bool, np.bool_)) and n_jobs != 0:
+    if is_integer(n_jobs) and n_jobs != 0:
         return int(n_jobs)
     raise AKFInputError(f"{name} must be a whole number of workers >= 1 (or -1: every core), got "
                         f"{shortened(repr(n_jobs))}")

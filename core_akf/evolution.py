@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .checks import AKFInputError, as_count
+from .checks import AKFInputError, as_count, is_real
 from .outputs import atomic_path
 
 #: identifies a checkpoint of this engine; a file with another tag or version is refused
@@ -361,8 +361,7 @@ class GeneticAlgorithm:
                  progress=None, hall_of_fame=5, on_generation=None):
         self.algorithm, self.evaluator = algorithm, evaluator
         self.generations, self.seed = as_count(generations, "generations"), as_count(seed, "seed")
-        if isinstance(stall_tol, (bool, np.bool_)) or not isinstance(stall_tol, (int, float, np.integer, np.floating)) \
-                or not stall_tol >= 0:
+        if not (is_real(stall_tol) and stall_tol >= 0):
             raise AKFInputError(f"stall_tol must be a number >= 0, got {stall_tol!r}")
         self.stall_generations, self.stall_tol, self.stall_column = (as_count(stall_generations, "stall_generations"),
                                                                      float(stall_tol), stall_column)

@@ -31,10 +31,6 @@ def _minv(structure):
     return structure.memo("mass_cholesky", lambda: scipy.linalg.cho_factor(structure.M))
 
 
-def _check_dt(dt):
-    return as_time_step(dt)
-
-
 def modal_damping(structure, rtol=1e-10):
     """Modal damping coefficients when the damping is classical.
 
@@ -132,7 +128,7 @@ def zoh(A_c, B_c, dt):
     A : ndarray (n_x, n_x)
     B : ndarray (n_x, n_u)
     """
-    dt = _check_dt(dt)
+    dt = as_time_step(dt)
     nx, nu = B_c.shape
     blk = np.zeros((nx + nu, nx + nu))
     blk[:nx, :nx] = A_c
@@ -160,7 +156,7 @@ def foh(A_c, B_c, dt):
     A : ndarray (n_x, n_x)
     B0, B1 : ndarray (n_x, n_u)
     """
-    dt = _check_dt(dt)
+    dt = as_time_step(dt)
     nx, nu = B_c.shape
     blk = np.zeros((nx + 2 * nu, nx + 2 * nu))
     blk[:nx, :nx] = A_c
@@ -384,7 +380,7 @@ def modal_blocks(structure, forces, dt, rtol=1e-10, hold="zero"):
     c = modal_damping(structure, rtol)
     if c is None:
         return None
-    dt = _check_dt(dt)
+    dt = as_time_step(dt)
     omega, phi = structure.eigen
     n = structure.n
     w = _modal_scale(omega)

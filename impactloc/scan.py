@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core_akf.checks import AKFInputError, FloatArray, ForceLocation, Layout, Measurements, as_measurements, as_n_jobs, shortened
+from core_akf.checks import AKFInputError, FloatArray, ForceLocation, Layout, Measurements, as_measurements, as_n_jobs, is_real, shortened
 from core_akf.defaults import default, resolve_modes
 from core_akf.filter import FilterModel
 from core_akf.filter.kernels import steady_outputs
@@ -163,8 +163,7 @@ def candidate_locations(structure: Structure, direction: str, nodes: Sequence[in
         nodes = [int(n) for n in structure.user_node_ids if _free(structure, int(n), direction)]
         if not nodes:
             raise AKFInputError(f"no free node moves in direction {direction!r}")
-    bad = [n for n in nodes if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer, float, np.floating))
-           or not np.isfinite(n) or n != int(n)]
+    bad = [n for n in nodes if not (is_real(n) and np.isfinite(n) and n == int(n))]
     if bad:
         raise AKFInputError(f"candidate node(s) {shortened(repr(bad[:5]))} are not node numbers (whole numbers, 1-based)")
     return parse_force_locations(structure, [(int(n), direction) for n in nodes])
@@ -333,8 +332,7 @@ def check_skip(skip, dt, n_steps):
     -------
     int
     """
-    if isinstance(skip, (bool, np.bool_)) or not isinstance(skip, (int, float, np.integer, np.floating)) \
-            or not np.isfinite(skip) or skip < 0:
+    if not (is_real(skip) and np.isfinite(skip) and skip >= 0):
         raise AKFInputError(f"skip must be a time >= 0 (s), got {shortened(repr(skip))}")
     skip_n = int(round(skip / dt))
     if skip_n >= n_steps - 1:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import AKFInputError, FloatArray, Layout, Time
+from ..checks import AKFInputError, FloatArray, Layout, Time, is_real
 from ..sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout, readable_limits
 from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
 from .units import conversion, is_bridge_unit, is_unset
@@ -249,8 +249,7 @@ class Record:
         factors = ({f"gauge_factor[{k!r}]": v for k, v in gauge_factor.items()} if isinstance(gauge_factor, dict)
                    else {"gauge_factor": gauge_factor})
         for name, value in factors.items():
-            if value is not None and (isinstance(value, (bool, np.bool_))
-                                      or not isinstance(value, (int, float, np.integer, np.floating))):
+            if value is not None and not is_real(value):
                 raise AKFInputError(f"{name} must be a number (a gauge factor, about 2), got {value!r}")
         self.gauge_factor, self.bridge = gauge_factor, bridge
         self.invert = [invert] if isinstance(invert, str) else list(invert or ())      # one channel, or several
@@ -264,12 +263,11 @@ class Record:
                                 f"mapped to a sensor; mapped: {sorted(self.channels_map)}")
         if isinstance(remove_offset, bool) or remove_offset is None:
             self.remove_offset = bool(remove_offset)
-        elif not (isinstance(remove_offset, (int, float, np.integer, np.floating)) and np.isfinite(remove_offset)
-                  and remove_offset > 0):
+        elif not (is_real(remove_offset) and np.isfinite(remove_offset) and remove_offset > 0):
             raise AKFInputError(f"remove_offset must be true, false or a positive time (s), got {remove_offset!r}")
         else:
             self.remove_offset = float(remove_offset)
-        if isinstance(max_gap, bool) or not (isinstance(max_gap, (int, float)) and not np.isnan(max_gap) and max_gap >= 0):
+        if not (is_real(max_gap) and not np.isnan(max_gap) and max_gap >= 0):
             raise AKFInputError(f"max_gap must be a time >= 0 (s), got {max_gap!r}")
         self.max_gap = float(max_gap)
         self.files, self.timings, self.sources = [], [], []
