@@ -38,6 +38,7 @@ An estimate job file (TOML)::
 from __future__ import annotations
 
 import copy
+import inspect
 import os
 import warnings
 from collections.abc import Mapping
@@ -673,11 +674,24 @@ def build_structure(spec):
     name = spec.pop("model", None)
     if not isinstance(name, str) or name not in MODELS:
         raise AKFInputError(f"structure.model must be one of {sorted(MODELS)}, got {name!r}")
+    params = inspect.signature(MODELS[name]).parameters
+    unknown = [k for k in spec if k not in params]
+    if unknown:
+        raise AKFInputError(f"[structure] model = {name!r} has no key {unknown[0]!r}; its keys are "
+                            f"{', '.join(params)}")
     if name == "matrices":
         missing = [k for k in ("K", "M", "dofs", "nodes") if k not in spec]
         if missing:
             raise AKFInputError(f"[structure] model = \"matrices\" needs {', '.join(missing)} (files of K, M, the DOF map "
                                 "and the node coordinates)")
+        for k in MATRIX_FILES:
+            if k in spec and not isinstance(spec[k], str) and not (k == "extensometers" and isinstance(spec[k], list)):
+                raise AKFInputError(f"[structure] {k} must be a file's path (text, relative to the job file)"
+                                    f"{' or a list of node pairs [[a, b], ...]' if k == 'extensometers' else ''}; got "
+                                    f"{spec[k]!r} ({type(spec[k]).__name__})")
+        if spec.get("K") == spec.get("M"):
+            raise AKFInputError(f"[structure] K and M name the same file ({os.path.basename(spec['K'])}): give the "
+                                "stiffness matrix as K and the mass matrix as M")
     try:
         return MODELS[name](**spec)
     except AKFInputError:

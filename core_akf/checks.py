@@ -720,3 +720,68 @@ def check_n_modes(n_modes, name="n_modes"):
         raise AKFInputError(f"{name} must be a whole number of modes >= 1, got {n_modes!r} (leave it out for the full "
                             "model up to the size where it is reduced anyway)")
     return int(n_modes)
+
+
+#: a number followed by text: a unit written into the cells
+_NUMBER_THEN_TEXT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[^\d\s.,;+-]")
+#: how a column name may look to be quoted in a message (a file that is no table is not quoted)
+_COLUMN_NAME = re.compile(r"^[\w .:/()\[\]%^*#+-]{1,64}$")
+
+
+def describe_cell(cell) -> str:
+    """What a cell that is not a usable number holds, in words: messages name a problem, never a
+    file's content.
+
+    Parameters
+    ----------
+    cell : object
+        The cell as a table reader gives it (text, a number, NaN for an empty cell).
+
+    Returns
+    -------
+    str
+        "an empty cell", "an infinite number", "a number followed by text (...)", "a number with
+        a decimal comma (...)", "a fractional number" or "text, not a number".
+
+    Examples
+    --------
+    >>> describe_cell("12.5 mV")
+    'a number followed by text (a unit in the cells? give numbers alone, and the unit as the channel\'s unit)'
+    >>> describe_cell(float("nan"))
+    'an empty cell'
+    """
+    if cell is None or (isinstance(cell, float) and np.isnan(cell)):
+        return "an empty cell"
+    if is_real(cell):
+        value = float(cell)
+        return ("an infinite number" if not np.isfinite(value) else "a fractional number" if value != round(value)
+                else "a number")
+    text = str(cell).strip()
+    if not text or text.lower() == "nan":
+        return "an empty cell"
+    if _NUMBER_THEN_TEXT.match(text):
+        return "a number followed by text (a unit in the cells? give numbers alone, and the unit as the channel's unit)"
+    if re.fullmatch(r"[-+]?\d+,\d+", text):
+        return "a number with a decimal comma (the files are read with a decimal point)"
+    return "text, not a number"
+
+
+def found_columns(columns) -> str:
+    """The columns a table was found to have, quoted only when they look like column names: a
+    file that is no table (a system file, a log) has its first line read as a header.
+
+    Parameters
+    ----------
+    columns : sequence
+        The header's column names.
+
+    Returns
+    -------
+    str
+        "found [...]" or a count of columns that do not look like names.
+    """
+    if len(columns) > 1 and all(_COLUMN_NAME.match(str(c)) for c in columns):
+        shown = [str(c) for c in columns[:20]]
+        return f"found {shown}" + (f" and {len(columns) - 20} more" if len(columns) > 20 else "")
+    return (f"found {len(columns)} column(s) whose header does not look like column names (is it a comma-separated "
+            "table with a header row?)")

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import AKFInputError, first_repeat, install_hint
+from ..checks import AKFInputError, describe_cell, first_repeat, found_columns, install_hint
 
 #: a time stamp may lie off the uniform grid ``t_0 + k dt`` by this fraction of a step
 TIME_GRID_RTOL = 0.01
@@ -412,7 +412,7 @@ class CsvReader(Reader):
             hint = (f"; the header looks {'tab' if sep == chr(9) else repr(sep)}-separated: CSV files here are "
                     "comma-separated with a decimal point (save as CSV, or convert with pandas: "
                     "pd.read_csv(path, sep=..., decimal=...).to_csv(new, index=False))") if sep else ""
-            raise AKFInputError(f"{self.path}: no time column {time_column!r}; {_found(self._columns)}{hint}")
+            raise AKFInputError(f"{self.path}: no time column {time_column!r}; {found_columns(self._columns)}{hint}")
         self._timing = None
 
     def _header(self):
@@ -541,7 +541,7 @@ def _numeric(column, path, name, row0, missing=True):
             r = int(bad[0])
             what = "non-numeric" if missing else "missing/NaN or non-numeric"
             raise AKFInputError(f"{path}: column {name!r} has {bad.size} {what} sample(s); the first, in data row "
-                                f"{row0 + r + 1}, is {_kind_of_text(column.iloc[r])} (a missing sample is an empty "
+                                f"{row0 + r + 1}, is {describe_cell(column.iloc[r])} (a missing sample is an empty "
                                 "cell or NaN)")
     _refuse_infinite(values, path, name, row0)
     return values
@@ -560,32 +560,6 @@ def _time_stamps(column, path, name, row0):
         if stamps.isna().any() or not len(stamps):
             raise
         return stamps.dt.tz_localize(None).to_numpy("datetime64[ns]")
-
-
-#: a number followed by text: a unit written into the cells
-_NUMBER_THEN_TEXT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[^\d\s.,;+-]")
-#: how a column name may look to be quoted in a message (a file that is no table is not quoted)
-_COLUMN_NAME = re.compile(r"^[\w .:/()\[\]%^*#+-]{1,64}$")
-
-
-def _kind_of_text(cell):
-    """What a non-numeric cell holds, in words: messages name a problem, never a file's content."""
-    text = str(cell).strip()
-    if _NUMBER_THEN_TEXT.match(text):
-        return "a number followed by text (a unit in the cells? give numbers alone, and the unit as the channel's unit)"
-    if re.fullmatch(r"[-+]?\d+,\d+", text):
-        return "a number with a decimal comma (the files are read with a decimal point)"
-    return "text, not a number"
-
-
-def _found(columns):
-    """The columns a table was found to have, quoted only when they look like column names: a
-    file that is no table (a system file, a log) has its first line read as a header."""
-    if len(columns) > 1 and all(_COLUMN_NAME.match(str(c)) for c in columns):
-        shown = [str(c) for c in columns[:20]]
-        return f"found {shown}" + (f" and {len(columns) - 20} more" if len(columns) > 20 else "")
-    return (f"found {len(columns)} column(s) whose header does not look like column names (is it a comma-separated "
-            "table with a header row?)")
 
 
 def _samples(values, path, name, row0):
@@ -644,7 +618,7 @@ class ParquetReader(Reader):
         self._columns = [c for c in self._file.schema_arrow.names if not c.startswith("__index_level")]
         _check_unique_columns(self._columns, self.path)
         if time_column not in self._columns:
-            raise AKFInputError(f"{self.path}: no time column {time_column!r}; {_found(self._columns)}")
+            raise AKFInputError(f"{self.path}: no time column {time_column!r}; {found_columns(self._columns)}")
         self._timing = None
 
     def channels(self):

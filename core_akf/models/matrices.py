@@ -25,7 +25,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..checks import AKFInputError, ArrayLike, Damping, ModelError, check_n_modes, first_repeat
+from ..checks import (
+    AKFInputError,
+    ArrayLike,
+    Damping,
+    ModelError,
+    check_memory,
+    check_n_modes,
+    describe_cell,
+    first_repeat,
+    found_columns,
+)
 from ..structure import Structure
 
 if TYPE_CHECKING:
@@ -83,6 +93,7 @@ def load_matrix(path: str | os.PathLike) -> np.ndarray | scipy.sparse.sparray:
         raise AKFInputError(f"matrix file {path!r} not found")
     try:
         if path.endswith((".mtx", ".mtx.gz", ".mm")):
+            _check_matrix_market_size(path)
             return scipy.io.mmread(path)
         if path.endswith(".npy"):
             return np.load(path, allow_pickle=False)
@@ -92,13 +103,43 @@ def load_matrix(path: str | os.PathLike) -> np.ndarray | scipy.sparse.sparray:
             except (ValueError, KeyError, OSError):
                 with np.load(path, allow_pickle=False) as data:
                     if len(data.files) != 1:
-                        raise AKFInputError(f"{path}: a .npz holds one matrix; found {data.files}") from None
+                        raise AKFInputError(f"{path}: a .npz holds one matrix; found {len(data.files)} arrays") from None
                     return data[data.files[0]]
     except AKFInputError:
         raise
     except Exception as exc:  # noqa: BLE001 -- the readers raise many error types
-        raise AKFInputError(f"{path}: not a readable matrix file ({type(exc).__name__}: {exc})") from None
+        if "pickle" in str(exc).lower():
+            raise AKFInputError(f"{path}: the file holds Python objects (pickled), which are never loaded (they can run "
+                                "code): save the matrix as numbers (numpy.save of a float array)") from None
+        raise AKFInputError(f"{path}: not a readable matrix file ({type(exc).__name__}: {' '.join(str(exc).split())})") from None
     raise AKFInputError(f"{path}: unknown matrix format; give .mtx (Matrix Market), .npz or .npy")
+
+
+#: the fewest bytes an entry of a Matrix Market file takes: "i j v\n" (coordinate), "v\n" (array)
+_MTX_ENTRY_BYTES = {"coordinate": 6, "array": 2}
+
+
+def _check_matrix_market_size(path):
+    """Refuse, from its header alone, a Matrix Market file whose size line cannot be true (more
+    entries than the matrix has places, or than the file has bytes) or whose matrix would not fit
+    in memory, before anything is allocated."""
+    import scipy.io
+
+    rows, cols, entries, layout, field, symmetry = scipy.io.mminfo(path)
+    places = rows * cols if symmetry == "general" else rows * (rows + 1) // 2
+    if layout == "coordinate" and entries > places:
+        raise AKFInputError(f"{path}: the size line declares {entries} entries for a {rows} x {cols} matrix, which has "
+                            f"{places} places: a wrong size line")
+    if not path.endswith(".gz"):
+        fits = os.path.getsize(path) // _MTX_ENTRY_BYTES.get(layout, 2)
+        if (entries if layout == "coordinate" else places) > fits:
+            raise AKFInputError(f"{path}: the size line declares a {rows} x {cols} matrix of "
+                                f"{entries if layout == 'coordinate' else places} entries, but the file's "
+                                f"{os.path.getsize(path)} bytes hold at most {fits}: the file is cut short or its size "
+                                "line is wrong")
+    values = rows + 1 + 3 * entries if layout == "coordinate" else rows * cols
+    check_memory(values, 1, f"{path}: a {rows} x {cols} matrix", "reduce the model in the FE program (fewer DOFs, "
+                 "or a modal or Guyan reduction) before exporting it", items="numbers")
 
 
 def read_dof_map(path):
@@ -119,7 +160,8 @@ def read_dof_map(path):
     nodes = pd.to_numeric(table["node"], errors="coerce")
     if nodes.isna().any() or (nodes != nodes.round()).any():
         r = int(np.flatnonzero(nodes.isna() | (nodes != nodes.round()))[0])
-        raise AKFInputError(f"{path}: node {table['node'].iloc[r]!r} in data row {r + 1} is not an integer id")
+        raise AKFInputError(f"{path}: node in data row {r + 1} is {describe_cell(table['node'].iloc[r])}, not an "
+                            "integer id")
     return list(zip(nodes.astype(int), table["direction"].astype(str).str.strip()))
 
 
@@ -144,11 +186,13 @@ def read_nodes(path):
     bad = values.isna().to_numpy() | ~np.isfinite(values.to_numpy(dtype=float, na_value=np.nan))
     if bad.any():
         r, c = (int(i[0]) for i in np.nonzero(bad))
-        raise AKFInputError(f"{path}: {cols[c]} {table[cols[c]].iloc[r]!r} in data row {r + 1} is not a finite number")
+        raise AKFInputError(f"{path}: {cols[c]} in data row {r + 1} is {describe_cell(table[cols[c]].iloc[r])}, not a "
+                            "finite number")
     ids = values["node"].to_numpy()
     if np.any(ids != np.round(ids)):
         r = int(np.flatnonzero(ids != np.round(ids))[0])
-        raise AKFInputError(f"{path}: node {table['node'].iloc[r]!r} in data row {r + 1} is not an integer id")
+        raise AKFInputError(f"{path}: node in data row {r + 1} is {describe_cell(table['node'].iloc[r])}, not an "
+                            "integer id")
     repeat = first_repeat(ids.tolist())
     if repeat:
         i, j, n = repeat
@@ -177,7 +221,8 @@ def read_extensometers(path):
     bad = ~np.isfinite(ends) | (ends != np.round(ends))
     if bad.any():
         r, c = (int(i[0]) for i in np.nonzero(bad))
-        raise AKFInputError(f"{path}: node {table[['a', 'b'][c]].iloc[r]!r} in data row {r + 1} is not an integer id")
+        raise AKFInputError(f"{path}: node {'ab'[c]} in data row {r + 1} is {describe_cell(table[['a', 'b'][c]].iloc[r])}, "
+                            "not an integer id")
     return [(int(a), int(b)) for a, b in ends]
 
 
@@ -189,11 +234,13 @@ def _read_table(path, columns):
     try:
         table = pd.read_csv(path, skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise AKFInputError(f"{path}: not a readable CSV file ({exc})") from None
-    table.columns = [str(c).strip().lower() for c in table.columns]
+        raise AKFInputError(f"{path}: not a readable CSV file ({' '.join(str(exc).split())})") from None
+    table.columns = [str(c).strip().lower().lstrip("\ufeff") for c in table.columns]
+    filled = np.flatnonzero(table.notna().any(axis=1).to_numpy())
+    table = table.iloc[:filled[-1] + 1 if filled.size else 0]     # trailing rows of empty cells (",,,") dropped
     missing = [c for c in columns if c not in table.columns]
     if missing:
-        raise AKFInputError(f"{path}: missing column(s) {missing}; found {list(table.columns)}")
+        raise AKFInputError(f"{path}: missing column(s) {missing}; {found_columns(list(table.columns))}")
     return table
 
 
@@ -281,9 +328,14 @@ def from_matrices(K: ArrayLike | scipy.sparse.sparray, M: ArrayLike | scipy.spar
     """
     if n_modes is not None:
         n_modes = check_n_modes(n_modes)
+    for A, name in ((K, "K"), (M, "M")):
+        if len(np.shape(A)) != 2 or np.shape(A)[0] != np.shape(A)[1]:
+            raise AKFInputError(f"{name} must be a square matrix, got shape {np.shape(A)}")
+    if np.shape(K) != np.shape(M):
+        raise AKFInputError(f"K is {np.shape(K)[0]}x{np.shape(K)[1]} but M is {np.shape(M)[0]}x{np.shape(M)[1]}")
+    dofs, seen = _dof_map(dofs, np.shape(K)[0])          # before the matrices are converted: a size line is named
     K, M, large = _checked_matrices(K, M, n_modes)
     n = K.shape[0]
-    dofs, seen = _dof_map(dofs, n)
     coords = _coordinates(nodes, dofs)
     ids = np.array(sorted(coords))
     row_of = {int(k): i for i, k in enumerate(ids)}
@@ -338,6 +390,9 @@ def _checked_matrices(K, M, n_modes):
         K, M = check_symmetric(K, "K", SYMMETRY_RTOL), check_symmetric(M, "M", SYMMETRY_RTOL)
     else:
         K, M = _check_symmetric(K, "K"), _check_symmetric(M, "M")
+    if (K != M).sum() == 0:
+        raise AKFInputError("K and M are the same matrix: give the stiffness matrix (N/m) as K and the mass matrix (kg) "
+                            "as M")
     return K, M, large
 
 
@@ -378,6 +433,9 @@ def _coordinates(nodes, dofs):
 def _free(fixed, dofs, seen):
     """Which rows stay free (bool, one per DOF) after the constraints ``fixed``."""
     keep = np.ones(len(dofs), bool)
+    if isinstance(fixed, (str, bytes)) or (fixed is not None and np.ndim(fixed) == 0):
+        raise AKFInputError(f"fixed must be a list of DOFs (\"NODE:DIR\", e.g. [\"1:x\", \"1:y\"]) or node ids; got "
+                            f"{fixed!r}")
     for f in fixed or ():
         if isinstance(f, str):
             f = tuple(f.split(":")) if ":" in f else f
@@ -403,6 +461,11 @@ def _strain_blocks(strain_rows, extensometers, n, large, rows, coords, dofs, see
             raise AKFInputError(f"extensometer {bad[0]} is {list(extensometers)[bad[0] - 1]!r}: an extensometer is a pair "
                                 "of node ids [a, b]")
         members = np.array([[_node_id(a), _node_id(b)] for a, b in extensometers], dtype=int)
+        repeat = first_repeat([tuple(sorted(m)) for m in members.tolist()])
+        if repeat:
+            i, j, (a, b) = repeat
+            raise AKFInputError(f"extensometers {i + 1} and {j + 1} both join nodes {a} and {b}: strain:{i + 1} and "
+                                f"strain:{j + 1} would be one output twice (a member listed twice?); list each once")
         blocks.append(_extensometer_rows(members, coords, dofs, seen, rows, dof_names))
         if strain_rows is not None:           # extensometer k is strain:(k_own + k): its ends by output number
             first = blocks[0].shape[0] + 1

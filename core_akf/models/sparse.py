@@ -74,9 +74,9 @@ def as_sparse(A, name):
     import scipy.sparse
 
     refuse_complex(A, name)
+    if len(np.shape(A)) != 2 or np.shape(A)[0] != np.shape(A)[1]:
+        raise AKFInputError(f"{name} must be a square matrix, got shape {np.shape(A)}")
     A = scipy.sparse.csr_matrix(A, dtype=float)
-    if A.shape[0] != A.shape[1]:
-        raise AKFInputError(f"{name} must be a square matrix, got shape {A.shape}")
     if not np.all(np.isfinite(A.data)):
         raise AKFInputError(f"{name} has NaN or infinite entries")
     A.sum_duplicates()

@@ -2,6 +2,7 @@
 DOF map and coordinates -- with node ids of its own -- is the built-in truss; files and job keys;
 clear errors for matrices that cannot be a structural model."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ import scipy.sparse
 from akf.cli import main
 from core_akf import estimate, simulate
 from core_akf.checks import AKFInputError
-from core_akf.models import from_matrices, load_matrix, s17_truss
+from core_akf.models import from_files, from_matrices, load_matrix, s17_truss
 from core_akf.models.matrices import ModelWarning
 
 OFFSET = 100        # the exported model numbers its nodes 101..118
@@ -145,6 +146,7 @@ def two_dof():
     (lambda K, M, d, n: (K * np.nan, M, d, n), "K has NaN"),
     (lambda K, M, d, n: (np.array([[1.0, -1.0], [-1.0, 1.0]]), M, d, n), "rigid-body mode"),
     (lambda K, M, d, n: (K, -M, d, n), "positive definite"),
+    (lambda K, M, d, n: (K, K, d, n), "K and M are the same matrix"),
 ])
 def test_matrices_that_cannot_be_a_model_are_refused(change, message):
     with pytest.raises(AKFInputError, match=message):
@@ -191,3 +193,91 @@ def test_strain_rows_of_ones_own_come_before_the_extensometers(s17):
     assert m.strain_matrix[34] @ u == pytest.approx(ends / np.linalg.norm(s17.nodes[17] - s17.nodes[0]), rel=1e-12)
     with pytest.raises(AKFInputError, match="one column per matrix row \\(36\\)"):
         from_matrices(K, M, dofs, nodes, fixed=fixed, strain_rows=np.zeros((2, 5)))
+
+
+def _own_files(folder):
+    """A two-DOF model as files: K.mtx, M.mtx, dofs.csv, nodes.csv, members.csv."""
+    K, M, dofs, nodes = two_dof()
+    scipy.io.mmwrite(folder / "K.mtx", scipy.sparse.coo_matrix(K), symmetry="symmetric")
+    scipy.io.mmwrite(folder / "M.mtx", scipy.sparse.coo_matrix(M), symmetry="symmetric")
+    (folder / "dofs.csv").write_text("node,direction\n1,x\n2,x\n")
+    (folder / "nodes.csv").write_text("node,x,y\n1,1.0,0.0\n2,2.0,0.0\n3,0.0,0.0\n")
+    (folder / "members.csv").write_text("a,b\n3,1\n1,2\n")
+    return {k: str(folder / f) for k, f in (("K", "K.mtx"), ("M", "M.mtx"), ("dofs", "dofs.csv"), ("nodes", "nodes.csv"),
+                                            ("extensometers", "members.csv"))}
+
+
+def _edit(path, old, new):
+    path.write_text(path.read_text().replace(old, new))
+
+
+@pytest.mark.parametrize("damage, message", [
+    # a size line that cannot be true: refused from the header, before anything is allocated
+    (lambda d: _edit(d / "K.mtx", "2 2 3", "2 2 1000000000000"), "declares 1000000000000 entries for a 2 x 2 matrix, "
+     "which has 3 places"),
+    (lambda d: _edit(d / "K.mtx", "2 2 3", "2 2 4"), "declares a 2 x 2 matrix of 4 entries, but the file's \\d+ bytes "
+     "hold at most 3|declares 4 entries"),
+    (lambda d: [_edit(d / f, f"2 2 {k}", f"1000000000 1000000000 {k}") for f, k in (("K.mtx", 3), ("M.mtx", 2))],
+     "the DOF map has 2 rows for matrices of "
+     "1000000000 rows"),
+    (lambda d: _edit(d / "K.mtx", "2 2 3", "1000000000 1000000000000 3"), "K must be a square matrix, got shape "
+     "\\(1000000000, 1000000000000\\)"),
+    # cells described, never quoted (np.float64(nan) was quoted)
+    (lambda d: _edit(d / "nodes.csv", "3,0.0,0.0", "3,0.0,\n,,"), "nodes.csv: y in data row 3 is an empty cell, not a "
+     "finite number"),
+    (lambda d: _edit(d / "dofs.csv", "2,x", "2 m,x"), "dofs.csv: node in data row 2 is a number followed by text"),
+    (lambda d: _edit(d / "members.csv", "1,2", "1,inf"), "members.csv: node b in data row 2 is an infinite number"),
+    # a header that is no table's is not quoted
+    (lambda d: (d / "nodes.csv").write_text("root:x:0:0:root:/root:/bin/bash\n1\n"), "nodes.csv: missing column\\(s\\) "
+     "\\['node', 'x', 'y'\\]; found 1 column\\(s\\) whose header does not look like column names"),
+    # a member twice (in either order) would be one strain output twice
+    (lambda d: _edit(d / "members.csv", "1,2\n", "1,2\n2,1\n"), "extensometers 2 and 3 both join nodes 1 and 2"),
+])
+def test_model_files_that_cannot_be_true_are_named(tmp_path, damage, message):
+    files = _own_files(tmp_path)
+    damage(tmp_path)
+    with pytest.raises(AKFInputError, match=message):
+        from_files(**files)
+
+
+def test_model_files_of_excel_and_pickles(tmp_path):
+    """Trailing rows of empty cells (an Excel export) are no rows; a pickled .npy is refused
+    without advice to load it unsafely."""
+    files = _own_files(tmp_path)
+    _edit(tmp_path / "nodes.csv", "3,0.0,0.0\n", "3,0.0,0.0\n,,\n,,\n")
+    _edit(tmp_path / "members.csv", "1,2\n", "1,2\n,\n")
+    m = from_files(**files)
+    assert m.strain_matrix.shape[0] == 2
+    np.save(tmp_path / "K.npy", np.array([[object()]], dtype=object), allow_pickle=True)
+    with pytest.raises(AKFInputError, match="holds Python objects \\(pickled\\), which are never loaded"):
+        load_matrix(tmp_path / "K.npy")
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("units", "'mm'", "model = 'matrices' has no key 'units'; its keys are K, M, dofs, nodes, fixed"),
+    ("K", "3", "\\[structure\\] K must be a file's path \\(text, relative to the job file\\); got 3 \\(int\\)"),
+    ("M", "'K.mtx'", "K and M name the same file \\(K.mtx\\)"),
+    ("fixed", "'all'", "fixed must be a list of DOFs"),
+])
+def test_structure_keys_of_a_model_from_files(tmp_path, capsys, key, value, message):
+    """Each was a TypeError from inside (an unexpected keyword, a path that is a number, 'all'
+    read as the node ids 'a', 'l', 'l') or, for K given as M, a silent run on a model whose modes
+    all have one frequency."""
+    _own_files(tmp_path)
+    entries = {"K": "'K.mtx'", "M": "'M.mtx'", "dofs": "'dofs.csv'", "nodes": "'nodes.csv'", "fixed": "[]"} | {key: value}
+    (tmp_path / "job.toml").write_text('''dt = 0.001
+forces = ["2:x"]
+sensors = ["acc:2:x"]
+[structure]
+model = "matrices"
+''' + "".join(f"{k} = {v}\n" for k, v in entries.items()) + '''[filter]
+force_model = "matern32"
+force_std = 1.0
+force_timescale = 0.1
+[simulation]
+duration = 0.1
+[[simulation.loads]]
+components = [{type = "sine", frequency = 4.0, amplitude = 5.0}]
+''')
+    assert main(["estimate", str(tmp_path / "job.toml"), "--no-plot", "--out", str(tmp_path / "out")]) == 2
+    assert re.search(message, capsys.readouterr().err)
