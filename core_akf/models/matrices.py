@@ -328,9 +328,9 @@ def from_matrices(K: ArrayLike | scipy.sparse.sparray, M: ArrayLike | scipy.spar
     """
     if n_modes is not None:
         n_modes = check_n_modes(n_modes)
-    for A, name in ((K, "K"), (M, "M")):
+    for A, label in ((K, "K"), (M, "M")):
         if len(np.shape(A)) != 2 or np.shape(A)[0] != np.shape(A)[1]:
-            raise AKFInputError(f"{name} must be a square matrix, got shape {np.shape(A)}")
+            raise AKFInputError(f"{label} must be a square matrix, got shape {np.shape(A)}")
     if np.shape(K) != np.shape(M):
         raise AKFInputError(f"K is {np.shape(K)[0]}x{np.shape(K)[1]} but M is {np.shape(M)[0]}x{np.shape(M)[1]}")
     dofs, seen = _dof_map(dofs, np.shape(K)[0])          # before the matrices are converted: a size line is named

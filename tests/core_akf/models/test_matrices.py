@@ -281,3 +281,10 @@ components = [{type = "sine", frequency = 4.0, amplitude = 5.0}]
 ''')
     assert main(["estimate", str(tmp_path / "job.toml"), "--no-plot", "--out", str(tmp_path / "out")]) == 2
     assert re.search(message, capsys.readouterr().err)
+
+
+def test_a_model_error_is_named_by_the_model():
+    """The name was overwritten by the shape check's loop: "M: the model has a rigid-body mode"."""
+    K, M, dofs, nodes = two_dof()
+    with pytest.raises(AKFInputError, match="^frame: the model has a rigid-body mode"):
+        from_matrices(np.array([[1.0, -1.0], [-1.0, 1.0]]), M, dofs, nodes, name="frame")
