@@ -724,6 +724,8 @@ def check_n_modes(n_modes, name="n_modes"):
 
 #: a number followed by text: a unit written into the cells
 _NUMBER_THEN_TEXT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[^\d\s.,;+-]")
+#: a number alone (pandas adds ".1", ".2" to a repeated header cell)
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 #: how a column name may look to be quoted in a message (a file that is no table is not quoted)
 _COLUMN_NAME = re.compile(r"^[\w .:/()\[\]%^*#+-]{1,64}$")
 
@@ -780,6 +782,8 @@ def found_columns(columns) -> str:
     str
         "found [...]" or a count of columns that do not look like names.
     """
+    if columns and all(_NUMBER.fullmatch(re.sub(r"\.\d+$", "", str(c)).strip()) for c in columns):
+        return "found numbers in the first row: the table has no header row (add one that names the columns)"
     if len(columns) > 1 and all(_COLUMN_NAME.match(str(c)) for c in columns):
         shown = [str(c) for c in columns[:20]]
         return f"found {shown}" + (f" and {len(columns) - 20} more" if len(columns) > 20 else "")

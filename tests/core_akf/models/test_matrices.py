@@ -230,6 +230,10 @@ def _edit(path, old, new):
     # a header that is no table's is not quoted
     (lambda d: (d / "nodes.csv").write_text("root:x:0:0:root:/root:/bin/bash\n1\n"), "nodes.csv: missing column\\(s\\) "
      "\\['node', 'x', 'y'\\]; found 1 column\\(s\\) whose header does not look like column names"),
+    (lambda d: (d / "nodes.csv").write_text("1,1.0,0.0\n2,2.0,0.0\n3,0.0,0.0\n"), "found numbers in the first row: "
+     "the table has no header row"),
+    # a 3-D DOF map on 2-D coordinates (the 3-D truss collapsed onto its plan: "joins node 1 to itself")
+    (lambda d: _edit(d / "dofs.csv", "2,x", "2,z"), "the DOF map has z DOFs, but the node coordinates are 2-D"),
     # a member twice (in either order) would be one strain output twice
     (lambda d: _edit(d / "members.csv", "1,2\n", "1,2\n2,1\n"), "extensometers 2 and 3 both join nodes 1 and 2"),
 ])
