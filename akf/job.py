@@ -675,7 +675,8 @@ def build_structure(spec):
     if not isinstance(name, str) or name not in MODELS:
         raise AKFInputError(f"structure.model must be one of {sorted(MODELS)}, got {name!r}")
     params = inspect.signature(MODELS[name]).parameters
-    unknown = [k for k in spec if k not in params]
+    open_ended = any(p.kind == p.VAR_KEYWORD for p in params.values())     # footbridge(**overrides) names its own
+    unknown = [] if open_ended else [k for k in spec if k not in params]
     if unknown:
         raise AKFInputError(f"[structure] model = {name!r} has no key {unknown[0]!r}; its keys are "
                             f"{', '.join(params)}")

@@ -782,8 +782,12 @@ def found_columns(columns) -> str:
     str
         "found [...]" or a count of columns that do not look like names.
     """
-    if columns and all(_NUMBER.fullmatch(re.sub(r"\.\d+$", "", str(c)).strip()) for c in columns):
+    numbers = [bool(_NUMBER.fullmatch(re.sub(r"\.\d+$", "", str(c)).strip())) for c in columns]
+    if columns and all(numbers):
         return "found numbers in the first row: the table has no header row (add one that names the columns)"
+    if any(numbers):
+        return (f"found {len(columns)} column(s), {sum(numbers)} of them named by a number: is the header row "
+                "missing? (add one that names the columns)")
     if len(columns) > 1 and all(_COLUMN_NAME.match(str(c)) for c in columns):
         shown = [str(c) for c in columns[:20]]
         return f"found {shown}" + (f" and {len(columns) - 20} more" if len(columns) > 20 else "")

@@ -476,7 +476,8 @@ class Structure:
         return self._replace(damping=damping)
 
     def scaled(self, stiffness_factor: float = 1.0, mass_factor: float = 1.0) -> Structure:
-        """A copy with K (and M) multiplied by a factor; damping is rebuilt from the spec.
+        """A copy with K (and M) multiplied by a factor; damping is rebuilt from the spec (a damping
+        matrix ``C`` given instead of a spec is kept as given).
 
         ``stiffness_factor=1.05`` is the papers' "5 % stiffer" model error (equivalent to a 5 %
         larger Young's modulus).
@@ -505,7 +506,7 @@ class Structure:
         if self.static is not None:
             changes["static"] = self.static.scaled(stiffness_factor, mass_factor)
         if self.damping is None and np.any(self.C):
-            raise AKFInputError("cannot rescale a structure with an explicit C and no damping spec")
+            changes["C"] = self.C                   # a damping matrix of one's own is kept as given
         return self._replace(**changes)
 
     def with_frequency_factors(self, factors: ArrayLike) -> Structure:
@@ -515,7 +516,7 @@ class Structure:
         ``Phi``): a change of one mode's stiffness that leaves the others and every mode shape as
         they were.  A static correction (:attr:`static`) follows, so that the full model's
         static response is that of ``K'``.  The damping is rebuilt from its spec (a modal ratio
-        stays the ratio of each mode).
+        stays the ratio of each mode); a damping matrix ``C`` given instead is kept as given.
 
         Parameters
         ----------
@@ -538,8 +539,6 @@ class Structure:
             raise AKFInputError(f"frequency factors: give one per mode for modes 1..k (k <= {self.n}), got shape {f.shape}")
         if not np.all(np.isfinite(f)) or np.any(f <= 0):
             raise AKFInputError(f"frequency factors must be positive numbers, got {f.tolist()}")
-        if self.damping is None and np.any(self.C):
-            raise AKFInputError("cannot change the frequencies of a structure with an explicit C and no damping spec")
         omega, phi = self.eigen
         k = f.size
         change = (f ** 2 - 1.0) * omega[:k] ** 2                  # rad^2/s^2 added to each mode's eigenvalue
@@ -559,6 +558,8 @@ class Structure:
             from .models.sparse import StaticCorrection
 
             changes["static"] = StaticCorrection(solve, st.phi, kept, st.flexibility_scale)
+        if self.damping is None and np.any(self.C):
+            changes["C"] = self.C                   # a damping matrix of one's own is kept as given
         return self._replace(**changes)
 
     def reduce(self, n_modes: int, static_correction: bool = False) -> Structure:

@@ -427,10 +427,6 @@ def _coordinates(nodes, dofs):
     unknown = sorted({d[0] for d in dofs} - set(coords))
     if unknown:
         raise AKFInputError(f"the DOF map names node(s) {unknown[:10]} that have no coordinates")
-    out_of_plane = sorted({d[1] for d in dofs} & {"z", "rx", "ry"})
-    if dims == {2} and out_of_plane:
-        raise AKFInputError(f"the DOF map has {', '.join(out_of_plane)} DOFs, but the node coordinates are 2-D (x, y): "
-                            "give the nodes' z as well (a 2-D model in the x-y plane has the DOFs x, y and rz)")
     return coords
 
 

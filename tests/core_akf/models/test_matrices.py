@@ -232,8 +232,6 @@ def _edit(path, old, new):
      "\\['node', 'x', 'y'\\]; found 1 column\\(s\\) whose header does not look like column names"),
     (lambda d: (d / "nodes.csv").write_text("1,1.0,0.0\n2,2.0,0.0\n3,0.0,0.0\n"), "found numbers in the first row: "
      "the table has no header row"),
-    # a 3-D DOF map on 2-D coordinates (the 3-D truss collapsed onto its plan: "joins node 1 to itself")
-    (lambda d: _edit(d / "dofs.csv", "2,x", "2,z"), "the DOF map has z DOFs, but the node coordinates are 2-D"),
     # a member twice (in either order) would be one strain output twice
     (lambda d: _edit(d / "members.csv", "1,2\n", "1,2\n2,1\n"), "extensometers 2 and 3 both join nodes 1 and 2"),
 ])
@@ -292,3 +290,18 @@ def test_a_model_error_is_named_by_the_model():
     K, M, dofs, nodes = two_dof()
     with pytest.raises(AKFInputError, match="^frame: the model has a rigid-body mode"):
         from_matrices(np.array([[1.0, -1.0], [-1.0, 1.0]]), M, dofs, nodes, name="frame")
+
+
+def test_a_damping_matrix_of_ones_own_is_kept_under_a_stiffness_factor():
+    """Every job with C and a [filter] stiffness_factor (or a frequency calibration) ended in
+    "cannot rescale a structure with an explicit C": the given C is now kept as given."""
+    K, M, dofs, nodes = two_dof()
+    C = 0.5 * M + 1e-4 * K
+    s = from_matrices(K, M, dofs, nodes, C=C)
+    stiff = s.scaled(1.05)
+    np.testing.assert_array_equal(stiff.C, s.C)
+    np.testing.assert_allclose(stiff.K, 1.05 * s.K, rtol=1e-15)
+    np.testing.assert_allclose(stiff.frequencies(), np.sqrt(1.05) * s.frequencies(), rtol=1e-12)
+    shifted = s.with_frequency_factors([0.9])
+    np.testing.assert_array_equal(shifted.C, s.C)
+    np.testing.assert_allclose(shifted.frequencies(), s.frequencies() * [0.9, 1.0], rtol=1e-10)
