@@ -232,6 +232,8 @@ def _edit(path, old, new):
      "\\['node', 'x', 'y'\\]; found 1 column\\(s\\) whose header does not look like column names"),
     (lambda d: (d / "nodes.csv").write_text("1,1.0,0.0\n2,2.0,0.0\n3,0.0,0.0\n"), "found numbers in the first row: "
      "the table has no header row"),
+    (lambda d: (d / "dofs.csv").write_text("1,x\n2,x\n"), "found 2 column\\(s\\), 1 of them named by a number: is "
+     "the header row missing\\?"),
     # a member twice (in either order) would be one strain output twice
     (lambda d: _edit(d / "members.csv", "1,2\n", "1,2\n2,1\n"), "extensometers 2 and 3 both join nodes 1 and 2"),
 ])
