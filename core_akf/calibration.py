@@ -605,7 +605,9 @@ def _calibrate(structure: Structure, sensors: Layout, forces: Forces, measuremen
         raise AKFInputError(f"held must be one of {list(HELD_POLICIES)}, got {held!r}")
     Y = as_measurements(measurements, "measurements", ndim=2)
     force_model = as_force_model(force_model, force_increment_cov)
-    asked = [str(n) for n in ([parameters] if isinstance(parameters, str) else parameters)]
+    if not isinstance(parameters, str) and not (isinstance(parameters, (list, tuple)) and all(isinstance(n, str) for n in parameters)):
+        raise AKFInputError(f"parameters must be a list of parameter names (e.g. [\"stiffness_factor\"]), got {parameters!r}")
+    asked = list([parameters] if isinstance(parameters, str) else parameters)
     asked_method, asked_modes = method, modes
     own = ("force_std", "force_band") if force_model.kind == "butterworth" else ("force_std", "force_timescale")
     if force_model.stationary and "force_increment_cov" in asked:

@@ -352,6 +352,24 @@ def is_integer(value):
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
+def check_positive(value, name):
+    """A positive finite real number (a length, a modulus, a density), else an error naming it.
+
+    Parameters
+    ----------
+    value : object
+    name : str
+        The argument, for the message.
+
+    Returns
+    -------
+    float
+    """
+    if not is_real(value) or not np.isfinite(value) or value <= 0:
+        raise AKFInputError(f"{name} must be a positive number, got {value!r}")
+    return float(value)
+
+
 def as_time_step(dt, name="time step dt"):
     """A time step as a positive finite float (s); text, an array of more than one value or a
     true/false value is named, not converted.
@@ -747,8 +765,8 @@ def describe_cell(cell) -> str:
 
     Examples
     --------
-    >>> describe_cell("12.5 mV")
-    'a number followed by text (a unit in the cells? give numbers alone, and the unit as the channel\'s unit)'
+    >>> describe_cell("12,5")
+    'a number with a decimal comma (the files are read with a decimal point)'
     >>> describe_cell(float("nan"))
     'an empty cell'
     """

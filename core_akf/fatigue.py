@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import AKFInputError, ArrayLike, FloatArray
+from .checks import AKFInputError, ArrayLike, FloatArray, as_count, check_memory, check_numeric_kind, is_real
 from .structure import STRAIN_COMPONENTS
 
 #: the detail categories of EN 1993-1-9, Table 8.1 ff.: Δσ_C (MPa) at 2e6 cycles
@@ -52,8 +52,11 @@ class SNCurve:
     """
 
     def __init__(self, cycles: ArrayLike, ranges: ArrayLike, name: str = ""):
-        N = np.asarray(cycles, dtype=float)
-        S = np.asarray(ranges, dtype=float)
+        try:
+            check_numeric_kind(cycles, "an S-N curve's cycles"), check_numeric_kind(ranges, "an S-N curve's ranges")
+            N, S = np.asarray(cycles, dtype=float), np.asarray(ranges, dtype=float)
+        except (TypeError, ValueError):
+            raise AKFInputError("an S-N curve's cycles and ranges must be numbers (two lists of equal length)") from None
         if N.ndim != 1 or N.shape != S.shape or N.size < 2:
             raise AKFInputError(f"an S-N curve needs at least two (N, range) points, got {N.size}")
         if not (np.all(np.isfinite(N)) and np.all(np.isfinite(S)) and np.all(N > 0) and np.all(S > 0)):
@@ -202,7 +205,11 @@ class Cycles:
 
 
 def _as_columns(series):
-    X = np.asarray(series, dtype=float)
+    check_numeric_kind(series, "the series")
+    try:
+        X = np.asarray(series, dtype=float)
+    except (TypeError, ValueError):
+        raise AKFInputError(f"a series is an array of numbers (N,) or (N, outputs), got {type(series).__name__}") from None
     if X.ndim == 1:
         X = X[:, None]
     if X.ndim != 2:
@@ -331,6 +338,9 @@ def damage(cycles: Cycles, curve: SNCurve) -> FloatArray:
     >>> float(damage(c, SNCurve.ec3(71))[0] * 2e6)
     2.0
     """
+    _check_cycles(cycles)
+    if not isinstance(curve, SNCurve):
+        raise AKFInputError(f"curve must be an SNCurve (SNCurve.ec3(71), say), got {type(curve).__name__}")
     return np.bincount(cycles.output, weights=cycles.counts * curve.damage_per_cycle(cycles.ranges),
                        minlength=cycles.n_outputs)
 
@@ -357,13 +367,20 @@ def equivalent_range(cycles: Cycles, m: float, n_eq: float) -> FloatArray:
     >>> float(equivalent_range(c, 3.0, 2.0)[0])
     2.0
     """
+    _check_cycles(cycles)
     _check_equivalence(m, n_eq)
     sums = np.bincount(cycles.output, weights=cycles.counts * cycles.ranges ** m, minlength=cycles.n_outputs)
     return (sums / n_eq) ** (1.0 / m)
 
 
+def _check_cycles(cycles):
+    if not isinstance(cycles, Cycles):
+        raise AKFInputError(f"cycles must be the Cycles that rainflow() counts, got {type(cycles).__name__} (were the "
+                            "arguments swapped?)")
+
+
 def _check_equivalence(m, n_eq):
-    if not (np.isfinite(m) and m > 0) or not (np.isfinite(n_eq) and n_eq > 0):
+    if not (is_real(m) and is_real(n_eq)) or not (np.isfinite(m) and m > 0) or not (np.isfinite(n_eq) and n_eq > 0):
         raise AKFInputError(f"the equivalent range needs a slope m > 0 and N_eq > 0, got m = {m!r}, N_eq = {n_eq!r}")
 
 
@@ -422,7 +439,10 @@ class FatigueAccumulator:
 
     def __init__(self, n_outputs: int, curve: SNCurve, m: float = 3.0, n_eq: float = 2e6):
         _check_equivalence(m, n_eq)
-        self.k, self.curve, self.m, self.n_eq = int(n_outputs), curve, float(m), float(n_eq)
+        if not isinstance(curve, SNCurve):
+            raise AKFInputError(f"curve must be an SNCurve (SNCurve.ec3(71), say), got {type(curve).__name__}")
+        self.k, self.curve, self.m, self.n_eq = as_count(n_outputs, "n_outputs", minimum=1), curve, float(m), float(n_eq)
+        check_memory(self.k, 16, f"fatigue of {self.k:.6g} outputs", "give fewer outputs", items="outputs")
         self.full_cycles = np.zeros(self.k)
         self.full_max = np.zeros(self.k)
         self.full_damage = np.zeros(self.k)

@@ -242,7 +242,7 @@ class ForceModel:
 
     def __post_init__(self):
         check_load_hold(self.hold)
-        if self.kind not in FORCE_MODELS:
+        if not isinstance(self.kind, str) or self.kind not in FORCE_MODELS:
             raise AKFInputError(f"unknown force model {self.kind!r}; the force models are {list(FORCE_MODELS)}")
         if self.kind != "butterworth" and self.band is not None:
             raise AKFInputError(f"force_band belongs to the Butterworth force model; the {self.kind} force model "
@@ -702,6 +702,8 @@ class DummyMeasurements:
     variance: float
 
     def __post_init__(self):
+        if not isinstance(self.sensors, (str, list, tuple)):
+            raise AKFInputError(f"dummy sensors must be a list of labels (e.g. [\"disp:8:y\"]), got {self.sensors!r}")
         sensors = (self.sensors,) if isinstance(self.sensors, str) else tuple(self.sensors)
         object.__setattr__(self, "sensors", sensors)
         if not sensors:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .checks import AKFInputError
-from .structure import STRAIN_COMPONENTS
+from .structure import STRAIN_COMPONENTS, check_structure
 
 KINDS = ("strain", "acc", "vel", "disp")
 #: units of each sensor kind (for labels and reports)
@@ -177,6 +177,8 @@ def as_layout(sensors):
     """
     if isinstance(sensors, (str, Sensor, dict)):
         sensors = [sensors]
+    if not isinstance(sensors, (list, tuple, np.ndarray)):
+        raise AKFInputError(f"sensors must be a list of sensor labels (\"acc:4:y\", \"strain:5\"), got {sensors!r}")
     layout = tuple(Sensor.parse(s) for s in sensors)
     if not layout:
         raise AKFInputError("the sensor layout is empty")
@@ -241,8 +243,11 @@ def parse_force_locations(structure, forces):
     AKFInputError
         For an unknown node, a constrained DOF or a location given twice.
     """
+    check_structure(structure)
     if isinstance(forces, str):
         forces = [forces]
+    if not isinstance(forces, (list, tuple, np.ndarray)):
+        raise AKFInputError(f"forces must be a list of force locations (\"4:y\": node 4, direction y), got {forces!r}")
     locs = []
     for f in forces:
         if isinstance(f, str):

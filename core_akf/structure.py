@@ -642,3 +642,26 @@ class Structure:
     def __repr__(self):
         kind = f"reduced to {self.n} modes" if self.is_reduced else f"{self.n} DOFs"
         return f"<Structure {self.name!r}: {self.n_nodes} nodes, {kind}, {self.n_strain} strain outputs>"
+
+
+def check_structure(structure) -> Structure:
+    """``structure`` checked to be a :class:`Structure`: a path, a job or a dict is named.
+
+    Parameters
+    ----------
+    structure : object
+
+    Returns
+    -------
+    Structure
+        ``structure`` itself.
+
+    Raises
+    ------
+    AKFInputError
+        For anything else.
+    """
+    if not isinstance(structure, Structure):
+        raise AKFInputError(f"structure must be a Structure (core_akf.models.s17_truss(), from_files(...), ...), got "
+                            f"{type(structure).__name__}")
+    return structure

@@ -18,8 +18,11 @@ from helpers import run_estimate
 from akf.cli import main
 from core_akf import AKFInputError, UndetectableError
 from core_akf import filter as akf
+from core_akf.calibration import calibrate
+from core_akf.fatigue import FatigueAccumulator, SNCurve, damage, equivalent_range, rainflow
 from core_akf.filter import estimate
-from core_akf.models import s17_truss
+from core_akf.forcemodels import DummyMeasurements, ForceModel
+from core_akf.models import plate, s17_truss
 from core_akf.simulate import simulate
 from core_akf.structure import Structure
 
@@ -169,6 +172,36 @@ API_CASES = {
     "steady on undetectable": (lambda: _estimate(sensors=["acc:4:y", "acc:8:y", "strain:9"], steady=True,
                                                  allow_undetectable=True, measurements=_measured()[:, :3]),
                                "steady-state AKF does not exist"),
+    # arguments of another type, each a TypeError/AttributeError/ValueError from inside before
+    "a structure that is a path": (lambda: _estimate(structure="model.toml"), "structure must be a Structure .*, got str"),
+    "forces left out": (lambda: _estimate(forces=None), "forces must be a list of force locations"),
+    "one sensor as a number": (lambda: _estimate(sensors=5.0), "sensors must be a list of sensor labels"),
+    "layouts as a number": (lambda: akf.estimate_batch(s17_truss(), -1, FORCES, np.ones((1, 10, 4)), DT,
+                                                       model_error_cov=1e-16, force_increment_cov=1e4, noise_cov=1e-8),
+                            "layouts must be a list of sensor layouts"),
+    "FilterModel dt as empty text": (lambda: akf.FilterModel(s17_truss(), FORCES, ""), "time step dt must be a positive"),
+    "calibrate parameters as a number": (
+        lambda: calibrate(s17_truss(), SENSORS, FORCES, _measured(), DT, parameters=1, model_error_cov=1e-16,
+                          force_increment_cov=1e4, noise_cov={"strain": 1e-14, "acc": 1e-2}),
+        "parameters must be a list of parameter names"),
+    "damage with swapped arguments": (lambda: damage(SNCurve.ec3(71), rainflow([0.0, 1e8, 0.0])),
+                                      "cycles must be the Cycles that rainflow\\(\\) counts, got SNCurve \\(were the "
+                                      "arguments swapped\\?\\)"),
+    "an S-N curve that is a number": (lambda: damage(rainflow([0.0, 1e8, 0.0]), 71), "curve must be an SNCurve"),
+    "a slope as text": (lambda: equivalent_range(rainflow([0.0, 1e8, 0.0]), "3", 2e6), "needs a slope m > 0"),
+    "fatigue of 1e300 outputs": (lambda: FatigueAccumulator(1e300, SNCurve.ec3(71)), "fatigue of 1e\\+300 outputs: .* need about"),
+    "an S-N curve of objects": (lambda: SNCurve([1e6, 2e6], [object(), 1e8]), "must be numbers"),
+    "a force model kind that is no text": (lambda: ForceModel(kind=["matern32"]), "unknown force model"),
+    "dummy sensors as a number": (lambda: DummyMeasurements(sensors=1e-3, variance=1e-8), "dummy sensors must be a list"),
+    "a plate of 1e300 elements": (lambda: plate(1e300, 4, 1.0, 1.0, 0.01, 2e11, 0.3, 7800.0),
+                                  "a plate mesh of 1e\\+300 x 4 elements: .* need about"),
+    "a plate of text elements": (lambda: plate("4", 4, 1.0, 1.0, 0.01, 2e11, 0.3, 7800.0), "must be a whole number"),
+    "a complex plate length": (lambda: plate(4, 4, 1j, 1.0, 0.01, 2e11, 0.3, 7800.0), "ly|lx must be a positive number"),
+    "a plate beyond memory": (lambda: plate(10 ** 6, 10 ** 6, 1.0, 1.0, 0.01, 2e11, 0.3, 7800.0),
+                              "a plate mesh of 1e\\+06 x 1e\\+06 elements: .* need about"),
+    "a complex Young's modulus": (lambda: s17_truss(E=1j), "E must be a positive number"),
+    "a truss height as text": (lambda: s17_truss(height=""), "height must be a positive number"),
+    "a series of objects": (lambda: rainflow({}), "a series is an array of numbers"),
     "singular mass": (lambda: Structure(M=np.diag([1.0, 0.0]), K=np.eye(2), nodes=[[0, 0]], dof_names=("x", "y"),
                                         free_dofs=[0, 1]), "mass matrix M is singular"),
     "K not symmetric": (lambda: Structure(M=np.eye(2), K=np.array([[2.0, 1.0], [0.0, 2.0]]), nodes=[[0, 0]],

@@ -95,7 +95,7 @@ class FilterModel:
         self.full = structure
         self.load_hold = load_hold = "zero" if force_model is None else force_model.hold
         self.forces = parse_force_locations(structure, forces)
-        self.dt = float(dt)
+        self.dt = as_time_step(dt)
         self.n_modes = resolve_modes(n_modes, structure, dt, accelerations=True)
         # the one static-correction path: the reduced structure carries it (Structure.reduce), kept
         # with the structure so that every force location and candidate shares one factorisation
@@ -403,6 +403,8 @@ class Filter:
                  allow_undetectable: bool = False, x0: ArrayLike | None = None, P0: Covariance | None = None,
                  force_model: ForceModel | None = None, dummy: DummyMeasurements | None = None):
         dt = as_time_step(dt)
+        if not isinstance(layouts, (list, tuple)):
+            raise AKFInputError(f"layouts must be a list of sensor layouts (each a list of labels), got {layouts!r}")
         self.layouts = [as_layout(layout) for layout in layouts]
         if not self.layouts:
             raise AKFInputError("no sensor layouts given")

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..checks import Damping, FloatArray, ModelError, check_n_modes
+from ..checks import Damping, FloatArray, ModelError, as_count, check_memory, check_n_modes, check_positive, is_real
 from ..structure import Structure
 from .sparse import DEFAULT_MODES, DENSE_LIMIT, modal_parts
 
@@ -169,7 +169,10 @@ def plate(nx: int, ny: int, lx: float, ly: float, thickness: float, E: float, nu
     """
     if n_modes is not None:
         n_modes = check_n_modes(n_modes)
-    large = n_modes is not None or 3 * (int(nx) + 1) * (int(ny) + 1) > DENSE_LIMIT
+    nx, ny = as_count(nx, "nx (elements along x)", minimum=1), as_count(ny, "ny (elements along y)", minimum=1)
+    check_memory(3 * (nx + 1) * (ny + 1), 300, f"a plate mesh of {nx:.6g} x {ny:.6g} elements", "use a coarser mesh",
+                 items="DOFs")
+    large = n_modes is not None or 3 * (nx + 1) * (ny + 1) > DENSE_LIMIT
     K, M, S, nodes, free = _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges, large)
     nx, ny = int(nx), int(ny)
     meta = dict(nx=nx, ny=ny, lx=lx, ly=ly, thickness=thickness, E=E, nu=nu, rho=rho, clamped_edge=clamped_edge)
@@ -190,13 +193,9 @@ def plate(nx: int, ny: int, lx: float, ly: float, thickness: float, E: float, nu
 def _assemble(nx, ny, lx, ly, thickness, E, nu, rho, clamped_edge, simply_supported_edges, large):
     """Checked inputs to K, M (all DOFs), the nodal strain operator, the node coordinates and
     the free DOFs; sparse (CSR) if ``large``."""
-    nx, ny = int(nx), int(ny)
-    if nx < 1 or ny < 1:
-        raise ModelError(f"the mesh needs at least one element each way, got {nx} x {ny}")
     for label, v in (("lx", lx), ("ly", ly), ("thickness", thickness), ("E", E), ("rho", rho)):
-        if not np.isfinite(v) or v <= 0:
-            raise ModelError(f"{label} must be a positive number, got {v!r}")
-    if not -1 < nu < 0.5:
+        check_positive(v, label)
+    if not is_real(nu) or not -1 < nu < 0.5:
         raise ModelError(f"Poisson's ratio must be in (-1, 0.5), got {nu!r}")
     a, b = lx / nx, ly / ny
     Ke, Me = rectangular_element(a, b, thickness, E, nu, rho)

@@ -26,7 +26,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..checks import ArrayLike, Damping, ModelError
+from ..checks import ArrayLike, Damping, ModelError, check_positive
 from ..structure import Structure
 
 #: S17 member connectivity, 1-based joints, in member order 1..34
@@ -152,6 +152,7 @@ def planar_truss(nodes: ArrayLike, members: Sequence[tuple[int, int]], areas: fl
     >>> t.n, t.strain_labels
     (3, ['strain:1', 'strain:2', 'strain:3'])
     """
+    check_positive(E, "E"), check_positive(rho, "rho")
     nodes = np.asarray(nodes, float)
     n_nodes = nodes.shape[0]
     members0 = np.asarray(members, int) - 1
@@ -228,6 +229,7 @@ def s17_truss(E: float = 200e9, rho: float = 7800.0, damping: Damping = 0.007, p
     >>> s.n, s.n_strain, round(float(s.frequencies(1)[0]), 2)
     (33, 34, 30.37)
     """
+    check_positive(panel, "panel"), check_positive(height, "height")
     return planar_truss(s17_joint_coordinates(panel, height), S17_MEMBERS, s17_areas(), E, rho,
                  supports={1: "xy", 18: "y"}, damping=damping, lumped=lumped, name="S17 truss")
 
