@@ -204,6 +204,33 @@ def solve_filter_dare(A, G, Q, R, tol=1e-13, max_iter=80, check=True, newton_ste
 _OWN_THREADS_UP_TO = 256
 
 
+def accurate_filter_dare(A, G, Q, R, newton_steps=3):
+    """The filter DARE of one problem by doubling and Newton polishing only, or None where its
+    solution is not accurate (relative residual above ``_RESIDUAL_OK``): no scipy fall-back and no
+    warning, for a caller that has a slower exact path of its own (a cycle of observation patterns,
+    :func:`core_akf.filter.kernels._periodic_riccati`).
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+    G : ndarray (m, n)
+    Q : ndarray (n, n), symmetric PSD
+    R : ndarray (m, m), symmetric PD
+    newton_steps : int
+        Newton (Hewer) steps at most on a solution above rounding level.
+
+    Returns
+    -------
+    ndarray (n, n) or None
+    """
+    A, G, Q, R = (np.asarray(x, dtype=float)[None] for x in (A, G, Q, R))
+    with np.errstate(all="ignore"):
+        P = _solve_stack(A, G, Q, R, 1e-13, 80, False, newton_steps)
+        ok = np.all(np.isfinite(P), axis=(-2, -1))
+        res = _polish(A, G, Q, R, P, ok, newton_steps)
+    return P[0] if res[0] < _RESIDUAL_OK else None
+
+
 def _solve_stack(A, G, Q, R, tol, max_iter, check, newton_steps):
     """:func:`solve_filter_dare` on a flat stack (nb, n, n)."""
     nb, n = A.shape[0], A.shape[-1]
