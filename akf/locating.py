@@ -57,8 +57,11 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
 
     spec = job.spec
     sensors = job.sensors           # checked against the structure
+    record_notes = []
     if spec.measurements is not None:
-        Y = job.open_record().read()[1]
+        record = job.open_record()
+        Y = record.read()[1]
+        record_notes = list(record.unit_warnings) + record.rate_notes() + record.gap_notes()
     elif spec.simulation is not None:
         if spec.forces is None:
             raise AKFInputError("a simulated locate job needs forces = ['NODE:DIR'] (where the impact hits)")
@@ -77,11 +80,13 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
     tuning = None if loc.tuning is None else loc.tuning.model_dump(exclude_none=True)
     if tuning and "decades" in tuning:
         check_decades(tuning["decades"], "[locate.tuning] decades")
-    return locate(job.structure, sensors, Y, job.dt, n_ad=loc.n_ad, direction=loc.direction,
-                  ad_kinds=tuple(loc.ad_kinds or ["strain"]), candidates=loc.candidates, covariances=covariances,
-                  tune=(True if loc.tune is None else loc.tune) if tune is None else tune, max_splits=loc.max_splits,
-                  n_modes=job.n_modes, skip=loc.skip or 0.0, n_jobs=n_jobs, seed=seed, progress=progress,
-                  tuning=tuning, force_model=force_model)
+    result = locate(job.structure, sensors, Y, job.dt, n_ad=loc.n_ad, direction=loc.direction,
+                    ad_kinds=tuple(loc.ad_kinds or ["strain"]), candidates=loc.candidates, covariances=covariances,
+                    tune=(True if loc.tune is None else loc.tune) if tune is None else tune, max_splits=loc.max_splits,
+                    n_modes=job.n_modes, skip=loc.skip or 0.0, n_jobs=n_jobs, seed=seed, progress=progress,
+                    tuning=tuning, force_model=force_model)
+    result.record_notes = record_notes
+    return result
 
 
 def is_event_folder(job):

@@ -49,6 +49,9 @@ class LocateResult:
         With the assumed covariances.
     seconds : dict
         Wall time per stage (s).
+    record_notes : list of str
+        What the record says of itself, set by its reader's caller (units of other files, channels
+        at rates of their own, gaps); first among :attr:`warnings`.
     """
 
     scan: object
@@ -56,6 +59,7 @@ class LocateResult:
     reconstruction: object
     initial: object
     seconds: dict = field(default_factory=dict)
+    record_notes: list = field(default_factory=list)
 
     @property
     def identified(self):
@@ -63,8 +67,10 @@ class LocateResult:
 
     @property
     def warnings(self):
-        """Why a result should be read with care (list of str): low confidence, tuning at a bound."""
-        return list(self.scan.warnings) + (self.tuning.warnings if self.tuning is not None else [])
+        """Why a result should be read with care (list of str): what the record says of itself
+        (units, channels at other rates, gaps), low confidence, tuning at a bound."""
+        return list(self.record_notes) + list(self.scan.warnings) + (self.tuning.warnings if self.tuning is not None
+                                                                     else [])
 
     def to_dict(self) -> dict:
         """JSON-ready summary: identified node, confidence, margin, force characteristics, ranking.

@@ -402,6 +402,16 @@ class Record:
                 f"{self.max_gap:g} s, the filter restarts from its prior after it" if g.restart else
                 "the filter predicts through it (its steps are missing samples)") for g in self.gaps]
 
+    def rate_notes(self) -> list[str]:
+        """Channels at rates of their own (:meth:`MixedRecord.rate_notes`): none in a record whose
+        files hold all its channels at one rate.
+
+        Returns
+        -------
+        list of str
+        """
+        return []
+
     @property
     def dt(self):
         return self.timings[0].dt
@@ -733,6 +743,11 @@ def open_record(files: str | os.PathLike | Sequence[str | os.PathLike], sensors:
     return MixedRecord(sensors, subs)
 
 
+def _ordinal(k: int) -> str:
+    """The English ordinal suffix of ``k`` (2 -> "nd", 11 -> "th")."""
+    return "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
+
+
 def _reader_of(reader, channels_map):
     """``reader`` restricted to the record's channels where its channels come at several rates (a
     channel set of a :class:`MixedRecord` that shares its file with others)."""
@@ -810,6 +825,19 @@ class MixedRecord:
     def unit_warnings(self) -> list[str]:
         """The channels of every channel set recorded in different units by its files (:attr:`Record.unit_warnings`)."""
         return [w for r in self.parts for w in r.unit_warnings]
+
+    def rate_notes(self) -> list[str]:
+        """One line per channel set slower than the fastest: its rate, and how the filter takes it.
+
+        Returns
+        -------
+        list of str
+        """
+        fast = 1 / self.dt
+        return [f"{', '.join(r.labels)} sample{'s' if len(r.labels) == 1 else ''} at {1 / r.dt:.6g} Hz, every "
+                f"{k}{_ordinal(k)} step of the {fast:.6g} Hz grid: the filter takes {'it' if len(r.labels) == 1 else 'them'} "
+                "at its own samples (missing in between), without resampling"
+                for r, k in zip(self.parts, self.ratios) if k > 1]
 
     def gap_notes(self) -> list[str]:
         """The gap notes of every channel set (:meth:`Record.gap_notes`).

@@ -356,6 +356,35 @@ def test_locate_over_a_folder_of_impact_records(tmp_path, capsys):
     assert (tmp_path / "out" / "events" / "impact-0002" / "ranking.csv").exists()
 
 
+def test_locate_on_an_impact_record_with_a_gauge_at_half_the_rate(tmp_path, capsys):
+    """SG5 recorded at 500 Hz beside the others at 1 kHz: the event is found at its node as from the
+    full record, with a warning that names the channel's rate (it was taken silently, and the
+    periodic gains of its cycle took 0.15 s per candidate: 107 s for the file)."""
+    import shutil
+
+    from nptdms import ChannelObject, TdmsFile, TdmsWriter
+
+    events = tmp_path / "events"
+    events.mkdir()
+    src = TdmsFile.read(DAQ.parent / "impacts" / "impact-0001.tdms")
+    with TdmsWriter(events / "impact-0001.tdms") as w:
+        w.write_segment([ChannelObject("DAQ", c.name, c[::2], properties=dict(
+            c.properties, wf_increment=2 * c.properties["wf_increment"])) if c.name == "SG5" else
+            ChannelObject("DAQ", c.name, c[:], properties=c.properties) for c in src["DAQ"].channels()])
+    shutil.copy(DAQ.parent / "impacts" / "impact-0001.tdms", events / "impact-0002.tdms")
+    job = load_job_file(DAQ.parent / "impacts" / "truss-impacts.toml")
+    job["measurements"]["file"] = str(events)
+    job["locate"]["max_splits"] = 6
+    (tmp_path / "job.toml").write_text(_toml(job))
+    assert main(["locate", str(tmp_path / "job.toml"), "--no-tune", "--json", "--out", str(tmp_path / "out")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    table = pd.read_csv(out["files"]["events"])
+    assert table["node"].tolist() == [14, 14]
+    assert abs(table["peak_force_N"][0] / table["peak_force_N"][1] - 1) < 0.05, table["peak_force_N"].tolist()
+    assert "strain:5 samples at 500 Hz, every 2nd step of the 1000 Hz grid" in table["warnings"][0]
+    assert "500 Hz" not in str(table["warnings"][1])
+
+
 def test_record_chunks_from_a_later_step_skip_the_files_before(tmp_path):
     """A resumed record starts at a chunk boundary inside a later file and gives the same chunks."""
     _split_tdms(tmp_path / "pieces")
