@@ -454,7 +454,7 @@ class Job:
         record = self.open_record()
         counts = record.observed_counts()
         if counts.all():
-            return record, self, list(record.unit_warnings)
+            return record, self, list(record.warnings)
         dead = [s for s, c in zip(self.sensors, counts) if c == 0]
         live = [s for s, c in zip(self.sensors, counts) if c > 0]
         for kind in sorted({s.kind for s in dead}):
@@ -468,7 +468,7 @@ class Job:
         notes = [f"channel {s.label} has no observed sample in the record (every value is missing): dropped from the "
                  "sensors" for s in dead]
         record = job.open_record()
-        return record, job, list(record.unit_warnings) + notes
+        return record, job, list(record.warnings) + notes
 
     def without_sensors(self, labels) -> Job:
         """The same job without some sensors (their channel map, units and per-sensor noise too).

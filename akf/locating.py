@@ -61,7 +61,7 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
     if spec.measurements is not None:
         record = job.open_record()
         Y = record.read()[1]
-        record_notes = list(record.unit_warnings) + record.rate_notes() + record.gap_notes()
+        record_notes = list(record.warnings) + record.rate_notes() + record.gap_notes()
     elif spec.simulation is not None:
         if spec.forces is None:
             raise AKFInputError("a simulated locate job needs forces = ['NODE:DIR'] (where the impact hits)")

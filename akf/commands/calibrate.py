@@ -46,7 +46,7 @@ def _calibrate(args):
         *_, report = calibrate_job(job, model, job.sensors, job.forces, Y, noise_cov,
                                    None if record is None else record.n_steps)
         if record is not None:
-            report["warnings"] = list(record.unit_warnings) + report["warnings"]
+            report["warnings"] = list(record.warnings) + report["warnings"]
         path = os.path.join(out, "calibrated.toml")
         source = args.job or example_path(args.example)
         write_calibrated(source, report, path)

@@ -29,7 +29,7 @@ def _oma(args):
     with OutputFolder(out, "--out"):
         if job.spec.measurements is not None:
             record = job.open_record()
-            for w in record.unit_warnings:
+            for w in record.warnings:
                 print(f"akf: warning: {w}", file=sys.stderr)
             Y = np.vstack([chunk for _, chunk in record.chunks(record.n_steps)])
             source = "the record"

@@ -113,6 +113,10 @@ class MissingExtraError(AKFInputError):
     """A format whose reading library is not installed."""
 
 
+class EmptyFileError(AKFInputError):
+    """A data file without a data row (a record of many files skips it, with a warning)."""
+
+
 class Reader(ABC):
     """One data file.
 
@@ -257,7 +261,7 @@ def check_time_grid(t, path, dt=None, offset=0):
     """
     t, origin = time_in_seconds(t, path)
     if t.size < 1:
-        raise AKFInputError(f"{path}: 0 data rows; a record needs at least two time steps")
+        raise EmptyFileError(f"{path}: 0 data rows; a record needs at least two time steps")
     if not np.all(np.isfinite(t)):
         r = int(np.flatnonzero(~np.isfinite(t))[0])
         raise AKFInputError(f"{path}: time column has a missing/NaN value in data row {offset + r + 1}")

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..checks import AKFInputError, FloatArray, Layout, Time, is_real
 from ..sensors import MAX_READABLE, SENSOR_NAMES, UNITS, as_layout, readable_limits
-from .readers import TIME_GRID_RTOL, formats, open_file, reader_class
+from .readers import TIME_GRID_RTOL, EmptyFileError, formats, open_file, reader_class
 from .units import conversion, is_bridge_unit, is_unset
 
 #: a strain channel whose RMS exceeds this (m/m) is not in SI units: 1 % is five times the yield
@@ -187,7 +187,8 @@ class Record:
         File channel -> unit (``"microstrain"``, ``"g"``, ``"mV/V"``, ...); default the unit the
         file records, else SI.  A channel without a unit in one file where another file states one
         is an error; files that state different units are each converted by their own and named in
-        ``unit_warnings`` (a list of str).
+        ``unit_warnings`` (a list of str).  A file without a data row among others is skipped
+        and named in :attr:`warnings`.
     gauge_factor : float or dict, optional
         Gauge factor of bridge outputs (mV/V), one for all or per channel.
     bridge : str or dict, optional
@@ -270,13 +271,24 @@ class Record:
         if not (is_real(max_gap) and not np.isnan(max_gap) and max_gap >= 0):
             raise AKFInputError(f"max_gap must be a time >= 0 (s), got {max_gap!r}")
         self.max_gap = float(max_gap)
-        self.files, self.timings, self.sources = [], [], []
+        self.files, self.timings, self.sources, self.empty_files = [], [], [], []
         for p in paths:
             reader = self._open(p)
+            try:
+                timing = reader.timing()
+            except EmptyFileError:
+                timing = None
+            if timing is None or timing.n_steps == 0:
+                if len(paths) == 1:
+                    raise EmptyFileError(f"{p}: 0 data rows; a record needs at least two time steps")
+                self.empty_files.append(p)          # a DAQ session stopped at once: nothing to join
+                continue
             self.files.append(p)
-            self.timings.append(reader.timing())
+            self.timings.append(timing)
             self.sources.append(self._resolve(reader))
             del reader
+        if not self.files:
+            raise EmptyFileError(f"none of the record's {len(paths)} files has a data row ({paths[0]}, ...)")
         order = np.argsort([t.start for t in self.timings], kind="stable")
         self.files = [self.files[i] for i in order]
         self.timings = [self.timings[i] for i in order]
@@ -401,6 +413,12 @@ class Record:
                 f"{os.path.basename(self.files[g.file])}: " + ("longer than max_gap = "
                 f"{self.max_gap:g} s, the filter restarts from its prior after it" if g.restart else
                 "the filter predicts through it (its steps are missing samples)") for g in self.gaps]
+
+    @property
+    def warnings(self) -> list[str]:
+        """What a reader of the results should know of the record's files: files skipped for having
+        no data row, channels recorded in different units (:attr:`unit_warnings`)."""
+        return [f"{p}: no data row (an empty file); skipped" for p in self.empty_files] + list(self.unit_warnings)
 
     def rate_notes(self) -> list[str]:
         """Channels at rates of their own (:meth:`MixedRecord.rate_notes`): none in a record whose
@@ -825,6 +843,11 @@ class MixedRecord:
     def unit_warnings(self) -> list[str]:
         """The channels of every channel set recorded in different units by its files (:attr:`Record.unit_warnings`)."""
         return [w for r in self.parts for w in r.unit_warnings]
+
+    @property
+    def warnings(self) -> list[str]:
+        """The warnings of every channel set (:attr:`Record.warnings`)."""
+        return [w for r in self.parts for w in r.warnings]
 
     def rate_notes(self) -> list[str]:
         """One line per channel set slower than the fastest: its rate, and how the filter takes it.

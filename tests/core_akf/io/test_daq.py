@@ -385,6 +385,41 @@ def test_locate_on_an_impact_record_with_a_gauge_at_half_the_rate(tmp_path, caps
     assert "500 Hz" not in str(table["warnings"][1])
 
 
+@pytest.mark.parametrize("kind", ["tdms", "csv"])
+def test_an_empty_file_among_a_records_files_is_skipped_and_named(tmp_path, kind):
+    """A DAQ session stopped at once leaves a file without a data row: a TDMS one was joined
+    silently, a CSV one refused the whole record.  It is skipped with a warning; the record is the
+    one without it; a record of empty files only is refused."""
+    df = pd.read_csv(DAQ / "record-si.csv")
+    folder = tmp_path / "rec"
+    folder.mkdir()
+    cuts = [(0, 400), (400, 400), (400, len(df))]
+    if kind == "csv":
+        for i, (a, b) in enumerate(cuts):
+            df.iloc[a:b].to_csv(folder / f"part-{i}.csv", index=False)
+    else:
+        from nptdms import ChannelObject, TdmsWriter
+
+        dt = df.time[1]
+        for i, (a, b) in enumerate(cuts):
+            with TdmsWriter(folder / f"part-{i}.tdms") as w:
+                w.write_segment([ChannelObject("DAQ", c, df[c].to_numpy()[a:b], properties={
+                    "wf_increment": dt, "wf_start_offset": a * dt}) for c in SENSORS])
+    rec = Record(folder, SENSORS)
+    assert rec.warnings == [f"{folder / f'part-1.{kind}'}: no data row (an empty file); skipped"]
+    t, Y = rec.read()
+    np.testing.assert_array_equal(Y, df[SENSORS].to_numpy())
+    for f in folder.iterdir():
+        if f.name != f"part-1.{kind}":
+            f.unlink()
+    with pytest.raises(AKFInputError, match="0 data rows"):
+        Record(folder, SENSORS)
+    (folder / "part-1.again").write_bytes((folder / f"part-1.{kind}").read_bytes())
+    (folder / "part-1.again").rename(folder / f"part-2.{kind}")
+    with pytest.raises(AKFInputError, match="none of the record's 2 files has a data row"):
+        Record(folder, SENSORS)
+
+
 def test_record_chunks_from_a_later_step_skip_the_files_before(tmp_path):
     """A resumed record starts at a chunk boundary inside a later file and gives the same chunks."""
     _split_tdms(tmp_path / "pieces")
