@@ -271,6 +271,18 @@ class Record:
         if not (is_real(max_gap) and not np.isnan(max_gap) and max_gap >= 0):
             raise AKFInputError(f"max_gap must be a time >= 0 (s), got {max_gap!r}")
         self.max_gap = float(max_gap)
+        self._read_files(paths)
+        order = np.argsort([t.start for t in self.timings], kind="stable")
+        self.files = [self.files[i] for i in order]
+        self.timings = [self.timings[i] for i in order]
+        self.sources = [self.sources[i] for i in order]
+        self._check_joins()
+        self._check_units()
+        self.offsets = None
+
+    def _read_files(self, paths):
+        """Each file's time grid and sources (``files``, ``timings``, ``sources``), in the order
+        given; a file without a data row among others skipped (``empty_files``)."""
         self.files, self.timings, self.sources, self.empty_files = [], [], [], []
         for p in paths:
             reader = self._open(p)
@@ -289,13 +301,6 @@ class Record:
             del reader
         if not self.files:
             raise EmptyFileError(f"none of the record's {len(paths)} files has a data row ({paths[0]}, ...)")
-        order = np.argsort([t.start for t in self.timings], kind="stable")
-        self.files = [self.files[i] for i in order]
-        self.timings = [self.timings[i] for i in order]
-        self.sources = [self.sources[i] for i in order]
-        self._check_joins()
-        self._check_units()
-        self.offsets = None
 
     # ---------------------------------------------------------------------------- channels
     def _channel_map(self, channels):
