@@ -120,6 +120,12 @@ TIMESCALE_BELOW_DT = 1e3
 MAX_TIMESCALE = 1e8
 
 
+#: the largest model-error variance a job may give (m^2 or rad^2 per step at every DOF: 3 cm per
+#: step): beyond it a typing slip (1e-2 on S17 ended in a failed steady-state gain, 1e6 took 30 s
+#: of Riccati solvers on the plate and gave forces of 1e-5 N)
+MAX_MODEL_ERROR_COV = 1e-3
+
+
 #: a factor on the model's stiffness (or on a mode's frequency, squared) beyond this either way
 #: makes another structure, not a calibration of this one: a typing slip (1e-12 ended in "the
 #: innovation covariance is not positive definite", 1e12 in a failed steady-state gain)
@@ -140,6 +146,24 @@ def check_stiffness_factors(stiffness, frequencies=(), key="[filter] stiffness_f
             raise AKFInputError(f"[filter] frequency_factors[{k - 1}] = {value:.4g} multiplies mode {k}'s frequency: a "
                                 "mode that far off is another structure; give a factor between "
                                 f"{MAX_STIFFNESS_FACTOR ** -0.5:g} and {MAX_STIFFNESS_FACTOR ** 0.5:g}")
+
+
+def check_covariance_levels(model_error_cov, force_increment_cov, section="[filter]"):
+    """``model_error_cov`` (m^2 per step) and ``force_increment_cov`` (N^2 per step) of a job
+    checked against what a structure can take (:data:`MAX_MODEL_ERROR_COV`; a giga-newton step,
+    :data:`MAX_FORCE_STD` squared), so that a mistyped level is named by its key instead of failing
+    in the Riccati solver; a level that is no number is left to the filter's checks."""
+    for key, value, top, unit, typical in (
+            ("model_error_cov", model_error_cov, MAX_MODEL_ERROR_COV, "m^2 per step at every DOF", "1e-16 to 1e-8"),
+            ("force_increment_cov", force_increment_cov, MAX_FORCE_STD ** 2, "N^2 per step", "1e2 to 1e8")):
+        try:
+            big = np.max(np.abs(np.asarray(value, float)), initial=0.0)
+        except (TypeError, ValueError):
+            continue
+        if big > top:
+            raise AKFInputError(f"{section} {key} = {big:.4g} {unit} (a step of {np.sqrt(big):.3g} at one standard "
+                                f"deviation) is beyond what a structure takes (at most {top:g}): a typing slip? "
+                                f"Typical levels are {typical}")
 
 
 def check_force_prior(std, timescale, dt):
@@ -266,6 +290,7 @@ class Job:
                                         f.stiffness_factor)
         self.model_error_cov = default("model_error_cov", f.model_error_cov)
         self.force_increment_cov = default("force_increment_cov", f.force_increment_cov)
+        check_covariance_levels(self.model_error_cov, self.force_increment_cov)
         self.steady = f.steady
         self.allow_undetectable = bool(f.allow_undetectable)
         self.frequency_factors = list(f.frequency_factors or [])

@@ -55,6 +55,8 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
     from impactloc.scan import Covariances
     from impactloc.tuning import check_decades
 
+    from .job import check_covariance_levels
+
     spec = job.spec
     sensors = job.sensors           # checked against the structure
     record_notes = []
@@ -70,6 +72,8 @@ def run_locate_job(job, n_jobs=1, seed=0, progress=False, tune=None, simulation=
         raise AKFInputError("the locate job needs a [measurements] section (or a [simulation] to try the method)")
     loc = spec.locate
     c = loc.covariances
+    if c is not None:
+        check_covariance_levels(c.model_error_cov, c.force_increment_cov, "[locate.covariances]")
     covariances = None if c is None else Covariances(c.model_error_cov, c.force_increment_cov, dict(c.noise_cov))
     force_model = job.force_model if job.force_model.stationary else None
     if force_model is not None and covariances is None:      # the Matérn std of [filter] starts the levels

@@ -135,11 +135,11 @@ class Filter(Section):
                          "default the full model (the key was reduce_modes)", used_by=ESTIMATE)
     model_error_cov: Covariance = key(
         "a variance >= 0, a list of variances or a matrix (list of lists)",
-        "Q: model-error variance per step (one level, one per state, or the matrix)",
+        "Q: model-error variance per step (one level, one per state, or the matrix; at most 1e-3)",
         used_by=("estimate", "place"), unit="state units^2", registry="model_error_cov")
     force_increment_cov: Covariance = key(
         "a variance >= 0, a list of variances or a matrix (list of lists)",
-        "S: force-increment variance per step (random-walk force model)", used_by=("estimate", "place"),
+        "S: force-increment variance per step (random-walk force model; at most 1e18)", used_by=("estimate", "place"),
         unit="N^2", registry="force_increment_cov")
     force_model: Literal[FORCE_MODEL_NAMES] = key(
         "one of " + ", ".join(f'\"{k}\"' for k in FORCE_MODEL_NAMES),

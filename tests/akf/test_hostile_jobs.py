@@ -60,6 +60,13 @@ MISTYPED = {
                               r"force_timescale = 1e\+300 s is beyond any record"),
     "smooth_lag 1e300": ({"filter.smooth": True, "filter.smooth_lag": 1e300},
                          r"smooth_lag = 1e\+300 s is longer than the record \(0.100\d* s\)"),
+    # both ended in a failed steady-state gain (the plate: 30 s of Riccati solvers first)
+    "model_error_cov 1e6 (1e-6 meant)": ({"filter.model_error_cov": 1e6},
+                                         r"\[filter\] model_error_cov = 1e\+06 m\^2 per step .* beyond what a "
+                                         r"structure takes \(at most 0.001\)"),
+    "model_error_cov 1e-2": ({"filter.model_error_cov": 1e-2}, r"model_error_cov = 0.01 m\^2 per step"),
+    "force_increment_cov 1e24": ({"filter.force_increment_cov": 1e24},
+                                 r"force_increment_cov = 1e\+24 N\^2 per step .* \(at most 1e\+18\)"),
 }
 
 
@@ -110,3 +117,14 @@ def test_tuning_decades_out_of_range_is_named_by_its_key_before_the_scan(tmp_pat
     assert re.search(r"\[locate.tuning\] decades = \S+ is the half-width of the search", err) or \
         "decades in [locate.tuning]" in err, err
     assert not (tmp_path / "o" / "scan.csv").exists()
+
+
+def test_a_mistyped_locate_covariance_is_named_by_its_key(tmp_path, capsys):
+    """[locate.covariances] are checked as [filter]'s are, before the scan."""
+    text = (ROOT / "akf" / "examples" / "jobs" / "imp-truss-case1.toml").read_text().replace(
+        "[simulation]", "[locate.covariances]\nmodel_error_cov = 1e4\nforce_increment_cov = 1e5\n"
+                        "noise_cov = {strain = 1e-12, acc = 1e-4}\n\n[simulation]")
+    job = tmp_path / "job.toml"
+    job.write_text(text)
+    assert main(["locate", str(job), "--no-plot", "--no-tune", "--out", str(tmp_path / "o")]) == 2
+    assert "[locate.covariances] model_error_cov = 1e+04 m^2 per step" in capsys.readouterr().err
