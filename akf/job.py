@@ -153,15 +153,15 @@ def check_covariance_levels(model_error_cov, force_increment_cov, section="[filt
     checked against what a structure can take (:data:`MAX_MODEL_ERROR_COV`; a giga-newton step,
     :data:`MAX_FORCE_STD` squared), so that a mistyped level is named by its key instead of failing
     in the Riccati solver; a level that is no number is left to the filter's checks."""
-    for key, value, top, unit, typical in (
-            ("model_error_cov", model_error_cov, MAX_MODEL_ERROR_COV, "m^2 per step at every DOF", "1e-16 to 1e-8"),
-            ("force_increment_cov", force_increment_cov, MAX_FORCE_STD ** 2, "N^2 per step", "1e2 to 1e8")):
+    for key, value, top, unit, step, typical in (
+            ("model_error_cov", model_error_cov, MAX_MODEL_ERROR_COV, "m^2 per step at every DOF", "m", "1e-16 to 1e-8"),
+            ("force_increment_cov", force_increment_cov, MAX_FORCE_STD ** 2, "N^2 per step", "N", "1e2 to 1e8")):
         try:
             big = np.max(np.abs(np.asarray(value, float)), initial=0.0)
         except (TypeError, ValueError):
             continue
         if big > top:
-            raise AKFInputError(f"{section} {key} = {big:.4g} {unit} (a step of {np.sqrt(big):.3g} at one standard "
+            raise AKFInputError(f"{section} {key} = {big:.4g} {unit} (a step of {np.sqrt(big):.3g} {step} at one standard "
                                 f"deviation) is beyond what a structure takes (at most {top:g}): a typing slip? "
                                 f"Typical levels are {typical}")
 
